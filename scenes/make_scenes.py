@@ -1,0 +1,501 @@
+#!/usr/bin/env python3
+"""Generate the SmallVCM Cornell-box family as self-contained glTF 2.0 files.
+
+SmallVCM (Davidovic & Georgiev) builds all of its scenes from one function that
+reads a bit mask of `Scene::BoxMask` flags. This script does the same: the
+function `build_cornell_box(mask)` turns a mask into a small scene description
+(camera, triangle groups, spheres, lights), and `to_gltf()` writes that
+description in the glTF subset of docs/scene_format.md.
+
+All numbers are SmallVCM's float32 literals (the project's reference table
+shared/SMALLVCM_SCENES.md; the format is docs/scene_format.md). Coordinates are SmallVCM's, NOT rotated to glTF's
++y-up convention: right-handed, +z up, the camera looks along roughly +y.
+
+Usage:   python3 scenes/make_scenes.py      (writes scenes/cornell_*.gltf)
+Needs:   Python 3, standard library only.
+"""
+
+import base64
+import json
+import math
+import os
+import struct
+
+# ---------------------------------------------------------------------------
+# Scene flags (SmallVCM's Scene::BoxMask) and the configurations we ship
+# ---------------------------------------------------------------------------
+
+LIGHT_CEILING = 1          # area light: light-box bottom (or whole ceiling)
+LIGHT_SUN = 2              # directional light
+LIGHT_POINT = 4            # point light; also removes the light box
+LIGHT_BACKGROUND = 8       # constant environment light
+LARGE_MIRROR_SPHERE = 16   # r = 0.8, centre of the floor
+LARGE_GLASS_SPHERE = 32    # r = 0.8 (dropped if LARGE_MIRROR_SPHERE is set)
+SMALL_MIRROR_SPHERE = 64   # r = 0.5, left
+SMALL_GLASS_SPHERE = 128   # r = 0.5, right
+GLOSSY_FLOOR = 256         # glossy floor (2) and blue back wall (8)
+BOTH_SMALL_SPHERES = SMALL_MIRROR_SPHERE | SMALL_GLASS_SPHERE      # 192
+DEFAULT = LIGHT_CEILING | BOTH_SMALL_SPHERES                       # 193
+
+# (file name, mask) in the order of the renderer's `-s` index.
+# -s 0..3 are SmallVCM's g_SceneConfigs; -s 4 is SmallVCM's kDefault.
+SCENE_CONFIGS = [
+    ("cornell_0_sun.gltf", GLOSSY_FLOOR | BOTH_SMALL_SPHERES | LIGHT_SUN),
+    ("cornell_1_mirror_ceiling.gltf", GLOSSY_FLOOR | LARGE_MIRROR_SPHERE | LIGHT_CEILING),
+    ("cornell_2_point.gltf", GLOSSY_FLOOR | BOTH_SMALL_SPHERES | LIGHT_POINT),
+    ("cornell_3_background.gltf", GLOSSY_FLOOR | BOTH_SMALL_SPHERES | LIGHT_BACKGROUND),
+    ("cornell_4_default.gltf", DEFAULT),
+]
+
+
+def has(mask, flags):
+    """True when every bit of `flags` is set in `mask`."""
+    return (mask & flags) == flags
+
+
+def scene_name(mask):
+    """The name SmallVCM prints for a mask: floor, box content, lighting."""
+    name = "glossy " if has(mask, GLOSSY_FLOOR) else ""
+    if has(mask, BOTH_SMALL_SPHERES):
+        name += "small spheres"
+    elif has(mask, SMALL_MIRROR_SPHERE):
+        name += "small mirror sphere"
+    elif has(mask, SMALL_GLASS_SPHERE):
+        name += "small glass sphere"
+    elif has(mask, LARGE_MIRROR_SPHERE):
+        name += "large mirror sphere"
+    elif has(mask, LARGE_GLASS_SPHERE):
+        name += "large glass sphere"
+    else:
+        name += "empty"
+    if has(mask, LIGHT_CEILING):
+        name += " + ceiling (area)"
+    elif has(mask, LIGHT_SUN):
+        name += " + sun (directional)"
+    elif has(mask, LIGHT_POINT):
+        name += " + point"
+    elif has(mask, LIGHT_BACKGROUND):
+        name += " + background (env. lighting)"
+    return name
+
+
+# ---------------------------------------------------------------------------
+# Small vector helpers and float32 handling
+# ---------------------------------------------------------------------------
+
+def f32(x):
+    """Round a Python float to the nearest float32 value."""
+    return struct.unpack("<f", struct.pack("<f", x))[0]
+
+
+def f32_json(x):
+    """The shortest decimal that reads back as the same float32 (for JSON)."""
+    v = f32(x)
+    for digits in range(1, 10):
+        s = "%.*g" % (digits, v)
+        if f32(float(s)) == v:
+            return float(s) + 0.0   # + 0.0 turns -0.0 into 0.0
+    raise AssertionError("unreachable: 9 digits always round-trip a float32")
+
+
+def f32_point(p):
+    """A point with float32 coordinates (SmallVCM's Vec3f)."""
+    return (f32(p[0]), f32(p[1]), f32(p[2]))
+
+
+def cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0])
+
+
+def neg(a):
+    return (-a[0], -a[1], -a[2])
+
+
+def normalize(a):
+    length = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    return (a[0] / length, a[1] / length, a[2] / length)
+
+
+def f32_vec(values):
+    """A list of float32 values (shortest decimals) for JSON."""
+    return [f32_json(v) for v in values]
+
+
+# ---------------------------------------------------------------------------
+# Materials: SmallVCM ids 0..8 (a file holds the ones its scene uses, in id order)
+# ---------------------------------------------------------------------------
+
+def material(name, diffuse=(0.0, 0.0, 0.0), phong=(0.0, 0.0, 0.0),
+             exponent=1.0, mirror=(0.0, 0.0, 0.0), ior=-1.0):
+    """SmallVCM's Material: Lambert + modified Phong + mirror (+ glass if ior >= 0)."""
+    return {"name": name, "diffuse": diffuse, "phong": phong,
+            "exponent": exponent, "mirror": mirror, "ior": ior}
+
+
+MATERIALS = [
+    material("light 0 (emitter)"),                                    # 0
+    material("light 1 (emitter)"),                                    # 1
+    material("glossy floor", diffuse=(0.1, 0.1, 0.1),
+             phong=(0.7, 0.7, 0.7), exponent=90.0),                   # 2
+    material("green (left wall)", diffuse=(0.156863, 0.803922, 0.172549)),  # 3
+    material("red (right wall)", diffuse=(0.803922, 0.152941, 0.152941)),   # 4
+    material("white", diffuse=(0.803922, 0.803922, 0.803922)),       # 5
+    material("mirror", mirror=(1.0, 1.0, 1.0)),                       # 6
+    material("glass", mirror=(1.0, 1.0, 1.0), ior=1.6),               # 7
+    material("blue (back wall)", diffuse=(0.156863, 0.172549, 0.803922)),   # 8
+]
+EMITTER_0, EMITTER_1, GLOSSY, GREEN, RED, WHITE, MIRROR, GLASS, BLUE = range(9)
+
+# Radiance of the light-box bottom (configs with LIGHT_CEILING and the light box).
+LIGHT_BOX_RADIANCE = 25.03329895614464
+# Radiance of the whole-ceiling variant (LIGHT_CEILING | LIGHT_POINT, not shipped).
+WHOLE_CEILING_RADIANCE = 0.95492965
+
+
+# ---------------------------------------------------------------------------
+# The scene built from a mask
+# ---------------------------------------------------------------------------
+
+def build_cornell_box(mask):
+    """Build SmallVCM's Cornell box for `mask` as a plain description.
+
+    Returns a dict with
+      camera:     (position, forward, up_hint), fov_deg (horizontal)
+      walls:      [(name, [(material_id, [(p0, p1, p2), ...]), ...]), ...]
+      spheres:    [(name, centre, radius, material_id), ...]
+      light_box:  like walls (empty without the light box)
+                  (walls, spheres, light box is SmallVCM's insertion order)
+      emission:   {material_id: radiance} for the emitters used
+      point, sun: punctual lights or None; background: radiance or None
+    """
+    light_ceiling = has(mask, LIGHT_CEILING)
+    light_sun = has(mask, LIGHT_SUN)
+    light_point = has(mask, LIGHT_POINT)
+    light_background = has(mask, LIGHT_BACKGROUND)
+    light_box = not light_point
+
+    scene = {"mask": mask, "name": scene_name(mask)}
+
+    # Camera: the numbers of SmallVCM's LoadCornellBox, horizontal fov 45 deg.
+    scene["camera"] = ((-0.0439815, -4.12529, 0.222539),
+                       (0.00688625, 0.998505, -0.0542161),
+                       (3.73896e-4, 0.0542148, 0.998529))
+    scene["fov_deg"] = 45.0
+
+    # Box corners: cb0..cb3 at the back (y = 1.30455), cb4..cb7 at the open front.
+    cb = [f32_point(p) for p in [
+        (-1.27029, 1.30455, -1.28002), (1.28975, 1.30455, -1.28002),
+        (1.28975, 1.30455, 1.28002), (-1.27029, 1.30455, 1.28002),
+        (-1.27029, -1.25549, -1.28002), (1.28975, -1.25549, -1.28002),
+        (1.28975, -1.25549, 1.28002), (-1.27029, -1.25549, 1.28002)]]
+
+    def tri(points, i, j, k):
+        return (points[i], points[j], points[k])
+
+    walls = []
+    emission = {}
+    glossy = has(mask, GLOSSY_FLOOR)
+
+    # Box walls, all facing the interior; there is no front wall.
+    walls.append(("floor", [(GLOSSY if glossy else WHITE,
+                             [tri(cb, 0, 4, 5), tri(cb, 5, 1, 0)])]))
+    walls.append(("back wall", [(BLUE if glossy else WHITE,
+                                 [tri(cb, 0, 1, 2), tri(cb, 2, 3, 0)])]))
+    if light_ceiling and not light_box:
+        # The whole ceiling is the light (two lights, one per triangle).
+        walls.append(("ceiling light (emitter)",
+                      [(EMITTER_0, [tri(cb, 2, 6, 7)]),
+                       (EMITTER_1, [tri(cb, 7, 3, 2)])]))
+        emission[EMITTER_0] = emission[EMITTER_1] = WHOLE_CEILING_RADIANCE
+    else:
+        walls.append(("ceiling", [(WHITE, [tri(cb, 2, 6, 7), tri(cb, 7, 3, 2)])]))
+    walls.append(("left wall", [(GREEN, [tri(cb, 3, 7, 4), tri(cb, 4, 0, 3)])]))
+    walls.append(("right wall", [(RED, [tri(cb, 1, 5, 6), tri(cb, 6, 2, 1)])]))
+
+    # Spheres, placed as SmallVCM places them, in float32 arithmetic (every
+    # operation rounded to float32, as the original computes with floats):
+    # large: floor centre + (0, 0, r); small: the left/right wall mid-points at
+    # floor height + r, moved 2/7 of the box width towards the centre.
+    # Results: large (0.009729981, 0.024530053, -0.48002), small x -0.53885 and
+    # 0.55831 (the reference table prints them rounded: 0.00972998, 0.02453005).
+    floor_centre = tuple(f32(f32(f32(f32(cb[0][i] + cb[1][i]) + cb[4][i]) + cb[5][i]) * 0.25)
+                         for i in range(3))
+    large_centre = (floor_centre[0], floor_centre[1], f32(floor_centre[2] + 0.8))
+    left_mid = tuple(f32(f32(cb[0][i] + cb[4][i]) * 0.5) for i in range(3))
+    right_mid = tuple(f32(f32(cb[1][i] + cb[5][i]) * 0.5) for i in range(3))
+    shift = f32(f32(2.0 * f32(right_mid[0] - left_mid[0])) / 7.0)
+    small_left = (f32(left_mid[0] + shift), left_mid[1], f32(left_mid[2] + 0.5))
+    small_right = (f32(right_mid[0] - shift), right_mid[1], f32(right_mid[2] + 0.5))
+    spheres = []
+    if has(mask, LARGE_MIRROR_SPHERE):
+        spheres.append(("large mirror sphere", large_centre, 0.8, MIRROR))
+    elif has(mask, LARGE_GLASS_SPHERE):
+        spheres.append(("large glass sphere", large_centre, 0.8, GLASS))
+    if has(mask, SMALL_MIRROR_SPHERE):
+        spheres.append(("small mirror sphere", small_left, 0.5, MIRROR))
+    if has(mask, SMALL_GLASS_SPHERE):
+        spheres.append(("small glass sphere", small_right, 0.5, GLASS))
+
+    # Light box: a 0.5 x 0.5 x 0.02 box hanging from the ceiling, sides facing
+    # outwards, no top; its bottom faces down and is the area light if any.
+    light_box_meshes = []
+    if light_box:
+        lb = [f32_point(p) for p in [
+            (-0.25, 0.25, 1.26002), (0.25, 0.25, 1.26002),
+            (0.25, 0.25, 1.28002), (-0.25, 0.25, 1.28002),
+            (-0.25, -0.25, 1.26002), (0.25, -0.25, 1.26002),
+            (0.25, -0.25, 1.28002), (-0.25, -0.25, 1.28002)]]
+        light_box_meshes.append(("light box sides", [(WHITE, [
+            tri(lb, 0, 2, 1), tri(lb, 2, 0, 3),     # back  (+y)
+            tri(lb, 3, 4, 7), tri(lb, 4, 3, 0),     # left  (-x)
+            tri(lb, 1, 6, 5), tri(lb, 6, 1, 2),     # right (+x)
+            tri(lb, 4, 5, 6), tri(lb, 6, 7, 4),     # front (-y)
+        ])]))
+        if light_ceiling:
+            # Two emitter materials, hence two primitives, hence two lights.
+            light_box_meshes.append(("light (emitter)",
+                                     [(EMITTER_0, [tri(lb, 0, 5, 4)]),
+                                      (EMITTER_1, [tri(lb, 5, 0, 1)])]))
+            emission[EMITTER_0] = emission[EMITTER_1] = LIGHT_BOX_RADIANCE
+        else:
+            light_box_meshes.append(("light box bottom",
+                                     [(WHITE, [tri(lb, 0, 5, 4), tri(lb, 5, 0, 1)])]))
+
+    scene["walls"] = walls
+    scene["spheres"] = spheres
+    scene["light_box"] = light_box_meshes
+    scene["emission"] = emission
+
+    # Punctual and environment lights.
+    # Sun: travels along normalize(-1, 1.5, -1); irradiance (0.5, 0.2, 0) * 20.
+    scene["sun"] = ((-1.0, 1.5, -1.0), (1.0, 0.4, 0.0), 10.0) if light_sun else None
+    # Point: total power 70 W, isotropic -> intensity 70 / (4 pi) W/sr.
+    scene["point"] = ((0.0, -0.5, 1.0), (1.0, 1.0, 1.0), 70.0 / (4.0 * math.pi)) if light_point else None
+    # Background: the colour (135, 206, 250) / 255, scale 1.
+    scene["background"] = (tuple(c / 255.0 for c in (135, 206, 250))
+                           if light_background else None)
+    return scene
+
+
+# ---------------------------------------------------------------------------
+# glTF output
+# ---------------------------------------------------------------------------
+
+def pbr_approximation(m, emissive):
+    """pbrMetallicRoughness values for ordinary viewers (docs/scene_format.md,
+    mapping used backwards); the renderer reads SMALLVCM_material instead."""
+    extensions = {}
+    if emissive:
+        base, metallic, roughness = (0.0, 0.0, 0.0), 0.0, 1.0
+    elif m["ior"] >= 0.0:       # clear glass
+        base, metallic, roughness = (1.0, 1.0, 1.0), 0.0, 0.0
+        extensions["KHR_materials_transmission"] = {"transmissionFactor": 1.0}
+        extensions["KHR_materials_ior"] = {"ior": m["ior"]}
+    elif max(m["mirror"]) > 0.0:  # perfect mirror: ks = baseColor at metallic 1
+        base, metallic, roughness = m["mirror"], 1.0, 0.0
+    elif max(m["phong"]) > 0.0:
+        # Grey diffuse d + grey Phong s: solve kd = (1-m) 0.96 b and
+        # ks = 0.04 (1-m) + m b for u = 1 - m (the root in [0, 1]):
+        # 0.0384 u^2 - (0.96 s + d) u + d = 0.
+        d, s = m["diffuse"][0], m["phong"][0]
+        bq = 0.96 * s + d
+        u = (bq - math.sqrt(bq * bq - 4.0 * 0.0384 * d)) / (2.0 * 0.0384)
+        metallic = 1.0 - u
+        base = (d / (0.96 * u),) * 3
+        roughness = (2.0 / (m["exponent"] + 2.0)) ** 0.25   # n = 2/r^4 - 2
+    else:                       # Lambert
+        base = tuple(c / 0.96 for c in m["diffuse"])
+        metallic, roughness = 0.0, 1.0
+    pbr = {"baseColorFactor": [round(c, 6) for c in base] + [1.0],
+           "metallicFactor": round(metallic, 6),
+           "roughnessFactor": round(roughness, 6)}
+    return pbr, extensions
+
+
+def camera_matrix(position, forward, up_hint):
+    """Column-major matrix with columns right, up, -forward, position."""
+    forward = normalize(forward)
+    right = normalize(cross(up_hint, neg(forward)))
+    up = cross(neg(forward), right)
+    return (f32_vec(right) + [0.0] + f32_vec(up) + [0.0] +
+            f32_vec(neg(forward)) + [0.0] + f32_vec(position) + [1.0])
+
+
+def direction_matrix(travel):
+    """Rotation whose local -Z axis is `travel` (an orthonormal, right-handed basis)."""
+    z = neg(normalize(travel))
+    x = normalize(cross((0.0, 0.0, 1.0), z))
+    y = cross(z, x)
+    return f32_vec(x) + [0.0] + f32_vec(y) + [0.0] + f32_vec(z) + [0.0, 0.0, 0.0, 0.0, 1.0]
+
+
+def to_gltf(scene):
+    """The glTF 2.0 document (a dict) of a scene from build_cornell_box()."""
+    used = set()
+    required = set()
+    positions = bytearray()   # bufferView 0: float32 VEC3, stride 12
+    indices = bytearray()     # bufferView 1: uint32
+    accessors, meshes, nodes, materials = [], [], [], []
+    material_index = {}       # SmallVCM id -> glTF material index
+
+    # Only the materials the scene uses, in SmallVCM id order.
+    used_ids = {mid for _, prims in scene["walls"] + scene["light_box"] for mid, _ in prims}
+    used_ids |= {mid for _, _, _, mid in scene["spheres"]}
+    for mid in sorted(used_ids):
+        m = MATERIALS[mid]
+        emissive = mid in scene["emission"]
+        pbr, ext = pbr_approximation(m, emissive)
+        ext["SMALLVCM_material"] = {
+            "diffuse": f32_vec(m["diffuse"]), "phong": f32_vec(m["phong"]),
+            "phongExponent": f32_json(m["exponent"]), "mirror": f32_vec(m["mirror"]),
+            "ior": f32_json(m["ior"])}
+        gm = {"name": "SmallVCM material %d: %s" % (mid, m["name"]),
+              "pbrMetallicRoughness": pbr}
+        if emissive:
+            gm["emissiveFactor"] = [1.0, 1.0, 1.0]
+            ext["KHR_materials_emissive_strength"] = {
+                "emissiveStrength": scene["emission"][mid]}
+        gm["extensions"] = ext
+        used.update(ext)
+        material_index[mid] = len(materials)
+        materials.append(gm)
+
+    # Camera node first, as SmallVCM sets the camera up first.
+    position, forward, up_hint = scene["camera"]
+    # Square aspect: the vertical fov equals SmallVCM's horizontal 45 degrees.
+    yfov = math.radians(scene["fov_deg"])
+    cameras = [{"name": "camera", "type": "perspective",
+                "perspective": {"aspectRatio": 1.0, "yfov": yfov, "znear": 0.01}}]
+    nodes.append({"name": "camera", "camera": 0,
+                  "matrix": camera_matrix(position, forward, up_hint)})
+
+    def add_primitive(mid, triangles):
+        """One primitive: unique vertices in first-use order, triangle order kept."""
+        verts, idx = [], []
+        for t in triangles:
+            for p in t:
+                key = f32_point(p)
+                if key not in verts:
+                    verts.append(key)
+                idx.append(verts.index(key))
+        pos_acc = len(accessors)
+        accessors.append({"bufferView": 0, "byteOffset": len(positions),
+                          "componentType": 5126, "count": len(verts), "type": "VEC3",
+                          "min": [f32_json(min(v[i] for v in verts)) for i in range(3)],
+                          "max": [f32_json(max(v[i] for v in verts)) for i in range(3)]})
+        for v in verts:
+            positions.extend(struct.pack("<3f", *v))
+        idx_acc = len(accessors)
+        accessors.append({"bufferView": 1, "byteOffset": len(indices),
+                          "componentType": 5125, "count": len(idx), "type": "SCALAR"})
+        indices.extend(struct.pack("<%dI" % len(idx), *idx))
+        return {"attributes": {"POSITION": pos_acc}, "indices": idx_acc,
+                "material": material_index[mid], "mode": 4}
+
+    # Geometry in SmallVCM's insertion order: walls, spheres, light box.
+    def add_mesh(name, prims):
+        meshes.append({"name": name,
+                       "primitives": [add_primitive(mid, tris) for mid, tris in prims]})
+        nodes.append({"name": name, "mesh": len(meshes) - 1})
+
+    for name, prims in scene["walls"]:
+        add_mesh(name, prims)
+    for name, centre, radius, mid in scene["spheres"]:
+        nodes.append({"name": name, "translation": f32_vec(centre),
+                      "extensions": {"SMALLVCM_sphere": {
+                          "radius": f32_json(radius), "material": material_index[mid]}}})
+        used.add("SMALLVCM_sphere")
+        required.add("SMALLVCM_sphere")
+    for name, prims in scene["light_box"]:
+        add_mesh(name, prims)
+
+    # Punctual lights (KHR_lights_punctual): 1 cd := 1 W/sr, 1 lux := 1 W/m^2.
+    lights = []
+    if scene["sun"] is not None:
+        travel, color, intensity = scene["sun"]
+        lights.append({"name": "sun", "type": "directional",
+                       "color": list(color), "intensity": intensity})
+        nodes.append({"name": "sun", "matrix": direction_matrix(travel),
+                      "extensions": {"KHR_lights_punctual": {"light": len(lights) - 1}}})
+    if scene["point"] is not None:
+        pos, color, intensity = scene["point"]
+        lights.append({"name": "point light", "type": "point",
+                       "color": list(color), "intensity": intensity})
+        nodes.append({"name": "point light", "translation": f32_vec(pos),
+                      "extensions": {"KHR_lights_punctual": {"light": len(lights) - 1}}})
+
+    # Buffer: positions then indices (positions are 12-byte aligned, so the
+    # index view starts 4-byte aligned).
+    data = bytes(positions) + bytes(indices)
+    gltf = {
+        "asset": {
+            "version": "2.0",
+            "generator": "smallvcm scenes/make_scenes.py",
+            "extras": {"note": "Coordinates are SmallVCM's, not rotated to glTF's +y-up: "
+                               "right-handed, +z up, the camera looks along about +y. "
+                               "Radiometric values as in SmallVCM (radiance; W/sr; W/m^2). "
+                               "See docs/scene_format.md."}},
+        "scene": 0,
+        "scenes": [{"name": scene["name"], "nodes": list(range(len(nodes))),
+                    "extras": {"smallvcm": {"mask": scene["mask"], "name": scene["name"]}}}],
+        "nodes": nodes,
+        "cameras": cameras,
+        "meshes": meshes,
+        "materials": materials,
+        "accessors": accessors,
+        "bufferViews": [
+            {"name": "positions", "buffer": 0, "byteOffset": 0,
+             "byteLength": len(positions), "byteStride": 12, "target": 34962},
+            {"name": "indices", "buffer": 0, "byteOffset": len(positions),
+             "byteLength": len(indices), "target": 34963}],
+        "buffers": [{"byteLength": len(data),
+                     "uri": "data:application/octet-stream;base64,"
+                            + base64.b64encode(data).decode("ascii")}],
+    }
+    root_ext = {}
+    if lights:
+        root_ext["KHR_lights_punctual"] = {"lights": lights}
+        used.add("KHR_lights_punctual")
+    if scene["background"] is not None:
+        root_ext["SMALLVCM_background"] = {"radiance": list(scene["background"])}
+        used.add("SMALLVCM_background")
+        required.add("SMALLVCM_background")
+    if root_ext:
+        gltf["extensions"] = root_ext
+    gltf["extensionsUsed"] = sorted(used)
+    if required:
+        gltf["extensionsRequired"] = sorted(required)
+    return gltf
+
+
+# ---------------------------------------------------------------------------
+# Compact JSON: number arrays and short objects on one line, the rest indented
+# ---------------------------------------------------------------------------
+
+def dumps(value, indent=0, width=100):
+    flat = json.dumps(value, separators=(", ", ": "))
+    numbers = isinstance(value, list) and all(isinstance(v, (int, float)) for v in value)
+    if len(flat) + indent <= width or numbers or not isinstance(value, (dict, list)) or not value:
+        return flat
+    pad = " " * (indent + 2)
+    if isinstance(value, dict):
+        items = ["%s%s: %s" % (pad, json.dumps(k), dumps(v, indent + 2, width))
+                 for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + "\n" + " " * indent + "}"
+    items = [pad + dumps(v, indent + 2, width) for v in value]
+    return "[\n" + ",\n".join(items) + "\n" + " " * indent + "]"
+
+
+def main():
+    out_dir = os.path.dirname(os.path.abspath(__file__))
+    for file_name, mask in SCENE_CONFIGS:
+        text = dumps(to_gltf(build_cornell_box(mask))) + "\n"
+        with open(os.path.join(out_dir, file_name), "w", encoding="ascii", newline="\n") as f:
+            f.write(text)
+        print("wrote scenes/%s  (mask %d: %s)" % (file_name, mask, scene_name(mask)))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,3143 @@
+// smallvcm.hpp — a small, readable renderer of every estimator from eye light to VCM.
+//
+// =====================================================================================
+//  WHAT IT IS
+// =====================================================================================
+//  One C++17 header that implements, in the order light-transport courses teach them:
+//    el   eye light (|cos| shading, back faces red: a geometry check, not an estimator)
+//    pt   path tracing with next-event estimation and MIS
+//    lt   light tracing (paths from the lights splatted onto the image)
+//    ppm  progressive photon mapping (merging at the first non-specular camera vertex)
+//    bpm  bidirectional photon mapping (merging at every camera vertex, with MIS)
+//    bpt  bidirectional path tracing (vertex connection, with MIS)
+//    vcm  vertex connection and merging (BPT + BPM under one MIS)
+//  The MIS weights of the last five follow Georgiev's technical report "Implementing
+//  Vertex Connection and Merging" (2012/2013); every MIS line cites it as
+//  [tech. rep. (NN)] so that the code can be read with the report open beside it.
+//
+// =====================================================================================
+//  HOW TO USE IT
+// =====================================================================================
+//  In every translation unit that needs it:
+//      #include "smallvcm.hpp"
+//  In exactly ONE translation unit of the program, before the include:
+//      #define SMALLVCM_IMPLEMENTATION
+//      #include "smallvcm.hpp"
+//  That unit compiles the parts with heavy dependencies: the glTF loader (tinygltf,
+//  nlohmann-json) and the image writers (stb_image_write). Everything else is inline.
+//
+//  Link errors you may meet:
+//    "undefined reference to smallvcm::LoadGltfScene / WriteImage"
+//        -> no translation unit defines SMALLVCM_IMPLEMENTATION.
+//    "multiple definition of tinygltf::... / stbi_write_..."
+//        -> two translation units define SMALLVCM_IMPLEMENTATION.
+//    "undefined reference to pthread_create"  -> link with -pthread.
+//
+//  A minimal program:
+//      smallvcm::Scene scene = smallvcm::LoadGltfScene("scenes/cornell_4_default.gltf");
+//      scene.mCamera.SetResolution(256, 256);
+//      smallvcm::RenderOptions options;
+//      options.algorithm  = smallvcm::Algorithm::kVertexConnectionMerging;
+//      options.iterations = 16;
+//      smallvcm::RenderResult result = smallvcm::Render(scene, options);
+//      smallvcm::WriteImage("vcm.png", result.mImage);
+//
+//  Errors: every problem with input (a scene file, an option, an image path) throws
+//  smallvcm::Error, whose what() is one line naming the file or option and the problem.
+//  Nothing else in the library throws on purpose.
+//
+// =====================================================================================
+//  CONFIGURATION MACROS (define before including)
+// =====================================================================================
+//    SMALLVCM_IMPLEMENTATION  compile the glTF loader and image writers here (one TU).
+//
+// =====================================================================================
+//  CONVENTIONS (shared with SmallVCM, so images can be compared)
+// =====================================================================================
+//  * Path length = number of segments, counted from the camera: a visible emitter is 1.
+//  * Directions at a BSDF are "Fix" (the one we arrived along) and "Gen" (the one we
+//    generate). pdfs end in W (solid angle) or A (area). Members mFoo, arguments aFoo,
+//    outputs oFoo, as in SmallVCM and the report's notation (dVCM, dVC, dVM, eta).
+//  * Non-specular surfaces are one-sided: they reflect only on the side their
+//    geometric normal (counter-clockwise winding) points to. Emitters do not reflect.
+//  * Raster y = 0 is the top image row. Film values are radiance, no tone mapping.
+//
+// =====================================================================================
+//  INDEX (search for "[SECTION] name")
+// =====================================================================================
+//  [SECTION] Configuration and errors
+//  [SECTION] Math
+//  [SECTION] Random numbers and sampling
+//  [SECTION] Geometry: ray, sphere, triangle, BVH
+//  [SECTION] Scene: materials, lights, camera
+//  [SECTION] BSDF
+//  [SECTION] Film
+//  [SECTION] Integrator: eye light
+//  [SECTION] Integrator: path tracing
+//  [SECTION] Integrator: the VertexCM family (LT, PPM, BPM, BPT, VCM)
+//  [SECTION] Render loop
+//  [SECTION] Image output and metrics
+//  [SECTION] Scene loading (glTF)
+//  [SECTION] Implementation (SMALLVCM_IMPLEMENTATION)
+
+#ifndef SMALLVCM_HPP
+#define SMALLVCM_HPP
+
+#include <glm/glm.hpp>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#if defined(__unix__) || defined(__APPLE__)
+#include <unistd.h>
+#endif
+
+namespace smallvcm {
+
+// =====================================================================================
+// [SECTION] Configuration and errors
+// =====================================================================================
+// Provides: the library's one exception type and the numeric tolerances every later
+// section shares. The tolerances are SmallVCM's, so that images can be compared.
+
+// Every input problem the library detects is reported as an Error whose message is
+// one line: "<file or option>: <problem>".
+class Error : public std::runtime_error {
+public:
+    explicit Error(const std::string& aMessage) : std::runtime_error(aMessage) {}
+};
+
+// A hit whose direction makes |cos| below this with the normal is treated as grazing
+// and dropped: its contribution would be divided by that cosine (SmallVCM: EPS_COSINE).
+inline constexpr float kEpsCosine = 1e-6f;
+// The Phong lobe is cut where cos(R, w) falls below this (SmallVCM: EPS_PHONG).
+inline constexpr float kEpsPhong = 1e-3f;
+// New rays start this far along their direction, relative to the scene's bounding
+// radius. 4.51e-4 * 2.2170596 = 1e-3, SmallVCM's absolute EPS_RAY in its Cornell box;
+// making it relative keeps scenes of any scale working.
+inline constexpr float kRayEpsilonPerSceneRadius = 1e-3f / 2.2170596f;
+
+// =====================================================================================
+// [SECTION] Math
+// =====================================================================================
+// Provides: vector aliases over GLM, small helpers, and Frame, an orthonormal basis
+// used to move directions between world space and a surface's local space (z = normal).
+
+using Vec2 = glm::vec2;
+using Vec3 = glm::vec3;
+
+inline constexpr float kPi = 3.14159265358979323846f;
+inline constexpr float kInvPi = 1.f / kPi;
+
+inline float Sqr(float aX) { return aX * aX; }
+inline float MaxComponent(const Vec3& aV) { return std::max(aV.x, std::max(aV.y, aV.z)); }
+inline bool IsBlack(const Vec3& aV) { return aV.x <= 0.f && aV.y <= 0.f && aV.z <= 0.f; }
+inline bool IsFinite(const Vec3& aV) {
+    return std::isfinite(aV.x) && std::isfinite(aV.y) && std::isfinite(aV.z);
+}
+// Luminance with the sRGB / Rec. 709 weights; SmallVCM uses it to pick BSDF components.
+inline float Luminance(const Vec3& aRgb) {
+    return 0.212671f * aRgb.x + 0.715160f * aRgb.y + 0.072169f * aRgb.z;
+}
+
+// Orthonormal basis with z along a given unit vector. The construction is the
+// branch-free one of Duff et al. (2017): continuous everywhere except z = -1 exactly.
+struct Frame {
+    Vec3 mX{1, 0, 0}, mY{0, 1, 0}, mZ{0, 0, 1};
+
+    Frame() = default;
+    explicit Frame(const Vec3& aZ) { SetFromZ(aZ); }
+
+    void SetFromZ(const Vec3& aZ) {
+        mZ = aZ;
+        const float sign = std::copysign(1.f, aZ.z);
+        const float a = -1.f / (sign + aZ.z);
+        const float b = aZ.x * aZ.y * a;
+        mX = Vec3(1.f + sign * aZ.x * aZ.x * a, sign * b, -sign * aZ.x);
+        mY = Vec3(b, sign + aZ.y * aZ.y * a, -aZ.y);
+    }
+    Vec3 ToWorld(const Vec3& aLocal) const { return mX * aLocal.x + mY * aLocal.y + mZ * aLocal.z; }
+    Vec3 ToLocal(const Vec3& aWorld) const {
+        return Vec3(glm::dot(aWorld, mX), glm::dot(aWorld, mY), glm::dot(aWorld, mZ));
+    }
+};
+
+// =====================================================================================
+// [SECTION] Random numbers and sampling
+// =====================================================================================
+// Provides: Rng (PCG32: 8 bytes of state, statistically strong, and seedable by
+// (seed, stream) so that every iteration of a render has its own reproducible stream),
+// and every sampling routine the integrators use, each beside the pdf it returns, so a
+// test can check that the two agree. Local directions are in a Frame: z is the axis.
+
+class Rng {
+public:
+    explicit Rng(uint64_t aSeed = 1234, uint64_t aStream = 0) {
+        mIncrement = (aStream << 1u) | 1u;
+        mState = 0;
+        NextUint();
+        mState += aSeed;
+        NextUint();
+    }
+    // PCG-XSH-RR (O'Neill 2014): 64-bit LCG state, 32-bit permuted output.
+    uint32_t NextUint() {
+        const uint64_t old = mState;
+        mState = old * 6364136223846793005ull + mIncrement;
+        const uint32_t xorShifted = uint32_t(((old >> 18u) ^ old) >> 27u);
+        const uint32_t rotation = uint32_t(old >> 59u);
+        return (xorShifted >> rotation) | (xorShifted << ((32u - rotation) & 31u));
+    }
+    // Uniform in [0, 1): the top 24 bits make every float exactly representable.
+    float GetFloat() { return float(NextUint() >> 8) * (1.f / 16777216.f); }
+    Vec2 GetVec2() { const float a = GetFloat(); return Vec2(a, GetFloat()); }
+    Vec3 GetVec3() { const float a = GetFloat(); const float b = GetFloat(); return Vec3(a, b, GetFloat()); }
+
+private:
+    uint64_t mState = 0;
+    uint64_t mIncrement = 1;
+};
+
+// --- Cosine-weighted hemisphere around +z: pdf = cos(theta) / pi -------------------
+inline Vec3 SampleCosHemisphereW(const Vec2& aSamples, float* oPdfW = nullptr) {
+    const float term1 = 2.f * kPi * aSamples.x;
+    const float term2 = std::sqrt(1.f - aSamples.y);
+    const Vec3 ret(std::cos(term1) * term2, std::sin(term1) * term2, std::sqrt(aSamples.y));
+    if (oPdfW) *oPdfW = ret.z * kInvPi;
+    return ret;
+}
+inline float CosHemispherePdfW(const Vec3& aLocalDirection) {
+    return std::max(0.f, aLocalDirection.z) * kInvPi;
+}
+
+// --- Power-cosine lobe around +z (the Phong lobe): pdf = (n+1)/(2 pi) cos^n ---------
+inline Vec3 SamplePowerCosHemisphereW(const Vec2& aSamples, float aPower, float* oPdfW = nullptr) {
+    const float term1 = 2.f * kPi * aSamples.x;
+    const float cosTheta = std::pow(1.f - aSamples.y, 1.f / (aPower + 1.f));
+    const float sinTheta = std::sqrt(std::max(0.f, 1.f - cosTheta * cosTheta));
+    if (oPdfW) *oPdfW = (aPower + 1.f) * std::pow(cosTheta, aPower) * (0.5f * kInvPi);
+    return Vec3(std::cos(term1) * sinTheta, std::sin(term1) * sinTheta, cosTheta);
+}
+inline float PowerCosHemispherePdfW(const Vec3& aLocalDirection, float aPower) {
+    const float cosTheta = std::max(0.f, aLocalDirection.z);
+    return (aPower + 1.f) * std::pow(cosTheta, aPower) * (0.5f * kInvPi);
+}
+
+// --- Uniform sphere: pdf = 1 / (4 pi) ----------------------------------------------
+inline Vec3 SampleUniformSphereW(const Vec2& aSamples, float* oPdfW = nullptr) {
+    const float z = 1.f - 2.f * aSamples.y;
+    const float r = std::sqrt(std::max(0.f, 1.f - z * z));
+    const float phi = 2.f * kPi * aSamples.x;
+    if (oPdfW) *oPdfW = 0.25f * kInvPi;
+    return Vec3(r * std::cos(phi), r * std::sin(phi), z);
+}
+inline float UniformSpherePdfW() { return 0.25f * kInvPi; }
+
+// --- Uniform cone around +z with cos(half angle) = aCosMax: pdf = 1 / (2 pi (1 - cosMax))
+inline Vec3 SampleUniformConeW(const Vec2& aSamples, float aCosMax, float* oPdfW = nullptr) {
+    const float cosTheta = 1.f - aSamples.y * (1.f - aCosMax);
+    const float sinTheta = std::sqrt(std::max(0.f, 1.f - cosTheta * cosTheta));
+    const float phi = 2.f * kPi * aSamples.x;
+    if (oPdfW) *oPdfW = 1.f / (2.f * kPi * (1.f - aCosMax));
+    return Vec3(std::cos(phi) * sinTheta, std::sin(phi) * sinTheta, cosTheta);
+}
+inline float UniformConePdfW(float aCosMax) { return 1.f / (2.f * kPi * (1.f - aCosMax)); }
+
+// --- Uniform triangle: barycentrics (b0, b1) of p0, p1; pdf = 1 / area -------------
+// The square-root warp keeps the mapping from the unit square area-preserving.
+inline Vec2 SampleUniformTriangle(const Vec2& aSamples) {
+    const float term = std::sqrt(aSamples.x);
+    return Vec2(1.f - term, aSamples.y * term);
+}
+
+// --- Uniform disc of radius 1 (concentric map of Shirley and Chiu): pdf = 1 / pi ----
+inline Vec2 SampleConcentricDisc(const Vec2& aSamples) {
+    const float a = 2.f * aSamples.x - 1.f;
+    const float b = 2.f * aSamples.y - 1.f;
+    if (a == 0.f && b == 0.f) return Vec2(0.f);
+    float r, phi;
+    if (a * a > b * b) { r = a; phi = (kPi / 4.f) * (b / a); }
+    else               { r = b; phi = (kPi / 2.f) - (kPi / 4.f) * (a / b); }
+    return Vec2(r * std::cos(phi), r * std::sin(phi));
+}
+inline float ConcentricDiscPdfA() { return kInvPi; }
+
+// --- Measure conversions: p_A = p_W |cos| / d^2 ---------------------------------------
+inline float PdfWtoA(float aPdfW, float aDist, float aCosThere) {
+    return aPdfW * std::abs(aCosThere) / Sqr(aDist);
+}
+inline float PdfAtoW(float aPdfA, float aDist, float aCosThere) {
+    return aPdfA * Sqr(aDist) / std::abs(aCosThere);
+}
+
+// =====================================================================================
+// [SECTION] Geometry: ray, sphere, triangle, BVH
+// =====================================================================================
+// Provides: Ray, Hit, exact intersection of a ray with a sphere and a triangle, and a
+// bounding-volume hierarchy (binned SAH, built once per scene) over both kinds of
+// primitive. Intersection is two-sided: back faces occlude like front faces.
+// Invariant: ray directions are unit length; Hit::mNormal is the geometric normal,
+// pointing out of spheres and to the counter-clockwise side of triangles.
+
+struct Ray {
+    Vec3 mOrigin{0.f};
+    Vec3 mDirection{0.f, 0.f, 1.f};
+};
+
+struct Hit {
+    float mDist = std::numeric_limits<float>::infinity();
+    int mPrimitiveId = -1;  // triangles first, then spheres (see Scene)
+    int mMaterialId = -1;
+    int mLightId = -1;      // >= 0 when the primitive emits
+    Vec3 mNormal{0.f};      // geometric, unit length
+    bool IsValid() const { return mPrimitiveId >= 0; }
+};
+
+// Sphere: solves |o + t d - c|^2 = r^2 for the nearest t in (aTMin, aTMax).
+// Robustness: the discriminant is computed as r^2 - |f - (f.d) d|^2 (f = o - c), which
+// does not lose precision when the ray starts far away, and the smaller root comes from
+// c/q instead of -b - sqrt(...) to avoid cancellation (Haines et al., Ray Tracing Gems
+// ch. 7). From inside the sphere the far root is returned.
+inline bool IntersectSphere(const Vec3& aCenter, float aRadius, const Ray& aRay,
+                            float aTMin, float aTMax, float& oT) {
+    const Vec3 f = aRay.mOrigin - aCenter;
+    const float b = glm::dot(f, aRay.mDirection);
+    const Vec3 perpendicular = f - b * aRay.mDirection;
+    const float discriminant = aRadius * aRadius - glm::dot(perpendicular, perpendicular);
+    if (discriminant < 0.f) return false;
+    const float c = glm::dot(f, f) - aRadius * aRadius;
+    const float q = -b - std::copysign(std::sqrt(discriminant), b);
+    float t0 = (q != 0.f) ? c / q : 0.f;
+    float t1 = q;
+    if (t0 > t1) std::swap(t0, t1);
+    if (t0 > aTMin && t0 < aTMax) { oT = t0; return true; }
+    if (t1 > aTMin && t1 < aTMax) { oT = t1; return true; }
+    return false;
+}
+
+// Triangle (Moeller-Trumbore) given p0 and the edges e1 = p1 - p0, e2 = p2 - p0.
+// Edges are inclusive (u >= 0, v >= 0, u + v <= 1), so a ray through an edge shared by
+// two triangles hits at least one of them; rays parallel to the plane miss.
+inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aE1, const Vec3& aE2, const Ray& aRay,
+                              float aTMin, float aTMax, float& oT) {
+    const Vec3 pvec = glm::cross(aRay.mDirection, aE2);
+    const float det = glm::dot(aE1, pvec);
+    if (det == 0.f || !std::isfinite(det)) return false;
+    const float invDet = 1.f / det;
+    const Vec3 tvec = aRay.mOrigin - aP0;
+    const float u = glm::dot(tvec, pvec) * invDet;
+    if (u < 0.f || u > 1.f) return false;
+    const Vec3 qvec = glm::cross(tvec, aE1);
+    const float v = glm::dot(aRay.mDirection, qvec) * invDet;
+    if (v < 0.f || u + v > 1.f) return false;
+    const float t = glm::dot(aE2, qvec) * invDet;
+    if (!(t > aTMin && t < aTMax)) return false;
+    oT = t;
+    return true;
+}
+
+struct Aabb {
+    Vec3 mMin{std::numeric_limits<float>::infinity()};
+    Vec3 mMax{-std::numeric_limits<float>::infinity()};
+
+    void Extend(const Vec3& aPoint) { mMin = glm::min(mMin, aPoint); mMax = glm::max(mMax, aPoint); }
+    void Extend(const Aabb& aBox) { mMin = glm::min(mMin, aBox.mMin); mMax = glm::max(mMax, aBox.mMax); }
+    bool IsEmpty() const { return mMin.x > mMax.x; }
+    Vec3 Centroid() const { return 0.5f * (mMin + mMax); }
+    float SurfaceArea() const {
+        if (IsEmpty()) return 0.f;
+        const Vec3 d = mMax - mMin;
+        return 2.f * (d.x * d.y + d.y * d.z + d.z * d.x);
+    }
+};
+
+// Slab test against a box; aInvDir = 1 / direction (infinities are fine: IEEE handles
+// them, and the max/min ordering below discards the NaN of 0 * inf).
+inline bool IntersectAabb(const Vec3& aMin, const Vec3& aMax, const Vec3& aOrigin,
+                          const Vec3& aInvDir, float aTMax, float& oTNear) {
+    const Vec3 t0 = (aMin - aOrigin) * aInvDir;
+    const Vec3 t1 = (aMax - aOrigin) * aInvDir;
+    const Vec3 tSmall = glm::min(t0, t1);
+    const Vec3 tLarge = glm::max(t0, t1);
+    const float tNear = std::max(std::max(tSmall.x, tSmall.y), std::max(tSmall.z, 0.f));
+    const float tFar = std::min(std::min(tLarge.x, tLarge.y), std::min(tLarge.z, aTMax));
+    oTNear = tNear;
+    return tNear <= tFar * 1.00000024f;  // 1 + 2 ulp: rounding must not drop a hit on a face
+}
+
+// The primitives the BVH is built over, in the layout the traversal reads: triangles as
+// (p0, e1, e2), spheres as centre and radius. The index of a primitive is its position in
+// the scene: triangles 0..T-1, then spheres T..T+S-1.
+struct PrimitiveSoup {
+    std::vector<Vec3> mTriangleP0, mTriangleE1, mTriangleE2;
+    std::vector<Vec3> mSphereCenter;
+    std::vector<float> mSphereRadius;
+    int TriangleCount() const { return int(mTriangleP0.size()); }
+    int Count() const { return int(mTriangleP0.size() + mSphereCenter.size()); }
+    Aabb Bounds(int aPrimitive) const {
+        Aabb box;
+        if (aPrimitive < TriangleCount()) {
+            box.Extend(mTriangleP0[aPrimitive]);
+            box.Extend(mTriangleP0[aPrimitive] + mTriangleE1[aPrimitive]);
+            box.Extend(mTriangleP0[aPrimitive] + mTriangleE2[aPrimitive]);
+        } else {
+            const int s = aPrimitive - TriangleCount();
+            box.Extend(mSphereCenter[s] - Vec3(mSphereRadius[s]));
+            box.Extend(mSphereCenter[s] + Vec3(mSphereRadius[s]));
+        }
+        return box;
+    }
+    bool Intersect(int aPrimitive, const Ray& aRay, float aTMin, float aTMax, float& oT) const {
+        if (aPrimitive < TriangleCount())
+            return IntersectTriangle(mTriangleP0[aPrimitive], mTriangleE1[aPrimitive],
+                                     mTriangleE2[aPrimitive], aRay, aTMin, aTMax, oT);
+        const int s = aPrimitive - TriangleCount();
+        return IntersectSphere(mSphereCenter[s], mSphereRadius[s], aRay, aTMin, aTMax, oT);
+    }
+};
+
+// Bounding-volume hierarchy. Build: top-down, splitting each node at the best of 16
+// binned surface-area-heuristic candidates along its longest centroid axis (Wald 2007);
+// leaves hold at most 4 primitives. Nodes are 32 bytes, stored depth-first so a left child
+// directly follows its parent. Traversal: a stack, visiting the nearer child first.
+class Bvh {
+public:
+    struct Node {
+        float mMin[3];
+        uint32_t mOffset;  // leaf: first entry of mPrimitiveOrder; inner: right child index
+        float mMax[3];
+        uint32_t mCount;   // leaf: number of primitives (>0); inner: 0
+    };
+
+    void Build(PrimitiveSoup aSoup) {
+        mSoup = std::move(aSoup);
+        const PrimitiveSoup& soup = mSoup;
+        mNodes.clear();
+        const int count = soup.Count();
+        mPrimitiveOrder.resize(count);
+        std::vector<Aabb> bounds(count);
+        std::vector<Vec3> centroids(count);
+        for (int i = 0; i < count; i++) {
+            mPrimitiveOrder[i] = uint32_t(i);
+            bounds[i] = soup.Bounds(i);
+            centroids[i] = bounds[i].Centroid();
+        }
+        if (count == 0) return;
+        mNodes.reserve(2 * count / kMaxLeafSize + 1);
+        BuildRange(bounds, centroids, 0, uint32_t(count));
+    }
+
+    // Nearest hit in (aTMin, aTMax); returns the primitive index or -1.
+    int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
+        if (mNodes.empty()) return -1;
+        const Vec3 invDir = 1.f / aRay.mDirection;
+        int hitPrimitive = -1;
+        uint32_t stack[64];
+        int stackSize = 0;
+        uint32_t nodeIndex = 0;
+        float tNear;
+        if (!NodeHit(0, aRay.mOrigin, invDir, ioTMax, tNear)) return -1;
+        for (;;) {
+            const Node& node = mNodes[nodeIndex];
+            if (node.mCount > 0) {
+                for (uint32_t i = 0; i < node.mCount; i++) {
+                    const int primitive = int(mPrimitiveOrder[node.mOffset + i]);
+                    float t;
+                    if (mSoup.Intersect(primitive, aRay, aTMin, ioTMax, t)) {
+                        ioTMax = t;
+                        hitPrimitive = primitive;
+                    }
+                }
+            } else {
+                uint32_t near = nodeIndex + 1, far = node.mOffset;
+                float tNearA, tNearB;
+                const bool hitA = NodeHit(near, aRay.mOrigin, invDir, ioTMax, tNearA);
+                const bool hitB = NodeHit(far, aRay.mOrigin, invDir, ioTMax, tNearB);
+                if (hitA && hitB) {
+                    if (tNearB < tNearA) std::swap(near, far);
+                    stack[stackSize++] = far;
+                    nodeIndex = near;
+                    continue;
+                }
+                if (hitA) { nodeIndex = near; continue; }
+                if (hitB) { nodeIndex = far; continue; }
+            }
+            // Pop the next node that is still closer than the current nearest hit.
+            bool found = false;
+            while (stackSize > 0) {
+                nodeIndex = stack[--stackSize];
+                if (NodeHit(nodeIndex, aRay.mOrigin, invDir, ioTMax, tNear)) { found = true; break; }
+            }
+            if (!found) return hitPrimitive;
+        }
+    }
+
+    // Any hit in (aTMin, aTMax): the shadow-ray query.
+    bool Occluded(const Ray& aRay, float aTMin, float aTMax) const {
+        if (mNodes.empty()) return false;
+        const Vec3 invDir = 1.f / aRay.mDirection;
+        uint32_t stack[64];
+        int stackSize = 0;
+        stack[stackSize++] = 0;
+        while (stackSize > 0) {
+            const Node& node = mNodes[stack[--stackSize]];
+            float tNear;
+            if (!IntersectAabb(Vec3(node.mMin[0], node.mMin[1], node.mMin[2]),
+                               Vec3(node.mMax[0], node.mMax[1], node.mMax[2]),
+                               aRay.mOrigin, invDir, aTMax, tNear))
+                continue;
+            if (node.mCount > 0) {
+                for (uint32_t i = 0; i < node.mCount; i++) {
+                    float t;
+                    if (mSoup.Intersect(int(mPrimitiveOrder[node.mOffset + i]), aRay, aTMin, aTMax, t))
+                        return true;
+                }
+            } else {
+                stack[stackSize++] = node.mOffset;
+                stack[stackSize++] = uint32_t(&node - mNodes.data()) + 1;
+            }
+        }
+        return false;
+    }
+
+    size_t NodeCount() const { return mNodes.size(); }
+    const PrimitiveSoup& Soup() const { return mSoup; }
+    int Depth() const { return mNodes.empty() ? 0 : DepthOf(0); }
+
+private:
+    static constexpr uint32_t kMaxLeafSize = 4;
+    static constexpr int kBinCount = 16;
+    // The stack of 64 entries holds any tree of depth <= 64; BuildRange guarantees it by
+    // splitting by the median when the SAH split fails and by capping the depth.
+    static constexpr int kMaxDepth = 60;
+
+    bool NodeHit(uint32_t aNode, const Vec3& aOrigin, const Vec3& aInvDir, float aTMax, float& oTNear) const {
+        const Node& n = mNodes[aNode];
+        return IntersectAabb(Vec3(n.mMin[0], n.mMin[1], n.mMin[2]), Vec3(n.mMax[0], n.mMax[1], n.mMax[2]),
+                             aOrigin, aInvDir, aTMax, oTNear);
+    }
+
+    int DepthOf(uint32_t aNode) const {
+        const Node& n = mNodes[aNode];
+        if (n.mCount > 0) return 1;
+        return 1 + std::max(DepthOf(aNode + 1), DepthOf(n.mOffset));
+    }
+
+    uint32_t BuildRange(const std::vector<Aabb>& aBounds, const std::vector<Vec3>& aCentroids,
+                        uint32_t aBegin, uint32_t aEnd, int aDepth = 0) {
+        const uint32_t nodeIndex = uint32_t(mNodes.size());
+        mNodes.push_back(Node{});
+        Aabb box, centroidBox;
+        for (uint32_t i = aBegin; i < aEnd; i++) {
+            box.Extend(aBounds[mPrimitiveOrder[i]]);
+            centroidBox.Extend(aCentroids[mPrimitiveOrder[i]]);
+        }
+        for (int k = 0; k < 3; k++) { mNodes[nodeIndex].mMin[k] = box.mMin[k]; mNodes[nodeIndex].mMax[k] = box.mMax[k]; }
+
+        const uint32_t count = aEnd - aBegin;
+        const Vec3 extent = centroidBox.mMax - centroidBox.mMin;
+        const int axis = (extent.x >= extent.y && extent.x >= extent.z) ? 0 : (extent.y >= extent.z ? 1 : 2);
+        if (count <= kMaxLeafSize || extent[axis] <= 0.f || aDepth >= kMaxDepth) {
+            mNodes[nodeIndex].mOffset = aBegin;
+            mNodes[nodeIndex].mCount = count;
+            return nodeIndex;
+        }
+
+        // Binned SAH: cost of a split = A_left N_left + A_right N_right (the constant
+        // traversal cost and the division by the parent's area do not change the argmin).
+        struct Bin { Aabb box; uint32_t count = 0; };
+        Bin bins[kBinCount];
+        const float binScale = kBinCount / extent[axis];
+        auto binOf = [&](uint32_t aPrimitive) {
+            const int b = int((aCentroids[aPrimitive][axis] - centroidBox.mMin[axis]) * binScale);
+            return std::min(std::max(b, 0), kBinCount - 1);
+        };
+        for (uint32_t i = aBegin; i < aEnd; i++) {
+            Bin& bin = bins[binOf(mPrimitiveOrder[i])];
+            bin.box.Extend(aBounds[mPrimitiveOrder[i]]);
+            bin.count++;
+        }
+        float rightCost[kBinCount];
+        Aabb accumulated;
+        uint32_t accumulatedCount = 0;
+        for (int b = kBinCount - 1; b > 0; b--) {
+            accumulated.Extend(bins[b].box);
+            accumulatedCount += bins[b].count;
+            rightCost[b] = accumulated.SurfaceArea() * float(accumulatedCount);
+        }
+        float bestCost = std::numeric_limits<float>::infinity();
+        int bestSplit = -1;
+        accumulated = Aabb();
+        accumulatedCount = 0;
+        for (int b = 0; b < kBinCount - 1; b++) {
+            accumulated.Extend(bins[b].box);
+            accumulatedCount += bins[b].count;
+            const float cost = accumulated.SurfaceArea() * float(accumulatedCount) + rightCost[b + 1];
+            if (accumulatedCount > 0 && accumulatedCount < count && cost < bestCost) {
+                bestCost = cost;
+                bestSplit = b;
+            }
+        }
+
+        uint32_t middle;
+        if (bestSplit >= 0) {
+            uint32_t* first = mPrimitiveOrder.data() + aBegin;
+            uint32_t* last = mPrimitiveOrder.data() + aEnd;
+            middle = uint32_t(std::partition(first, last, [&](uint32_t p) { return binOf(p) <= bestSplit; })
+                              - mPrimitiveOrder.data());
+        } else {
+            middle = aBegin + count / 2;
+            std::nth_element(mPrimitiveOrder.begin() + aBegin, mPrimitiveOrder.begin() + middle,
+                             mPrimitiveOrder.begin() + aEnd, [&](uint32_t a, uint32_t b) {
+                                 return aCentroids[a][axis] < aCentroids[b][axis];
+                             });
+        }
+        BuildRange(aBounds, aCentroids, aBegin, middle, aDepth + 1);
+        const uint32_t right = BuildRange(aBounds, aCentroids, middle, aEnd, aDepth + 1);
+        mNodes[nodeIndex].mOffset = right;
+        mNodes[nodeIndex].mCount = 0;
+        return nodeIndex;
+    }
+
+    PrimitiveSoup mSoup;
+    std::vector<Node> mNodes;
+    std::vector<uint32_t> mPrimitiveOrder;
+};
+
+
+// =====================================================================================
+// [SECTION] Scene: materials, lights, camera
+// =====================================================================================
+// Provides: Material (SmallVCM's sum of Lambert, normalised Phong, mirror and Fresnel
+// glass), the five light kinds, the pinhole Camera with SmallVCM's conventions, and
+// Scene, which owns them all with the geometry and answers ray queries.
+// Relies on: Geometry. Invariant after Scene::Finalize(): every triangle has a valid
+// unit normal, every light's sampling data is built, the BVH is current.
+
+struct Material {
+    std::string mName;
+    Vec3 mDiffuseReflectance{0.f};
+    Vec3 mPhongReflectance{0.f};
+    float mPhongExponent = 1.f;
+    Vec3 mMirrorReflectance{0.f};
+    float mIor = -1.f;        // < 0: no refraction; > 0: glass, mirror part Fresnel-weighted
+    bool mTwoSided = false;   // diffuse and Phong reflect on both sides (glTF doubleSided)
+
+    bool HasNonSpecular() const { return !IsBlack(mDiffuseReflectance) || !IsBlack(mPhongReflectance); }
+    bool HasSpecular() const { return !IsBlack(mMirrorReflectance) || mIor > 0.f; }
+
+    // Russian roulette continuation probability: an upper bound of the material's
+    // albedo, as in SmallVCM (floor 0.8, walls 0.803922, mirror and glass 1). It depends
+    // on the material only, never on the direction, so the pdf of a path is the same
+    // whichever sub-path visits the vertex -- which the MIS weights rely on.
+    float ContinuationProbability() const {
+        const float reflect = MaxComponent(mDiffuseReflectance + mPhongReflectance + mMirrorReflectance);
+        const float refract = mIor > 0.f ? 1.f : 0.f;
+        return std::min(1.f, reflect + refract);
+    }
+};
+
+struct Triangle {
+    Vec3 mP0{0.f}, mP1{0.f}, mP2{0.f};
+    Vec3 mNormal{0.f};   // set by Scene::Finalize from the winding
+    int mMaterialId = 0;
+    int mLightId = -1;
+    float Area() const { return 0.5f * glm::length(glm::cross(mP1 - mP0, mP2 - mP0)); }
+};
+
+struct Sphere {
+    Vec3 mCenter{0.f};
+    float mRadius = 1.f;
+    int mMaterialId = 0;
+    int mLightId = -1;
+};
+
+// The scene's bounding sphere: directional and background lights emit from a disc of
+// its radius, and the merging radius is a fraction of it.
+struct SceneSphere {
+    Vec3 mCenter{0.f};
+    float mRadius = 1.f;
+    float mInvRadiusSqr = 1.f;
+};
+
+enum class LightType { kArea, kSphere, kPoint, kDirectional, kBackground };
+
+// Next-event estimation sample: a point on the light seen from a receiving point.
+struct LightSample {
+    Vec3 mRadiance{0.f};      // what arrives along -mDirToLight (before the cosine at the receiver)
+    Vec3 mDirToLight{0.f};
+    float mDistance = 0.f;    // infinity for lights at infinity
+    float mDirectPdfW = 0.f;  // pdf of this direction, solid angle at the receiver (delta: see Light)
+    float mEmissionPdfW = 0.f;// pdf of emitting this position and direction from the light
+    float mCosAtLight = 1.f;
+};
+
+// Emission sample: the start of a light sub-path.
+struct LightEmission {
+    Vec3 mEnergy{0.f};        // radiance (or intensity/irradiance) times the cosine at the light
+    Vec3 mPosition{0.f};
+    Vec3 mDirection{0.f};
+    float mEmissionPdfW = 0.f;// position pdf (area) times direction pdf (solid angle)
+    float mDirectPdfA = 0.f;  // pdf with which next-event estimation picks this position
+    float mCosAtLight = 1.f;
+    Vec3 mNormal{0.f};        // the light's surface normal at mPosition (area, sphere)
+};
+
+// One struct for every kind of light, dispatched by a switch: no virtual calls in the
+// integrators' inner loops, and each kind's three operations sit side by side.
+// Emission quantities per kind:  area, sphere, background: radiance (W m^-2 sr^-1);
+// point: radiant intensity (W/sr); directional: irradiance on a perpendicular surface.
+// For delta lights (point, directional) the "pdfs" follow SmallVCM's convention: the
+// point light's mDirectPdfW is d^2 so that radiance / pdf gives I / d^2, the directional
+// light's is 1.
+struct Light {
+    LightType mType = LightType::kPoint;
+    Vec3 mEmission{0.f};
+    Vec3 mPosition{0.f};          // point light
+    Vec3 mDirection{0.f, 0.f, -1.f}; // directional light: the direction light travels
+    // Area light: its triangles, sampled by area.
+    std::vector<Vec3> mTriangleP0, mTriangleE1, mTriangleE2, mTriangleNormal;
+    std::vector<float> mTriangleCdf;  // cumulative area, normalised to 1
+    float mArea = 0.f;
+    // Sphere light.
+    Vec3 mSphereCenter{0.f};
+    float mSphereRadius = 0.f;
+
+    bool IsDelta() const { return mType == LightType::kPoint || mType == LightType::kDirectional; }
+    bool IsFinite() const { return mType != LightType::kDirectional && mType != LightType::kBackground; }
+
+    // Samples a point of the light for next-event estimation from aReceiver.
+    // Returns false when the light cannot illuminate aReceiver with this sample.
+    bool Illuminate(const SceneSphere& aSceneSphere, const Vec3& aReceiver, Vec2 aRnd,
+                    LightSample& oSample) const {
+        switch (mType) {
+        case LightType::kArea:
+        case LightType::kSphere: {
+            Vec3 position, normal;
+            SamplePosition(aRnd, position, normal);
+            Vec3 toLight = position - aReceiver;
+            const float distSqr = glm::dot(toLight, toLight);
+            if (!(distSqr > 0.f)) return false;
+            oSample.mDistance = std::sqrt(distSqr);
+            oSample.mDirToLight = toLight / oSample.mDistance;
+            const float cosNormalDir = glm::dot(normal, -oSample.mDirToLight);
+            if (cosNormalDir <= kEpsCosine) return false;  // one-sided emitters
+            oSample.mDirectPdfW = PdfAtoW(1.f / mArea, oSample.mDistance, cosNormalDir);
+            oSample.mEmissionPdfW = cosNormalDir * kInvPi / mArea;
+            oSample.mCosAtLight = cosNormalDir;
+            oSample.mRadiance = mEmission;
+            return true;
+        }
+        case LightType::kPoint: {
+            const Vec3 toLight = mPosition - aReceiver;
+            const float distSqr = glm::dot(toLight, toLight);
+            if (!(distSqr > 0.f)) return false;
+            oSample.mDistance = std::sqrt(distSqr);
+            oSample.mDirToLight = toLight / oSample.mDistance;
+            oSample.mDirectPdfW = distSqr;
+            oSample.mEmissionPdfW = UniformSpherePdfW();
+            oSample.mCosAtLight = 1.f;
+            oSample.mRadiance = mEmission;
+            return true;
+        }
+        case LightType::kDirectional:
+            oSample.mDirToLight = -mDirection;
+            oSample.mDistance = std::numeric_limits<float>::infinity();
+            oSample.mDirectPdfW = 1.f;
+            oSample.mEmissionPdfW = ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+            oSample.mCosAtLight = 1.f;
+            oSample.mRadiance = mEmission;
+            return true;
+        case LightType::kBackground:
+            // Uniform over the whole sphere of directions, as SmallVCM does.
+            oSample.mDirToLight = SampleUniformSphereW(aRnd, &oSample.mDirectPdfW);
+            oSample.mDistance = std::numeric_limits<float>::infinity();
+            oSample.mEmissionPdfW = oSample.mDirectPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+            oSample.mCosAtLight = 1.f;
+            oSample.mRadiance = mEmission;
+            return true;
+        }
+        return false;
+    }
+
+    // Samples the start of a light sub-path: a position and a direction.
+    bool Emit(const SceneSphere& aSceneSphere, Vec2 aRndDirection, Vec2 aRndPosition,
+              LightEmission& oEmission) const {
+        switch (mType) {
+        case LightType::kArea:
+        case LightType::kSphere: {
+            Vec3 normal;
+            SamplePosition(aRndPosition, oEmission.mPosition, normal);
+            float directionPdfW;
+            Vec3 localDirection = SampleCosHemisphereW(aRndDirection, &directionPdfW);
+            // SmallVCM clamps the cosine so that the pdf stays positive at the horizon.
+            localDirection.z = std::max(localDirection.z, kEpsCosine);
+            directionPdfW = localDirection.z * kInvPi;
+            oEmission.mDirection = Frame(normal).ToWorld(localDirection);
+            oEmission.mNormal = normal;
+            oEmission.mEmissionPdfW = directionPdfW / mArea;
+            oEmission.mDirectPdfA = 1.f / mArea;
+            oEmission.mCosAtLight = localDirection.z;
+            oEmission.mEnergy = mEmission * localDirection.z;
+            return true;
+        }
+        case LightType::kPoint:
+            oEmission.mPosition = mPosition;
+            oEmission.mDirection = SampleUniformSphereW(aRndDirection, &oEmission.mEmissionPdfW);
+            oEmission.mDirectPdfA = 1.f;
+            oEmission.mCosAtLight = 1.f;
+            oEmission.mEnergy = mEmission;
+            return true;
+        case LightType::kDirectional:
+        case LightType::kBackground: {
+            // Parallel rays start on a disc of the scene's radius, perpendicular to their
+            // direction, just outside the scene's bounding sphere.
+            float directionPdfW = 1.f;
+            Vec3 direction = mDirection;
+            if (mType == LightType::kBackground)
+                direction = -SampleUniformSphereW(aRndDirection, &directionPdfW);
+            const Vec2 disc = SampleConcentricDisc(aRndPosition);
+            const Frame frame(direction);
+            oEmission.mPosition = aSceneSphere.mCenter +
+                aSceneSphere.mRadius * (-direction + frame.mX * disc.x + frame.mY * disc.y);
+            oEmission.mDirection = direction;
+            oEmission.mEmissionPdfW = directionPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+            oEmission.mDirectPdfA = directionPdfW;  // NEE picks the direction with this pdf
+            oEmission.mCosAtLight = 1.f;
+            oEmission.mEnergy = mEmission;
+            return true;
+        }
+        }
+        return false;
+    }
+
+    // Radiance a ray receives when it hits the light (area, sphere: at aHitPoint with
+    // geometric normal aHitNormal) or escapes the scene (background), with the pdfs with
+    // which next-event estimation and emission would have produced the same point.
+    Vec3 GetRadiance(const SceneSphere& aSceneSphere, const Vec3& aRayDirection,
+                     const Vec3& aHitNormal, float* oDirectPdfA, float* oEmissionPdfW) const {
+        switch (mType) {
+        case LightType::kArea:
+        case LightType::kSphere: {
+            const float cosOutL = glm::dot(aHitNormal, -aRayDirection);
+            if (cosOutL <= 0.f) return Vec3(0.f);
+            if (oDirectPdfA) *oDirectPdfA = 1.f / mArea;
+            if (oEmissionPdfW) *oEmissionPdfW = cosOutL * kInvPi / mArea;
+            return mEmission;
+        }
+        case LightType::kBackground: {
+            const float directPdf = UniformSpherePdfW();
+            if (oDirectPdfA) *oDirectPdfA = directPdf;
+            if (oEmissionPdfW) *oEmissionPdfW = directPdf * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+            return mEmission;
+        }
+        default:  // delta lights cannot be hit
+            return Vec3(0.f);
+        }
+    }
+
+private:
+    // Uniform point on the light's surface (area pdf 1 / mArea) and its outward normal.
+    void SamplePosition(Vec2 aRnd, Vec3& oPosition, Vec3& oNormal) const {
+        if (mType == LightType::kSphere) {
+            oNormal = SampleUniformSphereW(aRnd);
+            oPosition = mSphereCenter + mSphereRadius * oNormal;
+            return;
+        }
+        // Pick a triangle in proportion to its area with aRnd.x, then reuse what is left
+        // of aRnd.x, rescaled to [0, 1), for the position inside it.
+        size_t index = 0;
+        if (mTriangleCdf.size() > 1) {
+            index = size_t(std::upper_bound(mTriangleCdf.begin(), mTriangleCdf.end() - 1, aRnd.x) - mTriangleCdf.begin());
+            const float lower = index > 0 ? mTriangleCdf[index - 1] : 0.f;
+            const float width = mTriangleCdf[index] - lower;
+            aRnd.x = width > 0.f ? std::min((aRnd.x - lower) / width, 0.99999994f) : 0.f;
+        }
+        const Vec2 barycentric = SampleUniformTriangle(aRnd);
+        oPosition = mTriangleP0[index] + barycentric.y * mTriangleE1[index] +
+                    (1.f - barycentric.x - barycentric.y) * mTriangleE2[index];
+        oNormal = mTriangleNormal[index];
+    }
+};
+
+// Pinhole camera with SmallVCM's conventions: horizontal field of view, raster y = 0 at
+// the top, one focal factor for both axes so pixels are square at any aspect ratio
+// (SmallVCM stretches non-square images; we keep the horizontal field of view and let
+// the vertical one follow the image's aspect).
+class Camera {
+public:
+    // aForward and aUpHint need not be unit length or orthogonal.
+    void Setup(const Vec3& aPosition, const Vec3& aForward, const Vec3& aUpHint, float aHorizontalFovDegrees) {
+        mPosition = aPosition;
+        mForward = glm::normalize(aForward);
+        mRight = glm::normalize(glm::cross(aUpHint, -mForward));
+        mUp = glm::cross(-mForward, mRight);
+        mHorizontalFovDegrees = aHorizontalFovDegrees;
+        Update();
+    }
+    // Sets the basis directly (an orthonormal right, up, forward, e.g. from a glTF node).
+    void SetBasis(const Vec3& aPosition, const Vec3& aRight, const Vec3& aUp, const Vec3& aForward,
+                  float aHorizontalFovDegrees) {
+        mPosition = aPosition; mRight = aRight; mUp = aUp; mForward = aForward;
+        mHorizontalFovDegrees = aHorizontalFovDegrees;
+        Update();
+    }
+    void SetResolution(int aWidth, int aHeight) {
+        if (aWidth <= 0 || aHeight <= 0) throw Error("resolution: width and height must be positive");
+        mWidth = aWidth;
+        mHeight = aHeight;
+        Update();
+    }
+
+    int Width() const { return mWidth; }
+    int Height() const { return mHeight; }
+    int PixelCount() const { return mWidth * mHeight; }
+    const Vec3& Position() const { return mPosition; }
+    const Vec3& Forward() const { return mForward; }
+    const Vec3& Right() const { return mRight; }
+    const Vec3& Up() const { return mUp; }
+    float HorizontalFovDegrees() const { return mHorizontalFovDegrees; }
+    // Distance from the pinhole to the image plane, in pixels: W / (2 tan(fov/2)).
+    float ImagePlaneDist() const { return mImagePlaneDist; }
+
+    // Continuous raster position (x right, y down, in pixels) to a primary ray.
+    Ray GenerateRay(const Vec2& aRaster) const {
+        const Vec3 onPlane = mForward * mImagePlaneDist + mRight * (aRaster.x - 0.5f * float(mWidth)) -
+                             mUp * (aRaster.y - 0.5f * float(mHeight));
+        return Ray{mPosition, glm::normalize(onPlane)};
+    }
+    // World point to raster position; false when the point is behind the camera.
+    bool WorldToRaster(const Vec3& aWorld, Vec2& oRaster) const {
+        const Vec3 d = aWorld - mPosition;
+        const float z = glm::dot(d, mForward);
+        if (!(z > 0.f)) return false;
+        const float scale = mImagePlaneDist / z;
+        oRaster = Vec2(0.5f * float(mWidth) + glm::dot(d, mRight) * scale,
+                       0.5f * float(mHeight) - glm::dot(d, mUp) * scale);
+        return true;
+    }
+    bool CheckRaster(const Vec2& aRaster) const {
+        return aRaster.x >= 0.f && aRaster.y >= 0.f && aRaster.x < float(mWidth) && aRaster.y < float(mHeight);
+    }
+    int RasterToIndex(const Vec2& aRaster) const {
+        const int x = std::min(int(std::floor(aRaster.x)), mWidth - 1);
+        const int y = std::min(int(std::floor(aRaster.y)), mHeight - 1);
+        return y * mWidth + x;
+    }
+
+private:
+    void Update() {
+        mImagePlaneDist = float(mWidth) / (2.f * std::tan(0.5f * mHorizontalFovDegrees * kPi / 180.f));
+    }
+
+    Vec3 mPosition{0.f}, mForward{0.f, 1.f, 0.f}, mRight{1.f, 0.f, 0.f}, mUp{0.f, 0.f, 1.f};
+    float mHorizontalFovDegrees = 45.f;
+    int mWidth = 512, mHeight = 512;
+    float mImagePlaneDist = 1.f;
+};
+
+// The scene: geometry, materials, lights and camera. Build it by filling the vectors
+// (or with LoadGltfScene) and call Finalize() once before rendering.
+class Scene {
+public:
+    std::string mName;
+    std::vector<Material> mMaterials;
+    std::vector<Triangle> mTriangles;
+    std::vector<Sphere> mSpheres;
+    std::vector<Light> mLights;
+    Camera mCamera;
+
+    // --- building ----------------------------------------------------------------
+    int AddMaterial(const Material& aMaterial) { mMaterials.push_back(aMaterial); return int(mMaterials.size()) - 1; }
+    int AddTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, int aMaterialId) {
+        Triangle triangle;
+        triangle.mP0 = aP0; triangle.mP1 = aP1; triangle.mP2 = aP2; triangle.mMaterialId = aMaterialId;
+        mTriangles.push_back(triangle);
+        return int(mTriangles.size()) - 1;
+    }
+    int AddSphere(const Vec3& aCenter, float aRadius, int aMaterialId) {
+        Sphere sphere;
+        sphere.mCenter = aCenter; sphere.mRadius = aRadius; sphere.mMaterialId = aMaterialId;
+        mSpheres.push_back(sphere);
+        return int(mSpheres.size()) - 1;
+    }
+    // All the given triangles become one light of constant radiance, sampled by area.
+    int AddAreaLight(const std::vector<int>& aTriangleIds, const Vec3& aRadiance) {
+        Light light;
+        light.mType = LightType::kArea;
+        light.mEmission = aRadiance;
+        const int id = int(mLights.size());
+        for (int t : aTriangleIds) mTriangles.at(size_t(t)).mLightId = id;
+        mLights.push_back(light);
+        return id;
+    }
+    int AddSphereLight(int aSphereId, const Vec3& aRadiance) {
+        Light light;
+        light.mType = LightType::kSphere;
+        light.mEmission = aRadiance;
+        const int id = int(mLights.size());
+        mSpheres.at(size_t(aSphereId)).mLightId = id;
+        mLights.push_back(light);
+        return id;
+    }
+    int AddPointLight(const Vec3& aPosition, const Vec3& aIntensity) {
+        Light light;
+        light.mType = LightType::kPoint;
+        light.mPosition = aPosition;
+        light.mEmission = aIntensity;
+        mLights.push_back(light);
+        return int(mLights.size()) - 1;
+    }
+    int AddDirectionalLight(const Vec3& aTravelDirection, const Vec3& aIrradiance) {
+        Light light;
+        light.mType = LightType::kDirectional;
+        light.mDirection = glm::normalize(aTravelDirection);
+        light.mEmission = aIrradiance;
+        mLights.push_back(light);
+        return int(mLights.size()) - 1;
+    }
+    int AddBackgroundLight(const Vec3& aRadiance) {
+        Light light;
+        light.mType = LightType::kBackground;
+        light.mEmission = aRadiance;
+        mLights.push_back(light);
+        return int(mLights.size()) - 1;
+    }
+
+    // Validates the scene and builds everything derived from it: triangle normals, the
+    // bounding sphere, light sampling data, the BVH. Throws Error naming the problem.
+    void Finalize() {
+        const std::string where = mName.empty() ? std::string("scene") : mName;
+        if (mTriangles.empty() && mSpheres.empty()) throw Error(where + ": the scene has no geometry");
+        if (mLights.empty()) throw Error(where + ": the scene has no light");
+        int backgrounds = 0;
+        for (const Light& light : mLights) {
+            if (!IsFinite(light.mEmission) || light.mEmission.x < 0.f || light.mEmission.y < 0.f || light.mEmission.z < 0.f)
+                throw Error(where + ": a light has a negative or non-finite emission");
+            if (light.mType == LightType::kBackground) backgrounds++;
+        }
+        if (backgrounds > 1) throw Error(where + ": more than one background light");
+
+        Aabb box;
+        for (Triangle& triangle : mTriangles) {
+            if (!IsFinite(triangle.mP0) || !IsFinite(triangle.mP1) || !IsFinite(triangle.mP2))
+                throw Error(where + ": a triangle has a non-finite vertex");
+            const Vec3 cross = glm::cross(triangle.mP1 - triangle.mP0, triangle.mP2 - triangle.mP0);
+            const float length = glm::length(cross);
+            if (!(length > 0.f) || !std::isfinite(length))
+                throw Error(where + ": a triangle is degenerate (zero area)");
+            triangle.mNormal = cross / length;
+            CheckMaterial(where, triangle.mMaterialId);
+            box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2);
+        }
+        for (const Sphere& sphere : mSpheres) {
+            if (!IsFinite(sphere.mCenter) || !std::isfinite(sphere.mRadius) || !(sphere.mRadius > 0.f))
+                throw Error(where + ": a sphere has a non-finite centre or a radius that is not positive");
+            CheckMaterial(where, sphere.mMaterialId);
+            box.Extend(sphere.mCenter - Vec3(sphere.mRadius));
+            box.Extend(sphere.mCenter + Vec3(sphere.mRadius));
+        }
+        mSceneSphere.mCenter = box.Centroid();
+        mSceneSphere.mRadius = 0.5f * glm::length(box.mMax - box.mMin);
+        if (!(mSceneSphere.mRadius > 0.f) || !std::isfinite(mSceneSphere.mRadius))
+            throw Error(where + ": the scene's bounding box is empty or infinite");
+        mSceneSphere.mInvRadiusSqr = 1.f / Sqr(mSceneSphere.mRadius);
+        mRayEpsilon = kRayEpsilonPerSceneRadius * mSceneSphere.mRadius;
+
+        // Light sampling data.
+        mBackgroundLightId = -1;
+        for (size_t id = 0; id < mLights.size(); id++) {
+            Light& light = mLights[id];
+            light.mTriangleP0.clear(); light.mTriangleE1.clear(); light.mTriangleE2.clear();
+            light.mTriangleNormal.clear(); light.mTriangleCdf.clear();
+            light.mArea = 0.f;
+            if (light.mType == LightType::kBackground) mBackgroundLightId = int(id);
+        }
+        for (const Triangle& triangle : mTriangles) {
+            if (triangle.mLightId < 0) continue;
+            if (triangle.mLightId >= int(mLights.size()) || mLights[size_t(triangle.mLightId)].mType != LightType::kArea)
+                throw Error(where + ": a triangle refers to a light that is not an area light");
+            Light& light = mLights[size_t(triangle.mLightId)];
+            light.mTriangleP0.push_back(triangle.mP0);
+            light.mTriangleE1.push_back(triangle.mP1 - triangle.mP0);
+            light.mTriangleE2.push_back(triangle.mP2 - triangle.mP0);
+            light.mTriangleNormal.push_back(triangle.mNormal);
+            light.mArea += triangle.Area();
+            light.mTriangleCdf.push_back(light.mArea);
+        }
+        for (size_t s = 0; s < mSpheres.size(); s++) {
+            const Sphere& sphere = mSpheres[s];
+            if (sphere.mLightId < 0) continue;
+            if (sphere.mLightId >= int(mLights.size()) || mLights[size_t(sphere.mLightId)].mType != LightType::kSphere)
+                throw Error(where + ": a sphere refers to a light that is not a sphere light");
+            Light& light = mLights[size_t(sphere.mLightId)];
+            light.mSphereCenter = sphere.mCenter;
+            light.mSphereRadius = sphere.mRadius;
+            light.mArea = 4.f * kPi * Sqr(sphere.mRadius);
+        }
+        for (Light& light : mLights) {
+            if ((light.mType == LightType::kArea || light.mType == LightType::kSphere) && !(light.mArea > 0.f))
+                throw Error(where + ": an area or sphere light has no surface");
+            for (float& c : light.mTriangleCdf) c /= light.mArea;
+            if (!light.mTriangleCdf.empty()) light.mTriangleCdf.back() = 1.f;
+        }
+
+        PrimitiveSoup soup;
+        for (const Triangle& triangle : mTriangles) {
+            soup.mTriangleP0.push_back(triangle.mP0);
+            soup.mTriangleE1.push_back(triangle.mP1 - triangle.mP0);
+            soup.mTriangleE2.push_back(triangle.mP2 - triangle.mP0);
+        }
+        for (const Sphere& sphere : mSpheres) {
+            soup.mSphereCenter.push_back(sphere.mCenter);
+            soup.mSphereRadius.push_back(sphere.mRadius);
+        }
+        mBvh.Build(std::move(soup));
+        mFinalized = true;
+    }
+
+    // --- queries -----------------------------------------------------------------
+    bool IsFinalized() const { return mFinalized; }
+    const SceneSphere& GetSceneSphere() const { return mSceneSphere; }
+    float RayEpsilon() const { return mRayEpsilon; }
+    int LightCount() const { return int(mLights.size()); }
+    const Light& GetLight(int aId) const { return mLights[size_t(aId)]; }
+    const Light* GetBackground() const { return mBackgroundLightId >= 0 ? &mLights[size_t(mBackgroundLightId)] : nullptr; }
+    const Material& GetMaterial(int aId) const { return mMaterials[size_t(aId)]; }
+    const Bvh& GetBvh() const { return mBvh; }
+
+    // Nearest hit along aRay (origin already offset off any surface by the caller).
+    bool Intersect(const Ray& aRay, Hit& oHit) const {
+        float tMax = std::numeric_limits<float>::infinity();
+        const int primitive = mBvh.Intersect(aRay, 0.f, tMax);
+        if (primitive < 0) return false;
+        oHit.mDist = tMax;
+        oHit.mPrimitiveId = primitive;
+        const int triangleCount = int(mTriangles.size());
+        if (primitive < triangleCount) {
+            const Triangle& triangle = mTriangles[size_t(primitive)];
+            oHit.mMaterialId = triangle.mMaterialId;
+            oHit.mLightId = triangle.mLightId;
+            oHit.mNormal = triangle.mNormal;
+        } else {
+            const Sphere& sphere = mSpheres[size_t(primitive - triangleCount)];
+            oHit.mMaterialId = sphere.mMaterialId;
+            oHit.mLightId = sphere.mLightId;
+            oHit.mNormal = glm::normalize(aRay.mOrigin + tMax * aRay.mDirection - sphere.mCenter);
+        }
+        return true;
+    }
+
+    // Shadow ray: is anything between aPoint and aPoint + aDistance * aDirection?
+    // Both ends are pulled in by the ray epsilon so the two surfaces do not occlude.
+    bool Occluded(const Vec3& aPoint, const Vec3& aDirection, float aDistance) const {
+        const Ray ray{aPoint + aDirection * mRayEpsilon, aDirection};
+        return mBvh.Occluded(ray, 0.f, aDistance - 2.f * mRayEpsilon);
+    }
+
+    // Ray leaving a surface point: the origin moves off the surface along the direction.
+    Ray SpawnRay(const Vec3& aPoint, const Vec3& aDirection) const {
+        return Ray{aPoint + aDirection * mRayEpsilon, aDirection};
+    }
+
+private:
+    void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
+        if (aMaterialId < 0 || aMaterialId >= int(mMaterials.size()))
+            throw Error(aWhere + ": a primitive refers to material " + std::to_string(aMaterialId) + ", which does not exist");
+    }
+
+    SceneSphere mSceneSphere;
+    float mRayEpsilon = 1e-3f;
+    int mBackgroundLightId = -1;
+    Bvh mBvh;
+    bool mFinalized = false;
+};
+
+
+// =====================================================================================
+// [SECTION] BSDF
+// =====================================================================================
+// Provides: Bsdf, the scattering function at one hit point, set up for a camera
+// sub-path (radiance transport) or a light sub-path (importance transport), with
+// Evaluate, Pdf (both directions, as MIS needs) and Sample. Relies on: Scene.
+//
+// A material is a sum of components, picked by sampling in proportion to the luminance
+// of their albedos (SmallVCM): Lambert, normalised Phong, Fresnel-weighted mirror, and
+// refraction. Evaluate and Pdf see only the non-specular part; the specular (delta)
+// components exist only through Sample. All pdfs here EXCLUDE Russian roulette; the
+// integrators multiply ContinuationProb() in, in both directions.
+
+enum BsdfEvent : uint32_t {
+    kEventNone = 0,
+    kEventDiffuse = 1,
+    kEventPhong = 2,
+    kEventReflect = 4,
+    kEventRefract = 8,
+    kEventSpecular = kEventReflect | kEventRefract,
+};
+
+// Unpolarised Fresnel reflectance of a dielectric (Fresnel equations, averaged over the
+// two polarisations). aCosIncident is measured against the outward normal: negative means
+// the ray arrives from inside, where the index is aIor; outside it is 1.
+inline float FresnelDielectric(float aCosIncident, float aIor) {
+    if (aIor < 0.f) return 1.f;
+    float etaIncOverEtaTrans = 1.f / aIor;
+    if (aCosIncident < 0.f) { aCosIncident = -aCosIncident; etaIncOverEtaTrans = aIor; }
+    const float sinTrans2 = Sqr(etaIncOverEtaTrans) * (1.f - Sqr(aCosIncident));
+    if (sinTrans2 >= 1.f) return 1.f;  // total internal reflection
+    const float cosTrans = std::sqrt(1.f - sinTrans2);
+    const float rPerp = (etaIncOverEtaTrans * aCosIncident - cosTrans) / (etaIncOverEtaTrans * aCosIncident + cosTrans);
+    const float rPar = (aCosIncident - etaIncOverEtaTrans * cosTrans) / (aCosIncident + etaIncOverEtaTrans * cosTrans);
+    return 0.5f * (Sqr(rPar) + Sqr(rPerp));
+}
+
+class Bsdf {
+public:
+    Bsdf() = default;
+
+    // aRay is the ray that found aHit (its direction points into the surface).
+    // aFixIsLight: true on light sub-paths.
+    void Setup(const Ray& aRay, const Hit& aHit, const Scene& aScene, bool aFixIsLight) {
+        Setup(-aRay.mDirection, aHit.mNormal, aScene.GetMaterial(aHit.mMaterialId), aFixIsLight);
+    }
+    // The same from explicit data (what tests use): aWorldDirFix points away from the surface.
+    void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material& aMaterial, bool aFixIsLight) {
+        mMaterial = &aMaterial;
+        mFixIsLight = aFixIsLight;
+        mFrame.SetFromZ(aNormal);
+        mLocalDirFix = mFrame.ToLocal(aWorldDirFix);
+        // A two-sided non-glass material turns its frame towards whoever looks at it.
+        if (aMaterial.mTwoSided && aMaterial.mIor < 0.f && mLocalDirFix.z < 0.f) {
+            mFrame.SetFromZ(-aNormal);
+            mLocalDirFix = mFrame.ToLocal(aWorldDirFix);
+        }
+        mValid = false;
+        if (std::abs(mLocalDirFix.z) < kEpsCosine) return;  // grazing: nothing reliable here
+        mFresnel = FresnelDielectric(mLocalDirFix.z, aMaterial.mIor);
+        mProbabilities = ComponentProbabilities(aMaterial, mLocalDirFix.z, mFresnel);
+        const float total = mProbabilities[0] + mProbabilities[1] + mProbabilities[2] + mProbabilities[3];
+        if (!(total > 0.f)) return;  // black, or a one-sided surface seen from behind
+        for (float& p : mProbabilities) p /= total;
+        mIsDelta = mProbabilities[kDiffuse] == 0.f && mProbabilities[kPhong] == 0.f;
+        mContinuationProb = aMaterial.ContinuationProbability();
+        mValid = true;
+    }
+
+    bool IsValid() const { return mValid; }
+    bool IsDelta() const { return mIsDelta; }
+    float ContinuationProb() const { return mContinuationProb; }
+    float CosThetaFix() const { return mLocalDirFix.z; }
+    Vec3 WorldDirFix() const { return mFrame.ToWorld(mLocalDirFix); }
+    const Material& GetMaterial() const { return *mMaterial; }
+    bool FixIsLight() const { return mFixIsLight; }
+
+    // f(fix, gen) of the non-specular components (no cosine), |cos theta_gen|, and the
+    // pdfs of sampling gen given fix (direct) and fix given gen (reverse), solid angle.
+    Vec3 Evaluate(const Vec3& aWorldDirGen, float& oCosThetaGen, float* oDirectPdfW = nullptr,
+                  float* oReversePdfW = nullptr) const {
+        const Vec3 localDirGen = mFrame.ToLocal(aWorldDirGen);
+        oCosThetaGen = std::abs(localDirGen.z);
+        Vec3 f(0.f);
+        float directPdfW = 0.f, reversePdfW = 0.f;
+        EvaluateNonSpecular(localDirGen, f, directPdfW, reversePdfW);
+        if (oDirectPdfW) *oDirectPdfW = directPdfW;
+        if (oReversePdfW) *oReversePdfW = reversePdfW;
+        return f;
+    }
+
+    // The pdf of sampling aWorldDirGen (or, with aReverse, of sampling the fixed
+    // direction when aWorldDirGen were fixed), non-specular components only.
+    float Pdf(const Vec3& aWorldDirGen, bool aReverse = false) const {
+        Vec3 f(0.f);
+        float directPdfW = 0.f, reversePdfW = 0.f;
+        EvaluateNonSpecular(mFrame.ToLocal(aWorldDirGen), f, directPdfW, reversePdfW);
+        return aReverse ? reversePdfW : directPdfW;
+    }
+
+    // Picks a component with aRnd.z and samples a direction with aRnd.xy. For a
+    // non-specular pick the returned f and pdf are those of all non-specular components
+    // together (one-sample MIS over them); for a specular pick they are the component's,
+    // with f / pdf * cos = its weight. Returns black when the sample is unusable.
+    Vec3 Sample(const Vec3& aRnd, Vec3& oWorldDirGen, float& oPdfW, float& oCosThetaGen,
+                uint32_t* oSampledEvent = nullptr) const {
+        if (oSampledEvent) *oSampledEvent = kEventNone;
+        oPdfW = 0.f;
+        Vec3 localDirGen;
+        uint32_t event;
+        const float* p = mProbabilities.data();
+        if (aRnd.z < p[kDiffuse]) {
+            event = kEventDiffuse;
+            localDirGen = SampleCosHemisphereW(Vec2(aRnd));
+            if (mLocalDirFix.z < 0.f) return Vec3(0.f);
+        } else if (aRnd.z < p[kDiffuse] + p[kPhong]) {
+            event = kEventPhong;
+            const Vec3 lobe = SamplePowerCosHemisphereW(Vec2(aRnd), mMaterial->mPhongExponent);
+            localDirGen = Frame(ReflectLocal(mLocalDirFix)).ToWorld(lobe);
+        } else if (aRnd.z < p[kDiffuse] + p[kPhong] + p[kReflect]) {
+            event = kEventReflect;
+            localDirGen = ReflectLocal(mLocalDirFix);
+            oPdfW = p[kReflect];
+            oCosThetaGen = std::abs(localDirGen.z);
+            oWorldDirGen = mFrame.ToWorld(localDirGen);
+            if (oSampledEvent) *oSampledEvent = event;
+            return mFresnel * mMaterial->mMirrorReflectance / oCosThetaGen;
+        } else {
+            event = kEventRefract;
+            float etaFixOverEtaGen;
+            if (!RefractLocal(mLocalDirFix, mMaterial->mIor, localDirGen, etaFixOverEtaGen) || !(p[kRefract] > 0.f))
+                return Vec3(0.f);
+            oPdfW = p[kRefract];
+            oCosThetaGen = std::abs(localDirGen.z);
+            oWorldDirGen = mFrame.ToWorld(localDirGen);
+            if (oSampledEvent) *oSampledEvent = event;
+            // Radiance is not symmetric under refraction: L/eta^2 is what is conserved, so
+            // camera paths carry (eta_fix / eta_gen)^2; light paths (importance) do not
+            // (Veach 1997, sec. 5.2).
+            const float scale = mFixIsLight ? 1.f : Sqr(etaFixOverEtaGen);
+            return Vec3((1.f - mFresnel) * scale / oCosThetaGen);
+        }
+        // Non-specular pick: evaluate every non-specular component for this direction.
+        if (localDirGen.z < kEpsCosine) return Vec3(0.f);
+        Vec3 f(0.f);
+        float reversePdfW;
+        EvaluateNonSpecular(localDirGen, f, oPdfW, reversePdfW);
+        if (!(oPdfW > 0.f)) return Vec3(0.f);
+        oCosThetaGen = localDirGen.z;
+        oWorldDirGen = mFrame.ToWorld(localDirGen);
+        if (oSampledEvent) *oSampledEvent = event;
+        return f;
+    }
+
+private:
+    enum Component { kDiffuse = 0, kPhong = 1, kReflect = 2, kRefract = 3 };
+
+    static Vec3 ReflectLocal(const Vec3& aLocal) { return Vec3(-aLocal.x, -aLocal.y, aLocal.z); }
+
+    // Snell's law in the local frame; false on total internal reflection.
+    static bool RefractLocal(const Vec3& aLocalFix, float aIor, Vec3& oLocalGen, float& oEtaFixOverEtaGen) {
+        const bool fromOutside = aLocalFix.z > 0.f;
+        oEtaFixOverEtaGen = fromOutside ? 1.f / aIor : aIor;
+        const float sinGen2 = Sqr(oEtaFixOverEtaGen) * (1.f - Sqr(aLocalFix.z));
+        if (sinGen2 >= 1.f) return false;
+        const float cosGen = std::sqrt(1.f - sinGen2);
+        oLocalGen = Vec3(-oEtaFixOverEtaGen * aLocalFix.x, -oEtaFixOverEtaGen * aLocalFix.y,
+                         fromOutside ? -cosGen : cosGen);
+        return true;
+    }
+
+    // Un-normalised selection weights of the components for a fixed direction whose local
+    // cosine is aCosFix (the Fresnel term, and one-sidedness, depend on it).
+    static std::array<float, 4> ComponentProbabilities(const Material& aMaterial, float aCosFix, float aFresnel) {
+        std::array<float, 4> p{};
+        const bool frontSide = aCosFix > 0.f;  // two-sided materials were already flipped
+        if (frontSide) {
+            p[kDiffuse] = Luminance(aMaterial.mDiffuseReflectance);
+            p[kPhong] = Luminance(aMaterial.mPhongReflectance);
+        }
+        p[kReflect] = aFresnel * Luminance(aMaterial.mMirrorReflectance);
+        p[kRefract] = aMaterial.mIor > 0.f ? 1.f - aFresnel : 0.f;
+        return p;
+    }
+
+    // Lambert + Phong for (fix, gen) in local coordinates: both must lie on the front side.
+    void EvaluateNonSpecular(const Vec3& aLocalDirGen, Vec3& oF, float& oDirectPdfW, float& oReversePdfW) const {
+        oF = Vec3(0.f);
+        oDirectPdfW = oReversePdfW = 0.f;
+        if (mIsDelta || mLocalDirFix.z < kEpsCosine || aLocalDirGen.z < kEpsCosine) return;
+        // Selection probabilities when gen is the fixed direction: they differ from ours
+        // only through the Fresnel term of glass, which then has to be recomputed.
+        std::array<float, 4> reverse = mProbabilities;
+        if (mMaterial->mIor > 0.f) {
+            reverse = ComponentProbabilities(*mMaterial, aLocalDirGen.z, FresnelDielectric(aLocalDirGen.z, mMaterial->mIor));
+            const float total = reverse[0] + reverse[1] + reverse[2] + reverse[3];
+            for (float& p : reverse) p /= total;
+        }
+        if (mProbabilities[kDiffuse] > 0.f) {
+            oF += mMaterial->mDiffuseReflectance * kInvPi;
+            oDirectPdfW += mProbabilities[kDiffuse] * CosHemispherePdfW(aLocalDirGen);
+            oReversePdfW += reverse[kDiffuse] * CosHemispherePdfW(mLocalDirFix);
+        }
+        if (mProbabilities[kPhong] > 0.f) {
+            // cos(R, gen) = cos(R', fix) with R' the reflection of gen: one value serves
+            // both directions.
+            const float cosR = glm::dot(ReflectLocal(mLocalDirFix), aLocalDirGen);
+            if (cosR > kEpsPhong) {
+                const float n = mMaterial->mPhongExponent;
+                const float lobe = std::pow(cosR, n);
+                oF += mMaterial->mPhongReflectance * ((n + 2.f) * 0.5f * kInvPi * lobe);
+                const float lobePdfW = (n + 1.f) * 0.5f * kInvPi * lobe;
+                oDirectPdfW += mProbabilities[kPhong] * lobePdfW;
+                oReversePdfW += reverse[kPhong] * lobePdfW;
+            }
+        }
+    }
+
+    Frame mFrame;
+    Vec3 mLocalDirFix{0.f};
+    const Material* mMaterial = nullptr;
+    std::array<float, 4> mProbabilities{};
+    float mFresnel = 1.f;
+    float mContinuationProb = 0.f;
+    bool mIsDelta = false;
+    bool mFixIsLight = false;
+    bool mValid = false;
+};
+
+// =====================================================================================
+// [SECTION] Film
+// =====================================================================================
+// Provides: Film, a per-thread accumulation buffer in double precision (so that millions
+// of small splats do not lose precision), with named extra layers the integrators write
+// per-technique images into; and Image, the resolved float picture the writers take.
+// Pixel index = y * width + x, y = 0 the top row.
+
+struct Image {
+    int mWidth = 0, mHeight = 0;
+    std::vector<Vec3> mPixels;  // top row first
+    Image() = default;
+    Image(int aWidth, int aHeight) : mWidth(aWidth), mHeight(aHeight), mPixels(size_t(aWidth) * size_t(aHeight), Vec3(0.f)) {}
+    Vec3& At(int aX, int aY) { return mPixels[size_t(aY) * size_t(mWidth) + size_t(aX)]; }
+    const Vec3& At(int aX, int aY) const { return mPixels[size_t(aY) * size_t(mWidth) + size_t(aX)]; }
+};
+
+class Film {
+public:
+    Film() = default;
+    Film(int aWidth, int aHeight) : mWidth(aWidth), mHeight(aHeight), mPixels(size_t(aWidth) * size_t(aHeight), glm::dvec3(0.0)) {}
+
+    int Width() const { return mWidth; }
+    int Height() const { return mHeight; }
+
+    void AddColor(int aPixelIndex, const Vec3& aColor) { mPixels[size_t(aPixelIndex)] += glm::dvec3(aColor); }
+
+    // Layers: created before rendering; AddLayer returns the index to write with.
+    int AddLayer(const std::string& aName) {
+        const int existing = LayerIndex(aName);
+        if (existing >= 0) return existing;
+        mLayerNames.push_back(aName);
+        mLayers.emplace_back(mPixels.size(), glm::dvec3(0.0));
+        return int(mLayers.size()) - 1;
+    }
+    int LayerIndex(const std::string& aName) const {
+        for (size_t i = 0; i < mLayerNames.size(); i++) if (mLayerNames[i] == aName) return int(i);
+        return -1;
+    }
+    int LayerCount() const { return int(mLayers.size()); }
+    const std::string& LayerName(int aLayer) const { return mLayerNames[size_t(aLayer)]; }
+    void AddToLayer(int aLayer, int aPixelIndex, const Vec3& aColor) {
+        mLayers[size_t(aLayer)][size_t(aPixelIndex)] += glm::dvec3(aColor);
+    }
+
+    // Adds another film of the same size and layers (the per-thread films of a render).
+    void Accumulate(const Film& aOther) {
+        for (size_t i = 0; i < mPixels.size(); i++) mPixels[i] += aOther.mPixels[i];
+        for (size_t l = 0; l < mLayers.size(); l++)
+            for (size_t i = 0; i < mPixels.size(); i++) mLayers[l][i] += aOther.mLayers[l][i];
+    }
+
+    // The image (aLayer = -1) or a layer, each pixel multiplied by aScale (1 / iterations).
+    Image Resolve(double aScale, int aLayer = -1) const {
+        const std::vector<glm::dvec3>& source = aLayer < 0 ? mPixels : mLayers[size_t(aLayer)];
+        Image image(mWidth, mHeight);
+        for (size_t i = 0; i < source.size(); i++) image.mPixels[i] = Vec3(source[i] * aScale);
+        return image;
+    }
+
+private:
+    int mWidth = 0, mHeight = 0;
+    std::vector<glm::dvec3> mPixels;
+    std::vector<std::string> mLayerNames;
+    std::vector<std::vector<glm::dvec3>> mLayers;
+};
+
+// =====================================================================================
+// [SECTION] Integrator interface
+// =====================================================================================
+// Provides: the algorithm list, RenderOptions, the MIS heuristic, and AbstractRenderer,
+// the base of every integrator: one instance per thread, owning its Film, asked to run
+// whole iterations (one sample per pixel each) with a random stream given to it.
+
+enum class Algorithm {
+    kEyeLight,
+    kPathTracing,
+    kLightTracing,
+    kProgressivePhotonMapping,
+    kBidirectionalPhotonMapping,
+    kBidirectionalPathTracing,
+    kVertexConnectionMerging,
+};
+
+// SmallVCM's short names ("el", "pt", "lt", "ppm", "bpm", "bpt", "vcm").
+inline const char* AlgorithmShortName(Algorithm aAlgorithm) {
+    switch (aAlgorithm) {
+    case Algorithm::kEyeLight: return "el";
+    case Algorithm::kPathTracing: return "pt";
+    case Algorithm::kLightTracing: return "lt";
+    case Algorithm::kProgressivePhotonMapping: return "ppm";
+    case Algorithm::kBidirectionalPhotonMapping: return "bpm";
+    case Algorithm::kBidirectionalPathTracing: return "bpt";
+    case Algorithm::kVertexConnectionMerging: return "vcm";
+    }
+    return "?";
+}
+inline bool ParseAlgorithm(const std::string& aName, Algorithm& oAlgorithm) {
+    for (Algorithm a : {Algorithm::kEyeLight, Algorithm::kPathTracing, Algorithm::kLightTracing,
+                        Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
+                        Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging})
+        if (aName == AlgorithmShortName(a)) { oAlgorithm = a; return true; }
+    return false;
+}
+
+enum class MisHeuristic { kBalance, kPower };
+
+struct RenderOptions {
+    Algorithm mAlgorithm = Algorithm::kVertexConnectionMerging;
+    int mIterations = 1;          // iterations to run (0: unlimited, then mSeconds must be > 0)
+    double mSeconds = 0.0;        // time budget in seconds (0: none)
+    int mThreads = 0;             // 0: every hardware thread
+    uint64_t mSeed = 1234;        // base seed: iteration i uses stream i of it
+    int mMinPathLength = 0;       // in segments, as SmallVCM counts them
+    int mMaxPathLength = 10;
+    float mRadiusFactor = 0.003f; // merging radius = factor * scene radius (SmallVCM's default)
+    float mRadiusAlpha = 0.75f;   // radius shrinks as r_i = r_0 (i+1)^((alpha-1)/2)
+    MisHeuristic mMis = MisHeuristic::kBalance;
+    bool mTechniqueLayers = false;// write per-technique layers into the film
+    bool mProgress = true;        // progress line on stderr (only on a terminal, after 2 s)
+};
+
+// The heuristic as a function of one pdf: w_i = Mis(p_i) / sum_j Mis(p_j).
+// Balance: Mis(p) = p; power (beta = 2): Mis(p) = p^2 (Veach 1997, sec. 9.2).
+inline float MisPower(MisHeuristic aHeuristic, float aPdf) {
+    return aHeuristic == MisHeuristic::kPower ? aPdf * aPdf : aPdf;
+}
+
+class AbstractRenderer {
+public:
+    AbstractRenderer(const Scene& aScene, const RenderOptions& aOptions)
+        : mScene(aScene), mOptions(aOptions), mFilm(aScene.mCamera.Width(), aScene.mCamera.Height()) {}
+    virtual ~AbstractRenderer() = default;
+    AbstractRenderer(const AbstractRenderer&) = delete;
+    AbstractRenderer& operator=(const AbstractRenderer&) = delete;
+
+    // Runs iteration aIteration (its index counts across all threads: PPM's radius
+    // depends on it) drawing every random number from aRng.
+    virtual void RunIteration(int aIteration, Rng& aRng) = 0;
+
+    Film& GetFilm() { return mFilm; }
+
+protected:
+    const Scene& mScene;
+    RenderOptions mOptions;
+    Film mFilm;
+};
+
+// =====================================================================================
+// [SECTION] Integrator: eye light
+// =====================================================================================
+// Not an estimator of light transport: it shades each first hit by |cos| between the
+// normal and the view direction and paints back faces red, so that geometry, normals
+// and the camera can be checked at a glance (SmallVCM's "el").
+
+class EyeLight : public AbstractRenderer {
+public:
+    using AbstractRenderer::AbstractRenderer;
+
+    void RunIteration(int /*aIteration*/, Rng& aRng) override {
+        const Camera& camera = mScene.mCamera;
+        for (int y = 0; y < camera.Height(); y++) {
+            for (int x = 0; x < camera.Width(); x++) {
+                const Vec2 raster = Vec2(float(x), float(y)) + aRng.GetVec2();
+                const Ray ray = camera.GenerateRay(raster);
+                Hit hit;
+                if (!mScene.Intersect(ray, hit)) continue;
+                const float cosFront = glm::dot(hit.mNormal, -ray.mDirection);
+                const Vec3 color = cosFront > 0.f ? Vec3(cosFront) : Vec3(-cosFront, 0.f, 0.f);
+                mFilm.AddColor(y * camera.Width() + x, color);
+            }
+        }
+    }
+};
+
+
+// =====================================================================================
+// [SECTION] Integrator: path tracing
+// =====================================================================================
+// Estimator: Kajiya's path tracing. One camera sub-path per pixel and iteration; at each
+// non-specular vertex, next-event estimation (a light sample and a shadow ray) and BSDF
+// sampling (continuing the path, and counting a light the path hits) estimate the same
+// direct light, combined by MIS (Veach 1997, sec. 9.2: balance heuristic by default):
+//     w_light = Mis(p_light) / (Mis(p_light) + Mis(p_bsdf)),  w_bsdf = 1 - w_light,
+// both pdfs in solid angle at the vertex, p_bsdf including the Russian roulette
+// continuation probability (it is part of how the path was sampled).
+// Russian roulette from the first hit on, with the material's continuation probability.
+// With technique layers on, each contribution is also written to one of five layers that
+// partition the image as the "partitioning the rendering equation" slide does:
+//   emitted                    light seen directly (path length 1)
+//   direct_{non}specular       light that reached the first vertex straight from a light
+//   indirect_{non}specular     light that bounced at least once more
+// with {non}specular the component sampled at the first vertex (next-event estimation
+// counts as non-specular). They sum to the image.
+
+class PathTracer : public AbstractRenderer {
+public:
+    PathTracer(const Scene& aScene, const RenderOptions& aOptions) : AbstractRenderer(aScene, aOptions) {
+        if (mOptions.mTechniqueLayers)
+            for (const char* name : kLayerNames) mLayers.push_back(mFilm.AddLayer(name));
+    }
+
+    void RunIteration(int /*aIteration*/, Rng& aRng) override {
+        const Camera& camera = mScene.mCamera;
+        const int lightCount = mScene.LightCount();
+        const float lightPickProb = 1.f / float(lightCount);
+        for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
+            const int x = pixel % camera.Width(), y = pixel / camera.Width();
+            Ray ray = camera.GenerateRay(Vec2(float(x), float(y)) + aRng.GetVec2());
+            Vec3 throughput(1.f);
+            float lastPdfW = 1.f;
+            bool lastSpecular = true;   // the camera counts as specular: no MIS at length 1
+            bool firstSpecular = false;
+            for (int pathLength = 1;; pathLength++) {
+                Hit hit;
+                if (!mScene.Intersect(ray, hit)) {
+                    // The ray left the scene: the background light, if any, by BSDF sampling.
+                    const Light* background = mScene.GetBackground();
+                    if (background && pathLength >= mOptions.mMinPathLength) {
+                        float directPdfW = 0.f;
+                        const Vec3 radiance = background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection,
+                                                                      Vec3(0.f), &directPdfW, nullptr);
+                        const float weight = lastSpecular ? 1.f : MisWeight(lastPdfW, directPdfW * lightPickProb);
+                        AddContribution(pixel, pathLength, firstSpecular, throughput * radiance * weight);
+                    }
+                    break;
+                }
+                const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+
+                if (hit.mLightId >= 0) {
+                    // A light, found by BSDF sampling: MIS against next-event estimation,
+                    // whose area pdf is converted to solid angle at the previous vertex.
+                    if (pathLength >= mOptions.mMinPathLength) {
+                        const Light& light = mScene.GetLight(hit.mLightId);
+                        float directPdfA = 0.f;
+                        const Vec3 radiance = light.GetRadiance(mScene.GetSceneSphere(), ray.mDirection, hit.mNormal,
+                                                                &directPdfA, nullptr);
+                        if (!IsBlack(radiance)) {
+                            float weight = 1.f;
+                            if (!lastSpecular) {
+                                const float cosAtLight = glm::dot(hit.mNormal, -ray.mDirection);
+                                const float distance = hit.mDist + mScene.RayEpsilon();
+                                const float directPdfW = PdfAtoW(directPdfA, distance, cosAtLight) * lightPickProb;
+                                weight = MisWeight(lastPdfW, directPdfW);
+                            }
+                            AddContribution(pixel, pathLength, firstSpecular, throughput * radiance * weight);
+                        }
+                    }
+                    break;  // lights do not reflect
+                }
+
+                Bsdf bsdf;
+                bsdf.Setup(ray, hit, mScene, false);
+                if (!bsdf.IsValid() || pathLength >= mOptions.mMaxPathLength) break;
+
+                // Next-event estimation: one light picked uniformly, one point on it.
+                if (!bsdf.IsDelta() && pathLength + 1 >= mOptions.mMinPathLength) {
+                    const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
+                    LightSample sample;
+                    const Vec2 rnd = aRng.GetVec2();
+                    if (light.Illuminate(mScene.GetSceneSphere(), hitPoint, rnd, sample) && !IsBlack(sample.mRadiance)) {
+                        float cosToLight, bsdfPdfW;
+                        const Vec3 factor = bsdf.Evaluate(sample.mDirToLight, cosToLight, &bsdfPdfW);
+                        if (!IsBlack(factor)) {
+                            bsdfPdfW *= bsdf.ContinuationProb();
+                            const float directPdfW = sample.mDirectPdfW * lightPickProb;
+                            const float weight = light.IsDelta() ? 1.f : MisWeight(directPdfW, bsdfPdfW);
+                            const Vec3 contribution = throughput * factor * sample.mRadiance * (weight * cosToLight / directPdfW);
+                            if (!mScene.Occluded(hitPoint, sample.mDirToLight, sample.mDistance))
+                                AddContribution(pixel, pathLength + 1, false, contribution);
+                        }
+                    }
+                }
+
+                // Continue the path by sampling the BSDF, then Russian roulette.
+                Vec3 direction;
+                float pdfW, cosThetaOut;
+                uint32_t event;
+                const Vec3 factor = bsdf.Sample(aRng.GetVec3(), direction, pdfW, cosThetaOut, &event);
+                if (IsBlack(factor)) break;
+                const float continuationProb = bsdf.ContinuationProb();
+                if (aRng.GetFloat() >= continuationProb) break;
+                pdfW *= continuationProb;
+                throughput *= factor * (cosThetaOut / pdfW);
+                lastPdfW = pdfW;
+                lastSpecular = (event & kEventSpecular) != 0;
+                if (pathLength == 1) firstSpecular = lastSpecular;
+                ray = mScene.SpawnRay(hitPoint, direction);
+            }
+        }
+    }
+
+private:
+    static constexpr const char* kLayerNames[5] = {"emitted", "direct_nonspecular", "direct_specular",
+                                                   "indirect_nonspecular", "indirect_specular"};
+
+    float MisWeight(float aPdfOfThis, float aPdfOfOther) const {
+        const float mine = MisPower(mOptions.mMis, aPdfOfThis);
+        return mine / (mine + MisPower(mOptions.mMis, aPdfOfOther));
+    }
+
+    void AddContribution(int aPixel, int aPathLength, bool aFirstSpecular, const Vec3& aContribution) {
+        mFilm.AddColor(aPixel, aContribution);
+        if (mLayers.empty()) return;
+        int layer = 0;
+        if (aPathLength == 2) layer = aFirstSpecular ? 2 : 1;
+        else if (aPathLength > 2) layer = aFirstSpecular ? 4 : 3;
+        mFilm.AddToLayer(mLayers[size_t(layer)], aPixel, aContribution);
+    }
+
+    std::vector<int> mLayers;
+};
+
+
+// =====================================================================================
+// [SECTION] Integrator: the VertexCM family (LT, PPM, BPM, BPT, VCM)
+// =====================================================================================
+// One class serves five algorithms, as in SmallVCM. Each iteration has three stages:
+//   1. trace N_L = (pixel count) light sub-paths, store their non-specular vertices, and
+//      connect each vertex to the camera (light tracing);
+//   2. build a range-search structure (a hash grid) over the stored vertices;
+//   3. trace one camera sub-path per pixel; at each vertex: count a light it hits,
+//      connect to a light (next-event estimation), connect to the vertices of one light
+//      sub-path (vertex connection, VC), merge with the light vertices within radius r
+//      (vertex merging, VM), and continue.
+// The algorithm only switches techniques on and off:
+//          light tracing  camera paths  VC (NEE, connections)  VM               MIS
+//   lt     yes            no            no                     no               none
+//   ppm    no             yes           no                     first non-spec.  none
+//   bpm    no             yes           no                     every vertex     yes
+//   bpt    yes            yes           yes                    no               yes
+//   vcm    yes            yes           yes                    every vertex     yes
+//
+// The estimator of VCM (Georgiev et al. 2012): every technique that can build a path
+// contributes f/p weighted by the balance (or power) heuristic over ALL techniques:
+// unidirectional (a camera path hits a light), NEE, light tracing, each connection
+// split, and a merge at each interior non-specular vertex, whose pdf is that of the
+// connection times pi r^2 p_A and N_L light sub-paths [tech. rep. (10), (20)].
+//
+// How the MIS weights are evaluated (the point of the technical report): a weight needs
+// the pdfs of all techniques of a path, but a vertex only has its own sub-path. Each
+// sub-path therefore carries three running quantities, updated at every step:
+//   dVCM  1 / (forward area pdf of this vertex)           -- the technique one step away
+//   dVC   the sum of the relative pdfs of all techniques with fewer vertices on this
+//         side, as a connection would need it            [tech. rep. (31)-(36)]
+//   dVM   the same, as a merge would need it
+// and a full path's weight is formed from the two vertices that meet [tech. rep. (37)].
+// The functions in VcmMis below are that arithmetic, free of any ray tracing, so tests
+// can drive them with the vertices of a given path and compare them with a brute-force
+// sum over all techniques (tests/test_vcm_mis.cpp).
+//
+// Where we go beyond SmallVCM:
+//   * Techniques an algorithm does not use are left out of the sums exactly: BPM has no
+//     NEE and no connections, so the dVCM terms that stand for them are gated by
+//     mUseVC (SmallVCM keeps some of them in, which biases BPM slightly).
+//   * PPM handles materials that mix specular and non-specular parts: it merges at the
+//     first vertex with a non-specular part and continues only if the sampled component
+//     is specular (SmallVCM silently falls back to BPM there).
+//   * Light tracing alone also splats the emitting surface points themselves, so that
+//     lights seen directly appear in its image (the other algorithms see them by camera
+//     paths). Point lights, which no camera path can see, are not splatted.
+
+// The constants of one iteration that the MIS arithmetic needs.
+struct VcmMisConstants {
+    MisHeuristic mHeuristic = MisHeuristic::kBalance;
+    bool mUseVC = true;                 // NEE, connections, light tracing
+    bool mUseVM = true;                 // merging
+    float mLightPathCount = 1.f;        // N_L
+    float mMergeRadius = 0.f;           // r of this iteration
+    float mVmWeightFactor = 0.f;        // Mis(eta_VCM) if merging is used, else 0
+    float mVcWeightFactor = 0.f;        // Mis(1 / eta_VCM) if connecting is used, else 0
+    float mInvEtaWeight = 0.f;          // Mis(1 / eta_VCM), used where no technique is gated
+    float mVmNormalization = 0.f;       // 1 / (pi r^2 N_L): the merging kernel [tech. rep. (11)]
+
+    float Mis(float aPdf) const { return MisPower(mHeuristic, aPdf); }
+
+    static VcmMisConstants Make(MisHeuristic aHeuristic, bool aUseVC, bool aUseVM, float aLightPathCount, float aRadius) {
+        VcmMisConstants c;
+        c.mHeuristic = aHeuristic;
+        c.mUseVC = aUseVC;
+        c.mUseVM = aUseVM;
+        c.mLightPathCount = aLightPathCount;
+        c.mMergeRadius = aRadius;
+        // eta_VCM = (n_VM / n_VC) pi r^2 with n_VC = 1, n_VM = N_L [tech. rep. (20)].
+        const float etaVCM = kPi * Sqr(aRadius) * aLightPathCount;
+        c.mInvEtaWeight = c.Mis(1.f / etaVCM);
+        c.mVmWeightFactor = aUseVM ? c.Mis(etaVCM) : 0.f;
+        c.mVcWeightFactor = aUseVC ? c.mInvEtaWeight : 0.f;
+        c.mVmNormalization = 1.f / (kPi * Sqr(aRadius) * aLightPathCount);
+        return c;
+    }
+};
+
+// The running MIS quantities of one sub-path vertex.
+struct SubpathMis {
+    float dVCM = 0.f;
+    float dVC = 0.f;
+    float dVM = 0.f;
+};
+
+namespace VcmMis {
+
+// Light sub-path start [tech. rep. (31)-(33)]. Pdfs include the light pick probability.
+// aCosAtLight: cosine of the emitted direction at a finite light (1 at infinity).
+inline SubpathMis AtLightEmission(const VcmMisConstants& c, float aDirectPdfA, float aEmissionPdfW,
+                                  float aCosAtLight, bool aIsDeltaLight, bool aIsFiniteLight) {
+    SubpathMis m;
+    m.dVCM = c.Mis(aDirectPdfA / aEmissionPdfW);                                       // (31)
+    // A delta light cannot be hit by a camera path: the unidirectional technique has
+    // pdf 0 there [tech. rep. (48)-(50)]; lights at infinity have no cosine (sec. 5.1).
+    m.dVC = aIsDeltaLight ? 0.f : c.Mis((aIsFiniteLight ? aCosAtLight : 1.f) / aEmissionPdfW);  // (32)
+    // (33): dVM = dVC / eta. Not gated by mUseVC: the technique it stands for is the
+    // unidirectional one, which every algorithm with camera paths has.
+    m.dVM = m.dVC * c.mInvEtaWeight;                                                   // (33)
+    return m;
+}
+
+// Camera sub-path start [tech. rep. (31)-(33), camera side]: a pinhole's position pdf
+// is 1, so only light tracing (N_L samples) relates to the first camera vertex.
+// aCameraPdfW: pdf of the primary ray per unit solid angle (per pixel area).
+inline SubpathMis AtCameraStart(const VcmMisConstants& c, float aCameraPdfW) {
+    SubpathMis m;
+    m.dVCM = c.Mis(c.mLightPathCount / aCameraPdfW);
+    return m;
+}
+
+// After tracing a segment of length aDistance that arrives with |cos| = aCosAtHit
+// [tech. rep. (34)-(36), the part applied at the hit]. The distance is not applied on
+// the first segment from a light at infinity, whose "area" pdf is a solid-angle pdf.
+inline void AfterSegment(const VcmMisConstants& c, SubpathMis& m, float aDistance, float aCosAtHit, bool aApplyDistance) {
+    if (aApplyDistance) m.dVCM *= c.Mis(Sqr(aDistance));
+    const float invCos = 1.f / c.Mis(std::abs(aCosAtHit));
+    m.dVCM *= invCos;
+    m.dVC *= invCos;
+    m.dVM *= invCos;
+}
+
+// After sampling a BSDF at a vertex: aCosOut is |cos| of the sampled direction, the pdfs
+// include the continuation probability [tech. rep. (34)-(36); specular (53)-(55)].
+inline void AfterScatter(const VcmMisConstants& c, SubpathMis& m, float aCosOut, float aDirPdfW,
+                         float aRevPdfW, bool aSpecular) {
+    if (aSpecular) {
+        // A delta vertex can neither connect nor merge, and its forward and reverse pdfs
+        // are equal and cancel: only the cosine of the new direction remains.
+        m.dVCM = 0.f;
+        m.dVC *= c.Mis(aCosOut);
+        m.dVM *= c.Mis(aCosOut);
+        return;
+    }
+    const float scale = c.Mis(aCosOut / aDirPdfW);
+    // The dVCM term stands for connecting right here (a VC technique); the
+    // mVmWeightFactor term for merging here; dVC * Mis(rev) for everything before.
+    const float connectHere = c.mUseVC ? m.dVCM : 0.f;
+    const float newDVC = scale * (m.dVC * c.Mis(aRevPdfW) + connectHere + c.mVmWeightFactor);    // (35)
+    const float newDVM = scale * (m.dVM * c.Mis(aRevPdfW) + m.dVCM * c.mVcWeightFactor + 1.f);  // (36)
+    m.dVC = newDVC;
+    m.dVM = newDVM;
+    m.dVCM = c.Mis(1.f / aDirPdfW);                                                             // (34)
+}
+
+// Camera sub-path hits a light (s = 0) [tech. rep. (42), (43)]. Pdfs include the pick
+// probability: aDirectPdfA is NEE's area pdf of the point (solid angle for a background),
+// aEmissionPdfW the emission pdf of the point and the reversed ray direction.
+inline float WeightCameraHitsLight(const VcmMisConstants& c, const SubpathMis& aCamera, float aDirectPdfA,
+                                   float aEmissionPdfW) {
+    const float nextEvent = c.mUseVC ? c.Mis(aDirectPdfA) * aCamera.dVCM : 0.f;
+    const float wCamera = nextEvent + c.Mis(aEmissionPdfW) * aCamera.dVC;
+    return 1.f / (1.f + wCamera);
+}
+
+// Next-event estimation (s = 1) [tech. rep. (44), (45)]. aBsdfDirPdfW / aBsdfRevPdfW: the
+// camera vertex's BSDF pdfs towards the light / towards the previous camera vertex
+// (with continuation probability); aDirectPdfW, aEmissionPdfW with the pick probability.
+inline float WeightNextEvent(const VcmMisConstants& c, const SubpathMis& aCamera, float aBsdfDirPdfW,
+                             float aBsdfRevPdfW, float aDirectPdfW, float aEmissionPdfW, float aCosToLight,
+                             float aCosAtLight, bool aIsDeltaLight) {
+    // The unidirectional technique that would hit the same light point; none for delta lights.
+    const float wLight = aIsDeltaLight ? 0.f : c.Mis(aBsdfDirPdfW / aDirectPdfW);
+    const float wCamera = c.Mis(aEmissionPdfW * aCosToLight / (aDirectPdfW * aCosAtLight)) *
+                          (c.mVmWeightFactor + aCamera.dVCM + aCamera.dVC * c.Mis(aBsdfRevPdfW));
+    return 1.f / (wLight + 1.f + wCamera);
+}
+
+// Light tracing: a light vertex connected to the camera (t = 1) [tech. rep. (46), (47)].
+// aCameraPdfA: the camera's pdf of generating this vertex (per pixel area, in area
+// measure); aBsdfRevPdfW: the light vertex's BSDF pdf towards its predecessor.
+inline float WeightLightTracing(const VcmMisConstants& c, const SubpathMis& aLight, float aCameraPdfA,
+                                float aBsdfRevPdfW) {
+    const float wLight = c.Mis(aCameraPdfA / c.mLightPathCount) *
+                         (c.mVmWeightFactor + aLight.dVCM + aLight.dVC * c.Mis(aBsdfRevPdfW));
+    return 1.f / (wLight + 1.f);
+}
+
+// Vertex connection of a light vertex y and a camera vertex z [tech. rep. (40), (41)].
+// aCameraBsdfDirPdfA: z's BSDF generating y, as area pdf at y; aLightBsdfDirPdfA: y's
+// BSDF generating z, as area pdf at z; the Rev pdfs are towards each vertex's predecessor.
+inline float WeightConnection(const VcmMisConstants& c, const SubpathMis& aLight, const SubpathMis& aCamera,
+                              float aCameraBsdfDirPdfA, float aCameraBsdfRevPdfW,
+                              float aLightBsdfDirPdfA, float aLightBsdfRevPdfW) {
+    const float wLight = c.Mis(aCameraBsdfDirPdfA) *
+                         (c.mVmWeightFactor + aLight.dVCM + aLight.dVC * c.Mis(aLightBsdfRevPdfW));
+    const float wCamera = c.Mis(aLightBsdfDirPdfA) *
+                          (c.mVmWeightFactor + aCamera.dVCM + aCamera.dVC * c.Mis(aCameraBsdfRevPdfW));
+    return 1.f / (wLight + 1.f + wCamera);
+}
+
+// Vertex merging of a light vertex y with a camera vertex z [tech. rep. (38), (39)].
+// aCameraBsdfDirPdfW: z's BSDF pdf of the direction y arrived from (z's outgoing,
+// "towards the light" direction); aCameraBsdfRevPdfW: of z's own incoming direction.
+inline float WeightMerge(const VcmMisConstants& c, const SubpathMis& aLight, const SubpathMis& aCamera,
+                         float aCameraBsdfDirPdfW, float aCameraBsdfRevPdfW) {
+    const float wLight = aLight.dVCM * c.mVcWeightFactor + aLight.dVM * c.Mis(aCameraBsdfDirPdfW);
+    const float wCamera = aCamera.dVCM * c.mVcWeightFactor + aCamera.dVM * c.Mis(aCameraBsdfRevPdfW);
+    return 1.f / (wLight + 1.f + wCamera);
+}
+
+} // namespace VcmMis
+
+// Range search over points: a uniform grid of cells of size 2r hashed into a table as
+// large as the point count (SmallVCM's scheme). A query visits the cells overlapping the
+// query's bounding box -- at most 2 x 2 x 2 -- skipping buckets already visited (two
+// cells can hash to one bucket; visiting it twice would count its points twice).
+class HashGrid {
+public:
+    template <class PositionOf>
+    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf) {
+        mRadius = aRadius;
+        mRadiusSqr = Sqr(aRadius);
+        mInvCellSize = 1.f / (2.f * aRadius);
+        const size_t buckets = std::max<size_t>(aCount, 1);
+        mBucketEnds.assign(buckets, 0);
+        mIndices.resize(aCount);
+        std::vector<uint32_t> bucketOf(aCount);
+        for (size_t i = 0; i < aCount; i++) {
+            bucketOf[i] = BucketOf(CellOf(aPositionOf(i)));
+            mBucketEnds[bucketOf[i]]++;
+        }
+        uint32_t sum = 0;  // counting sort: ends of the buckets, then fill from the back
+        for (uint32_t& end : mBucketEnds) { sum += end; end = sum; }
+        std::vector<uint32_t> cursor = mBucketEnds;
+        for (size_t i = aCount; i-- > 0;) mIndices[--cursor[bucketOf[i]]] = uint32_t(i);
+    }
+
+    // Calls aVisit(index) for every point within the radius of aQuery (distance <= r).
+    template <class PositionOf, class Visit>
+    void Process(const Vec3& aQuery, PositionOf&& aPositionOf, Visit&& aVisit) const {
+        if (mIndices.empty()) return;
+        const glm::ivec3 low = CellOf(aQuery - Vec3(mRadius));
+        const glm::ivec3 high = CellOf(aQuery + Vec3(mRadius));
+        uint32_t visited[8];
+        int visitedCount = 0;
+        for (int z = low.z; z <= high.z; z++)
+            for (int y = low.y; y <= high.y; y++)
+                for (int x = low.x; x <= high.x; x++) {
+                    const uint32_t bucket = BucketOf(glm::ivec3(x, y, z));
+                    if (std::find(visited, visited + visitedCount, bucket) != visited + visitedCount) continue;
+                    if (visitedCount < 8) visited[visitedCount++] = bucket;
+                    const uint32_t begin = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
+                    for (uint32_t k = begin; k < mBucketEnds[bucket]; k++) {
+                        const uint32_t index = mIndices[k];
+                        const Vec3 d = aPositionOf(index) - aQuery;
+                        if (glm::dot(d, d) <= mRadiusSqr) aVisit(index);
+                    }
+                }
+    }
+
+private:
+    glm::ivec3 CellOf(const Vec3& aPosition) const { return glm::ivec3(glm::floor(aPosition * mInvCellSize)); }
+    uint32_t BucketOf(const glm::ivec3& aCell) const {
+        const uint32_t hash = (uint32_t(aCell.x) * 73856093u) ^ (uint32_t(aCell.y) * 19349663u) ^ (uint32_t(aCell.z) * 83492791u);
+        return hash % uint32_t(mBucketEnds.size());
+    }
+
+    float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
+    std::vector<uint32_t> mBucketEnds;
+    std::vector<uint32_t> mIndices;
+};
+
+class VertexCM : public AbstractRenderer {
+public:
+    // Technique classes, the layers of the VCM overview (F15) and the VC/VM shares (F17).
+    enum Technique { kUnidirectional = 0, kNextEvent, kLightTracing, kConnection, kMerging, kTechniqueCount };
+    static constexpr const char* kTechniqueLayerNames[kTechniqueCount] = {
+        "unidirectional", "nee", "light_tracing", "connection", "merging"};
+    // BPT's path pyramid: one layer per (s, t) up to this path length.
+    static constexpr int kPyramidMaxLength = 5;
+
+    VertexCM(const Scene& aScene, const RenderOptions& aOptions) : AbstractRenderer(aScene, aOptions) {
+        switch (mOptions.mAlgorithm) {
+        case Algorithm::kLightTracing: mLightTraceOnly = true; mUseVC = false; mUseVM = false; break;
+        case Algorithm::kProgressivePhotonMapping: mPpm = true; mUseVC = false; mUseVM = true; break;
+        case Algorithm::kBidirectionalPhotonMapping: mUseVC = false; mUseVM = true; break;
+        case Algorithm::kBidirectionalPathTracing: mUseVC = true; mUseVM = false; break;
+        case Algorithm::kVertexConnectionMerging: mUseVC = true; mUseVM = true; break;
+        default: throw Error("VertexCM: algorithm '" + std::string(AlgorithmShortName(mOptions.mAlgorithm)) + "' is not of the VertexCM family");
+        }
+        mBaseRadius = mOptions.mRadiusFactor * mScene.GetSceneSphere().mRadius;
+        if (mOptions.mTechniqueLayers) {
+            for (int t = 0; t < kTechniqueCount; t++) mTechniqueLayers[t] = mFilm.AddLayer(kTechniqueLayerNames[t]);
+            if (mOptions.mAlgorithm == Algorithm::kBidirectionalPathTracing) {
+                for (int length = 1; length <= kPyramidMaxLength; length++)
+                    for (int s = 0; s <= length; s++) {
+                        const std::string name = "s" + std::to_string(s) + "_t" + std::to_string(length + 1 - s);
+                        mPyramidLayers[length][s][0] = mFilm.AddLayer(name);
+                        mPyramidLayers[length][s][1] = mFilm.AddLayer(name + "_unweighted");
+                    }
+                mLongerPathsLayer = mFilm.AddLayer("longer_than_5");
+            }
+        }
+    }
+
+    // The merging radius of iteration aIteration: r_i = r_0 (i+1)^((alpha-1)/2), the
+    // progressive photon mapping schedule in SmallVCM's form (alpha = 1: fixed radius).
+    float MergeRadius(int aIteration) const {
+        const float radius = mBaseRadius * std::pow(float(aIteration) + 1.f, 0.5f * (mOptions.mRadiusAlpha - 1.f));
+        return std::max(radius, 1e-7f);
+    }
+
+    void RunIteration(int aIteration, Rng& aRng) override {
+        const Camera& camera = mScene.mCamera;
+        const int pathCount = camera.PixelCount();
+        const float radius = MergeRadius(aIteration);
+        mMis = VcmMisConstants::Make(mOptions.mMis, mUseVC, mUseVM, float(pathCount), radius);
+
+        // ---------------------------------------------------------------------------
+        // Stage 1: light sub-paths
+        // ---------------------------------------------------------------------------
+        mLightVertices.clear();
+        mPathEnds.assign(size_t(pathCount), 0);
+        for (int path = 0; path < pathCount; path++) {
+            SubPathState light;
+            GenerateLightSample(aRng, light);
+            for (;;) {
+                const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
+                Hit hit;
+                if (!mScene.Intersect(ray, hit)) break;
+                const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+                if (hit.mLightId >= 0) break;  // emitters do not reflect
+                Bsdf bsdf;
+                bsdf.Setup(ray, hit, mScene, true);
+                if (!bsdf.IsValid()) break;
+                VcmMis::AfterSegment(mMis, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFix(),
+                                     light.mPathLength > 1 || light.mIsFiniteLight);
+
+                if (!bsdf.IsDelta()) {
+                    // Store the vertex for connections and merging.
+                    if (mUseVC || mUseVM) {
+                        PathVertex vertex;
+                        vertex.mHitPoint = hitPoint;
+                        vertex.mThroughput = light.mThroughput;
+                        vertex.mPathLength = light.mPathLength;
+                        vertex.mMis = light.mMis;
+                        vertex.mBsdf = bsdf;
+                        mLightVertices.push_back(vertex);
+                    }
+                    // Light tracing: connect to the camera (t = 1).
+                    if ((mUseVC || mLightTraceOnly) && light.mPathLength + 1 >= mOptions.mMinPathLength)
+                        ConnectToCamera(light, hitPoint, bsdf);
+                }
+                // A vertex of length L is useful only if a path of length L + 1 may follow.
+                if (light.mPathLength + 2 > mOptions.mMaxPathLength) break;
+                if (!SampleScattering(aRng, bsdf, hitPoint, light, nullptr)) break;
+            }
+            mPathEnds[size_t(path)] = mLightVertices.size();
+        }
+
+        // ---------------------------------------------------------------------------
+        // Stage 2: the range-search structure over the light vertices
+        // ---------------------------------------------------------------------------
+        if (mUseVM)
+            mGrid.Build(mLightVertices.size(), radius, [&](size_t i) { return mLightVertices[i].mHitPoint; });
+        if (mLightTraceOnly) return;
+
+        // ---------------------------------------------------------------------------
+        // Stage 3: camera sub-paths
+        // ---------------------------------------------------------------------------
+        for (int pixel = 0; pixel < pathCount; pixel++) {
+            const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aRng.GetVec2();
+            SubPathState cam;
+            GenerateCameraSample(raster, cam);
+            Ray ray{cam.mOrigin, cam.mDirection};
+            for (;;) {
+                Hit hit;
+                if (!mScene.Intersect(ray, hit)) {
+                    const Light* background = mScene.GetBackground();
+                    if (background && cam.mPathLength >= mOptions.mMinPathLength)
+                        AddCameraHitLight(pixel, cam, *background, ray.mDirection, Vec3(0.f));
+                    break;
+                }
+                const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+                const float cosAtHit = glm::dot(hit.mNormal, -ray.mDirection);
+                const float distance = hit.mDist + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
+                VcmMis::AfterSegment(mMis, cam.mMis, distance, cosAtHit, true);
+
+                if (hit.mLightId >= 0) {
+                    if (cam.mPathLength >= mOptions.mMinPathLength)
+                        AddCameraHitLight(pixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.mNormal);
+                    break;  // lights do not reflect
+                }
+                Bsdf bsdf;
+                bsdf.Setup(ray, hit, mScene, false);
+                if (!bsdf.IsValid()) break;
+                // A vertex of length L is useful only for paths of length >= L + 1.
+                if (cam.mPathLength >= mOptions.mMaxPathLength) break;
+
+                if (!bsdf.IsDelta()) {
+                    if (mUseVC) {
+                        if (cam.mPathLength + 1 >= mOptions.mMinPathLength)
+                            ConnectToLight(aRng, pixel, cam, hitPoint, bsdf);
+                        ConnectToLightVertices(pixel, cam, hitPoint, bsdf);
+                    }
+                    if (mUseVM) MergeWithLightVertices(pixel, cam, hitPoint, bsdf);
+                }
+
+                uint32_t event = kEventNone;
+                if (!SampleScattering(aRng, bsdf, hitPoint, cam, &event)) break;
+                // PPM's camera path ends where it merged; only a specular component (of a
+                // mixed material) carries it on, to find the next non-specular vertex.
+                if (mPpm && !bsdf.IsDelta() && !(event & kEventSpecular)) break;
+                ray = mScene.SpawnRay(cam.mOrigin, cam.mDirection);
+            }
+        }
+    }
+
+    // --- what tests and tools may inspect ----------------------------------------------
+    const VcmMisConstants& MisConstants() const { return mMis; }
+    size_t LightVertexCount() const { return mLightVertices.size(); }
+
+private:
+    // The state of a sub-path while it is traced.
+    struct SubPathState {
+        Vec3 mOrigin{0.f};
+        Vec3 mDirection{0.f};
+        Vec3 mThroughput{1.f};
+        int mPathLength = 1;        // segments so far, counting the one being traced
+        bool mIsFiniteLight = true; // light sub-paths: did it start on a finite light?
+        bool mSpecularPath = true;  // camera sub-paths: only specular vertices so far?
+        SubpathMis mMis;
+    };
+
+    // A stored light vertex.
+    struct PathVertex {
+        Vec3 mHitPoint{0.f};
+        Vec3 mThroughput{0.f};
+        int mPathLength = 0;
+        SubpathMis mMis;
+        Bsdf mBsdf;
+    };
+
+    void GenerateLightSample(Rng& aRng, SubPathState& oState) {
+        const int lightCount = mScene.LightCount();
+        const float lightPickProb = 1.f / float(lightCount);
+        const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
+        const Vec2 rndDirection = aRng.GetVec2();
+        const Vec2 rndPosition = aRng.GetVec2();
+        LightEmission emission;
+        oState.mPathLength = 1;
+        oState.mThroughput = Vec3(0.f);
+        if (!light.Emit(mScene.GetSceneSphere(), rndDirection, rndPosition, emission) || !(emission.mEmissionPdfW > 0.f))
+            return;
+        emission.mEmissionPdfW *= lightPickProb;
+        emission.mDirectPdfA *= lightPickProb;
+        oState.mOrigin = emission.mPosition;
+        oState.mDirection = emission.mDirection;
+        oState.mThroughput = emission.mEnergy / emission.mEmissionPdfW;
+        oState.mIsFiniteLight = light.IsFinite();
+        oState.mMis = VcmMis::AtLightEmission(mMis, emission.mDirectPdfA, emission.mEmissionPdfW, emission.mCosAtLight,
+                                              light.IsDelta(), light.IsFinite());
+        // Light tracing alone splats the emitting point itself (see the section's notes).
+        if (mLightTraceOnly && !light.IsDelta() && light.IsFinite() && mOptions.mMinPathLength <= 1)
+            SplatEmitterPoint(light, emission, lightPickProb);
+    }
+
+    void GenerateCameraSample(const Vec2& aRaster, SubPathState& oState) const {
+        const Camera& camera = mScene.mCamera;
+        const Ray ray = camera.GenerateRay(aRaster);
+        // The pdf of this direction per unit image area: d_plane^2 / cos^3.
+        const float cosAtCamera = glm::dot(camera.Forward(), ray.mDirection);
+        const float imagePointToCameraDist = camera.ImagePlaneDist() / cosAtCamera;
+        const float cameraPdfW = Sqr(imagePointToCameraDist) / cosAtCamera;
+        oState.mOrigin = ray.mOrigin;
+        oState.mDirection = ray.mDirection;
+        oState.mThroughput = Vec3(1.f);
+        oState.mPathLength = 1;
+        oState.mSpecularPath = true;
+        oState.mMis = VcmMis::AtCameraStart(mMis, cameraPdfW);
+    }
+
+    // Samples the continuation of a sub-path at a vertex, with Russian roulette, and
+    // updates its throughput and MIS quantities. False when the sub-path ends.
+    bool SampleScattering(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, SubPathState& ioState,
+                          uint32_t* oEvent) const {
+        Vec3 direction;
+        float dirPdfW, cosThetaOut;
+        uint32_t event;
+        const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), direction, dirPdfW, cosThetaOut, &event);
+        if (IsBlack(factor)) return false;
+        const float continuationProb = aBsdf.ContinuationProb();
+        if (aRng.GetFloat() >= continuationProb) return false;
+        const bool specular = (event & kEventSpecular) != 0;
+        // For a specular event both pdfs are the component's selection probability (the
+        // Fresnel term is the same for both directions of a reflection or refraction).
+        const float revPdfW = (specular ? dirPdfW : aBsdf.Pdf(direction, true)) * continuationProb;
+        dirPdfW *= continuationProb;
+        VcmMis::AfterScatter(mMis, ioState.mMis, cosThetaOut, dirPdfW, revPdfW, specular);
+        ioState.mOrigin = aHitPoint;
+        ioState.mDirection = direction;
+        ioState.mThroughput *= factor * (cosThetaOut / dirPdfW);
+        ioState.mSpecularPath = ioState.mSpecularPath && specular;
+        ioState.mPathLength++;
+        if (oEvent) *oEvent = event;
+        return true;
+    }
+
+    // --- light tracing -------------------------------------------------------------------
+    // Camera importance for a point seen at distance aDistance with |cos| aCosAtPoint: the
+    // factor that turns a point's area measure into image-plane area (pixels), i.e. the
+    // camera's pdf of generating that point (SmallVCM's imageToSurfaceFactor).
+    float CameraPdfA(const Vec3& aDirToCamera, float aDistance, float aCosAtPoint) const {
+        const Camera& camera = mScene.mCamera;
+        const float cosAtCamera = glm::dot(camera.Forward(), -aDirToCamera);
+        const float imagePointToCameraDist = camera.ImagePlaneDist() / cosAtCamera;
+        const float imageToSolidAngleFactor = Sqr(imagePointToCameraDist) / cosAtCamera;
+        return imageToSolidAngleFactor * std::abs(aCosAtPoint) / Sqr(aDistance);
+    }
+
+    void ConnectToCamera(const SubPathState& aLight, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+        const Camera& camera = mScene.mCamera;
+        Vec3 dirToCamera = camera.Position() - aHitPoint;
+        if (glm::dot(camera.Forward(), -dirToCamera) <= 0.f) return;  // behind the camera
+        const float distance = glm::length(dirToCamera);
+        dirToCamera /= distance;
+        Vec2 raster;
+        if (!camera.WorldToRaster(aHitPoint, raster) || !camera.CheckRaster(raster)) return;
+        float cosToCamera, bsdfDirPdfW, bsdfRevPdfW;
+        const Vec3 bsdfFactor = aBsdf.Evaluate(dirToCamera, cosToCamera, &bsdfDirPdfW, &bsdfRevPdfW);
+        if (IsBlack(bsdfFactor)) return;
+        bsdfRevPdfW *= aBsdf.ContinuationProb();
+        const float cameraPdfA = CameraPdfA(dirToCamera, distance, cosToCamera);
+        const float weight = mLightTraceOnly ? 1.f : VcmMis::WeightLightTracing(mMis, aLight.mMis, cameraPdfA, bsdfRevPdfW);
+        // Each of the N_L light sub-paths estimates the whole image: divide by N_L.
+        const Vec3 unweighted = aLight.mThroughput * bsdfFactor * (cameraPdfA / mMis.mLightPathCount);
+        if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return;
+        const int pixel = camera.RasterToIndex(raster);
+        mFilm.AddColor(pixel, unweighted * weight);
+        RecordTechnique(kLightTracing, pixel, aLight.mPathLength + 1, aLight.mPathLength + 1, unweighted, weight);
+    }
+
+    void SplatEmitterPoint(const Light& aLight, const LightEmission& aEmission, float aLightPickProb) {
+        const Camera& camera = mScene.mCamera;
+        Vec3 dirToCamera = camera.Position() - aEmission.mPosition;
+        if (glm::dot(camera.Forward(), -dirToCamera) <= 0.f) return;
+        const float distance = glm::length(dirToCamera);
+        dirToCamera /= distance;
+        Vec2 raster;
+        if (!camera.WorldToRaster(aEmission.mPosition, raster) || !camera.CheckRaster(raster)) return;
+        const float cosAtLight = glm::dot(aEmission.mNormal, dirToCamera);
+        if (cosAtLight <= kEpsCosine) return;  // emitters are one-sided
+        // L_e G W_e / p_A(x0) / N_L, with G W_e the camera's area pdf of the point.
+        const float positionPdfA = aLightPickProb / aLight.mArea;
+        const Vec3 contribution = aLight.mEmission * (CameraPdfA(dirToCamera, distance, cosAtLight) /
+                                                      (positionPdfA * mMis.mLightPathCount));
+        if (mScene.Occluded(aEmission.mPosition, dirToCamera, distance)) return;
+        const int pixel = camera.RasterToIndex(raster);
+        mFilm.AddColor(pixel, contribution);
+        RecordTechnique(kLightTracing, pixel, 1, 1, contribution, 1.f);
+    }
+
+    // --- camera sub-path techniques ------------------------------------------------------
+    // The camera sub-path hit a light (or left the scene with a background light): s = 0.
+    void AddCameraHitLight(int aPixel, const SubPathState& aCamera, const Light& aLight,
+                           const Vec3& aRayDirection, const Vec3& aHitNormal) {
+        float directPdfA = 0.f, emissionPdfW = 0.f;
+        const Vec3 radiance = aLight.GetRadiance(mScene.GetSceneSphere(), aRayDirection, aHitNormal, &directPdfA, &emissionPdfW);
+        if (IsBlack(radiance)) return;
+        // Length 1 has no other technique here; PPM's camera paths reach lights only
+        // through specular vertices, which no merge can replace.
+        float weight = 1.f;
+        if (aCamera.mPathLength > 1 && !mPpm) {
+            const float lightPickProb = 1.f / float(mScene.LightCount());
+            weight = VcmMis::WeightCameraHitsLight(mMis, aCamera.mMis, directPdfA * lightPickProb,
+                                                   emissionPdfW * lightPickProb);
+        }
+        const Vec3 unweighted = aCamera.mThroughput * radiance;
+        mFilm.AddColor(aPixel, unweighted * weight);
+        RecordTechnique(kUnidirectional, aPixel, 0, aCamera.mPathLength, unweighted, weight);
+    }
+
+    // Next-event estimation (s = 1): a point sampled on a light, connected by a shadow ray.
+    void ConnectToLight(Rng& aRng, int aPixel, const SubPathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+        const int lightCount = mScene.LightCount();
+        const float lightPickProb = 1.f / float(lightCount);
+        const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
+        const Vec2 rnd = aRng.GetVec2();
+        LightSample sample;
+        if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd, sample) || IsBlack(sample.mRadiance)) return;
+        float cosToLight, bsdfDirPdfW, bsdfRevPdfW;
+        const Vec3 bsdfFactor = aBsdf.Evaluate(sample.mDirToLight, cosToLight, &bsdfDirPdfW, &bsdfRevPdfW);
+        if (IsBlack(bsdfFactor)) return;
+        bsdfDirPdfW *= aBsdf.ContinuationProb();
+        bsdfRevPdfW *= aBsdf.ContinuationProb();
+        const float directPdfW = sample.mDirectPdfW * lightPickProb;
+        const float weight = VcmMis::WeightNextEvent(mMis, aCamera.mMis, bsdfDirPdfW, bsdfRevPdfW, directPdfW,
+                                                     sample.mEmissionPdfW * lightPickProb, cosToLight,
+                                                     sample.mCosAtLight, light.IsDelta());
+        const Vec3 unweighted = aCamera.mThroughput * bsdfFactor * sample.mRadiance * (cosToLight / directPdfW);
+        if (mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance)) return;
+        mFilm.AddColor(aPixel, unweighted * weight);
+        RecordTechnique(kNextEvent, aPixel, 1, aCamera.mPathLength + 1, unweighted, weight);
+    }
+
+    // Vertex connection with every vertex of this pixel's own light sub-path.
+    void ConnectToLightVertices(int aPixel, const SubPathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+        const size_t begin = aPixel == 0 ? 0 : mPathEnds[size_t(aPixel) - 1];
+        const size_t end = mPathEnds[size_t(aPixel)];
+        for (size_t i = begin; i < end; i++) {
+            const PathVertex& vertex = mLightVertices[i];
+            const int pathLength = vertex.mPathLength + aCamera.mPathLength + 1;
+            if (pathLength > mOptions.mMaxPathLength) break;  // the sub-path's vertices only get longer
+            if (pathLength < mOptions.mMinPathLength) continue;
+
+            Vec3 direction = vertex.mHitPoint - aHitPoint;
+            const float distanceSqr = glm::dot(direction, direction);
+            if (!(distanceSqr > 0.f)) continue;
+            const float distance = std::sqrt(distanceSqr);
+            direction /= distance;
+
+            float cosCamera, cameraBsdfDirPdfW, cameraBsdfRevPdfW;
+            const Vec3 cameraFactor = aBsdf.Evaluate(direction, cosCamera, &cameraBsdfDirPdfW, &cameraBsdfRevPdfW);
+            if (IsBlack(cameraFactor)) continue;
+            cameraBsdfDirPdfW *= aBsdf.ContinuationProb();
+            cameraBsdfRevPdfW *= aBsdf.ContinuationProb();
+            float cosLight, lightBsdfDirPdfW, lightBsdfRevPdfW;
+            const Vec3 lightFactor = vertex.mBsdf.Evaluate(-direction, cosLight, &lightBsdfDirPdfW, &lightBsdfRevPdfW);
+            if (IsBlack(lightFactor)) continue;
+            lightBsdfDirPdfW *= vertex.mBsdf.ContinuationProb();
+            lightBsdfRevPdfW *= vertex.mBsdf.ContinuationProb();
+
+            const float geometryTerm = cosCamera * cosLight / distanceSqr;
+            const float weight = VcmMis::WeightConnection(mMis, vertex.mMis, aCamera.mMis,
+                                                          PdfWtoA(cameraBsdfDirPdfW, distance, cosLight), cameraBsdfRevPdfW,
+                                                          PdfWtoA(lightBsdfDirPdfW, distance, cosCamera), lightBsdfRevPdfW);
+            const Vec3 unweighted = aCamera.mThroughput * vertex.mThroughput * cameraFactor * lightFactor * geometryTerm;
+            if (mScene.Occluded(aHitPoint, direction, distance)) continue;
+            mFilm.AddColor(aPixel, unweighted * weight);
+            RecordTechnique(kConnection, aPixel, vertex.mPathLength + 1, pathLength, unweighted, weight);
+        }
+    }
+
+    // Vertex merging: the light vertices within the radius, density-estimated with a
+    // constant kernel 1 / (pi r^2) over N_L light sub-paths [tech. rep. (11)].
+    void MergeWithLightVertices(int aPixel, const SubPathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+        Vec3 sum(0.f);
+        mGrid.Process(aHitPoint, [&](size_t i) { return mLightVertices[i].mHitPoint; }, [&](uint32_t i) {
+            const PathVertex& vertex = mLightVertices[i];
+            const int pathLength = vertex.mPathLength + aCamera.mPathLength;
+            if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
+            // The camera's BSDF, evaluated towards where the light vertex came from.
+            float cosCamera, cameraBsdfDirPdfW, cameraBsdfRevPdfW;
+            const Vec3 cameraFactor = aBsdf.Evaluate(vertex.mBsdf.WorldDirFix(), cosCamera, &cameraBsdfDirPdfW, &cameraBsdfRevPdfW);
+            if (IsBlack(cameraFactor)) return;
+            cameraBsdfDirPdfW *= aBsdf.ContinuationProb();
+            cameraBsdfRevPdfW *= aBsdf.ContinuationProb();
+            const float weight = mPpm ? 1.f : VcmMis::WeightMerge(mMis, vertex.mMis, aCamera.mMis, cameraBsdfDirPdfW, cameraBsdfRevPdfW);
+            sum += cameraFactor * vertex.mThroughput * weight;
+        });
+        if (IsBlack(sum)) return;
+        const Vec3 contribution = aCamera.mThroughput * sum * mMis.mVmNormalization;
+        mFilm.AddColor(aPixel, contribution);
+        RecordTechnique(kMerging, aPixel, -1, -1, contribution, 1.f);
+    }
+
+    // Writes a contribution into the technique layers, when they were asked for.
+    // aLightVertices (s) and aPathLength place it in BPT's pyramid; -1 for merges.
+    void RecordTechnique(Technique aTechnique, int aPixel, int aLightVertices, int aPathLength,
+                         const Vec3& aUnweighted, float aWeight) {
+        if (!mOptions.mTechniqueLayers) return;
+        mFilm.AddToLayer(mTechniqueLayers[aTechnique], aPixel, aUnweighted * aWeight);
+        if (mLongerPathsLayer < 0 || aLightVertices < 0) return;
+        if (aPathLength > kPyramidMaxLength) {
+            mFilm.AddToLayer(mLongerPathsLayer, aPixel, aUnweighted * aWeight);
+            return;
+        }
+        mFilm.AddToLayer(mPyramidLayers[aPathLength][aLightVertices][0], aPixel, aUnweighted * aWeight);
+        mFilm.AddToLayer(mPyramidLayers[aPathLength][aLightVertices][1], aPixel, aUnweighted);
+    }
+
+    bool mUseVC = false, mUseVM = false, mPpm = false, mLightTraceOnly = false;
+    float mBaseRadius = 0.f;
+    VcmMisConstants mMis;
+    std::vector<PathVertex> mLightVertices;
+    std::vector<size_t> mPathEnds;  // mPathEnds[p]: one past the last vertex of light sub-path p
+    HashGrid mGrid;
+    int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1};
+    int mPyramidLayers[kPyramidMaxLength + 1][kPyramidMaxLength + 1][2] = {};
+    int mLongerPathsLayer = -1;
+};
+
+
+// =====================================================================================
+// [SECTION] Render loop
+// =====================================================================================
+// Provides: Render(), which runs an algorithm on a scene with a budget of iterations or
+// seconds on all cores, and returns the averaged image (and layers). Each thread owns a
+// renderer and its film; iteration i draws its random numbers from stream i of the base
+// seed. With an iteration budget thread t runs iterations t, t + T, t + 2T, ... and the
+// films are summed in thread order, so one seed and one thread count give one image, bit
+// for bit. With a time budget threads take the next iteration until time runs out.
+
+struct RenderResult {
+    Image mImage;
+    std::vector<std::pair<std::string, Image>> mLayers;  // technique layers, if asked for
+    int mIterations = 0;
+    double mSeconds = 0.0;
+};
+
+inline std::unique_ptr<AbstractRenderer> CreateRenderer(const Scene& aScene, const RenderOptions& aOptions) {
+    switch (aOptions.mAlgorithm) {
+    case Algorithm::kEyeLight: return std::make_unique<EyeLight>(aScene, aOptions);
+    case Algorithm::kPathTracing: return std::make_unique<PathTracer>(aScene, aOptions);
+    default: return std::make_unique<VertexCM>(aScene, aOptions);
+    }
+}
+
+// Throws Error naming the first option that is out of range.
+inline void ValidateRenderOptions(const RenderOptions& aOptions) {
+    if (aOptions.mIterations < 0) throw Error("iterations: must be >= 0 (0 = until the time budget ends)");
+    if (!(aOptions.mSeconds >= 0.0) || !std::isfinite(aOptions.mSeconds)) throw Error("seconds: must be a finite number >= 0");
+    if (aOptions.mIterations == 0 && aOptions.mSeconds <= 0.0) throw Error("iterations: 0 needs a time budget (seconds > 0)");
+    if (aOptions.mThreads < 0) throw Error("threads: must be >= 0 (0 = all cores)");
+    if (aOptions.mMinPathLength < 0) throw Error("min path length: must be >= 0");
+    if (aOptions.mMaxPathLength < 1) throw Error("max path length: must be >= 1");
+    if (aOptions.mMinPathLength > aOptions.mMaxPathLength) throw Error("min path length: must not exceed the max path length");
+    if (!(aOptions.mRadiusFactor > 0.f) || !std::isfinite(aOptions.mRadiusFactor)) throw Error("radius factor: must be a finite number > 0");
+    if (!(aOptions.mRadiusAlpha > 0.f && aOptions.mRadiusAlpha <= 1.f)) throw Error("radius alpha: must be in (0, 1]");
+}
+
+inline uint64_t SplitMix64(uint64_t aX) {
+    aX += 0x9E3779B97F4A7C15ull;
+    aX = (aX ^ (aX >> 30)) * 0xBF58476D1CE4E5B9ull;
+    aX = (aX ^ (aX >> 27)) * 0x94D049BB133111EBull;
+    return aX ^ (aX >> 31);
+}
+
+// The random stream of one iteration: independent of thread count and order.
+inline Rng IterationRng(uint64_t aSeed, int aIteration) {
+    return Rng(SplitMix64(aSeed ^ SplitMix64(uint64_t(aIteration))), uint64_t(aIteration));
+}
+
+inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
+    ValidateRenderOptions(aOptions);
+    if (!aScene.IsFinalized()) throw Error("scene: Finalize() was not called");
+    using Clock = std::chrono::steady_clock;
+    const auto start = Clock::now();
+    auto elapsed = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+
+    int threadCount = aOptions.mThreads > 0 ? aOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));
+    if (aOptions.mIterations > 0) threadCount = std::min(threadCount, aOptions.mIterations);
+    std::vector<std::unique_ptr<AbstractRenderer>> renderers;
+    for (int t = 0; t < threadCount; t++) renderers.push_back(CreateRenderer(aScene, aOptions));
+
+    const bool timed = aOptions.mSeconds > 0.0;
+    std::atomic<int> nextIteration{0};
+    std::atomic<int> completed{0};
+    std::atomic<bool> failed{false};
+    std::string failure;
+    auto work = [&](int aThread) {
+        try {
+            for (int k = 0;; k++) {
+                int iteration;
+                if (timed) {
+                    if (elapsed() >= aOptions.mSeconds) break;
+                    iteration = nextIteration.fetch_add(1);
+                } else {
+                    iteration = aThread + k * threadCount;
+                }
+                if (aOptions.mIterations > 0 && iteration >= aOptions.mIterations) break;
+                if (failed) break;
+                Rng rng = IterationRng(aOptions.mSeed, iteration);
+                renderers[size_t(aThread)]->RunIteration(iteration, rng);
+                completed++;
+            }
+        } catch (const std::exception& e) {
+            if (!failed.exchange(true)) failure = e.what();
+        }
+    };
+
+    std::vector<std::thread> threads;
+    for (int t = 1; t < threadCount; t++) threads.emplace_back(work, t);
+    // A progress line on stderr from a watcher thread, only on a terminal and only once
+    // the render has taken longer than two seconds.
+    std::atomic<bool> done{false};
+    std::thread watcher;
+#if defined(__unix__) || defined(__APPLE__)
+    if (aOptions.mProgress && isatty(2)) {
+        watcher = std::thread([&] {
+            bool printed = false;
+            while (!done) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(250));
+                if (done || elapsed() < 2.0) continue;
+                std::fprintf(stderr, "\r%s: iteration %d%s, %.1f s   ", AlgorithmShortName(aOptions.mAlgorithm),
+                             completed.load(),
+                             aOptions.mIterations > 0 ? ("/" + std::to_string(aOptions.mIterations)).c_str() : "",
+                             elapsed());
+                printed = true;
+            }
+            if (printed) std::fprintf(stderr, "\r%60s\r", "");
+        });
+    }
+#endif
+    work(0);
+    for (std::thread& thread : threads) thread.join();
+    done = true;
+    if (watcher.joinable()) watcher.join();
+    if (failed) throw Error(failure);
+
+    RenderResult result;
+    result.mIterations = completed.load();
+    result.mSeconds = elapsed();
+    Film& film = renderers[0]->GetFilm();
+    for (size_t t = 1; t < renderers.size(); t++) film.Accumulate(renderers[t]->GetFilm());
+    const double scale = result.mIterations > 0 ? 1.0 / result.mIterations : 0.0;
+    result.mImage = film.Resolve(scale);
+    for (int l = 0; l < film.LayerCount(); l++) result.mLayers.emplace_back(film.LayerName(l), film.Resolve(scale, l));
+    return result;
+}
+
+// =====================================================================================
+// [SECTION] Image output and metrics
+// =====================================================================================
+// Provides: image metrics (mean, RMSE, relative MSE against a reference) and, compiled
+// under SMALLVCM_IMPLEMENTATION, the writers: PNG (sRGB-encoded, clamped to [0, 1]),
+// Radiance .hdr (RGBE, top row first as the format expects) and PFM (exact floats,
+// bottom row first as the PFM convention requires), plus a PFM reader. Every writer
+// writes a temporary file and renames it, so a failed write never leaves a partial
+// image under the requested name.
+
+// Average over pixels and channels.
+inline double MeanValue(const Image& aImage) {
+    double sum = 0.0;
+    for (const Vec3& p : aImage.mPixels) sum += double(p.x) + double(p.y) + double(p.z);
+    return aImage.mPixels.empty() ? 0.0 : sum / (3.0 * double(aImage.mPixels.size()));
+}
+
+inline void CheckSameSize(const Image& aImage, const Image& aReference) {
+    if (aImage.mWidth != aReference.mWidth || aImage.mHeight != aReference.mHeight)
+        throw Error("image metrics: the image is " + std::to_string(aImage.mWidth) + "x" + std::to_string(aImage.mHeight) +
+                    " but the reference is " + std::to_string(aReference.mWidth) + "x" + std::to_string(aReference.mHeight));
+}
+
+// Root mean squared error over pixels and channels.
+inline double Rmse(const Image& aImage, const Image& aReference) {
+    CheckSameSize(aImage, aReference);
+    double sum = 0.0;
+    for (size_t i = 0; i < aImage.mPixels.size(); i++) {
+        const glm::dvec3 d = glm::dvec3(aImage.mPixels[i]) - glm::dvec3(aReference.mPixels[i]);
+        sum += glm::dot(d, d);
+    }
+    return std::sqrt(sum / (3.0 * double(std::max<size_t>(1, aImage.mPixels.size()))));
+}
+
+// Relative MSE: mean of (x - ref)^2 / (ref^2 + 0.01); the 0.01 keeps black pixels of
+// the reference from dominating (a common choice in rendering papers).
+inline double RelativeMse(const Image& aImage, const Image& aReference) {
+    CheckSameSize(aImage, aReference);
+    double sum = 0.0;
+    for (size_t i = 0; i < aImage.mPixels.size(); i++)
+        for (int c = 0; c < 3; c++) {
+            const double reference = aReference.mPixels[i][c];
+            sum += Sqr(float(aImage.mPixels[i][c] - reference)) / (reference * reference + 0.01);
+        }
+    return sum / (3.0 * double(std::max<size_t>(1, aImage.mPixels.size())));
+}
+
+// Writes .png, .hdr or .pfm by the file's extension. Throws Error on failure.
+void WriteImage(const std::string& aPath, const Image& aImage);
+// Reads a PFM written by WriteImage (or any 3-channel PFM). Throws Error on failure.
+Image ReadPfm(const std::string& aPath);
+// True when aPath ends in an extension WriteImage knows.
+inline bool IsSupportedImagePath(const std::string& aPath) {
+    auto endsWith = [&](const char* aSuffix) {
+        const std::string suffix(aSuffix);
+        return aPath.size() > suffix.size() && aPath.compare(aPath.size() - suffix.size(), suffix.size(), suffix) == 0;
+    };
+    return endsWith(".png") || endsWith(".hdr") || endsWith(".pfm");
+}
+
+// =====================================================================================
+// [SECTION] Scene loading (glTF)
+// =====================================================================================
+// Provides: LoadGltfScene, which reads the subset of glTF 2.0 documented in
+// docs/scene_format.md (triangle meshes, spheres and a background by our SMALLVCM_*
+// extensions, KHR_lights_punctual, emissive materials, one perspective camera) into a
+// finalized Scene. Anything outside the subset throws Error naming the file and the
+// feature: a scene is never silently rendered differently from what the file says.
+// Compiled under SMALLVCM_IMPLEMENTATION (it needs tinygltf).
+
+struct GltfLoadReport {
+    int mSkippedDegenerateTriangles = 0;  // zero-area triangles, dropped
+};
+
+Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr);
+
+} // namespace smallvcm
+
+#endif // SMALLVCM_HPP
+
+// =====================================================================================
+// [SECTION] Implementation (SMALLVCM_IMPLEMENTATION)
+// =====================================================================================
+#if defined(SMALLVCM_IMPLEMENTATION) && !defined(SMALLVCM_IMPLEMENTATION_DONE)
+#define SMALLVCM_IMPLEMENTATION_DONE
+
+// The heavy dependencies, configured identically wherever they are included.
+#define TINYGLTF_IMPLEMENTATION
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#define TINYGLTF_NO_INCLUDE_STB_IMAGE
+#define TINYGLTF_NO_INCLUDE_STB_IMAGE_WRITE
+#include <tiny_gltf.h>
+#define STB_IMAGE_WRITE_STATIC
+#define STB_IMAGE_WRITE_IMPLEMENTATION
+#include <stb/stb_image_write.h>
+
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <set>
+#include <sstream>
+
+namespace smallvcm {
+namespace detail {
+
+// Writes aBytes to aPath through a temporary file in the same folder and a rename, so
+// the requested name either holds the complete image or nothing new.
+inline void WriteFileAtomically(const std::string& aPath, const std::vector<unsigned char>& aBytes) {
+    const std::string temporary = aPath + ".partial";
+    FILE* file = std::fopen(temporary.c_str(), "wb");
+    if (!file) throw Error(aPath + ": cannot open for writing (" + std::strerror(errno) + ")");
+    const bool written = std::fwrite(aBytes.data(), 1, aBytes.size(), file) == aBytes.size();
+    const bool closed = std::fclose(file) == 0;
+    if (!written || !closed) {
+        std::remove(temporary.c_str());
+        throw Error(aPath + ": write failed (disk full?)");
+    }
+    if (std::rename(temporary.c_str(), aPath.c_str()) != 0) {
+        std::remove(temporary.c_str());
+        throw Error(aPath + ": cannot rename the temporary file into place (" + std::strerror(errno) + ")");
+    }
+}
+
+inline void AppendBytes(void* aContext, void* aData, int aSize) {
+    auto* bytes = static_cast<std::vector<unsigned char>*>(aContext);
+    const auto* data = static_cast<const unsigned char*>(aData);
+    bytes->insert(bytes->end(), data, data + aSize);
+}
+
+// The sRGB transfer function (IEC 61966-2-1).
+inline float LinearToSrgb(float aValue) {
+    aValue = std::min(std::max(aValue, 0.f), 1.f);
+    return aValue <= 0.0031308f ? 12.92f * aValue : 1.055f * std::pow(aValue, 1.f / 2.4f) - 0.055f;
+}
+
+inline bool EndsWith(const std::string& aText, const std::string& aSuffix) {
+    return aText.size() >= aSuffix.size() && aText.compare(aText.size() - aSuffix.size(), aSuffix.size(), aSuffix) == 0;
+}
+
+} // namespace detail
+
+void WriteImage(const std::string& aPath, const Image& aImage) {
+    if (aImage.mWidth <= 0 || aImage.mHeight <= 0) throw Error(aPath + ": the image is empty");
+    std::vector<unsigned char> bytes;
+    if (detail::EndsWith(aPath, ".png")) {
+        std::vector<unsigned char> pixels(aImage.mPixels.size() * 3);
+        for (size_t i = 0; i < aImage.mPixels.size(); i++)
+            for (int c = 0; c < 3; c++)
+                pixels[3 * i + size_t(c)] = (unsigned char)(detail::LinearToSrgb(aImage.mPixels[i][c]) * 255.f + 0.5f);
+        if (!stbi_write_png_to_func(detail::AppendBytes, &bytes, aImage.mWidth, aImage.mHeight, 3, pixels.data(), aImage.mWidth * 3))
+            throw Error(aPath + ": PNG encoding failed");
+    } else if (detail::EndsWith(aPath, ".hdr")) {
+        if (!stbi_write_hdr_to_func(detail::AppendBytes, &bytes, aImage.mWidth, aImage.mHeight, 3, &aImage.mPixels[0].x))
+            throw Error(aPath + ": HDR encoding failed");
+    } else if (detail::EndsWith(aPath, ".pfm")) {
+        // PFM: "PF", size, scale (negative = little endian), rows bottom to top.
+        const std::string header = "PF\n" + std::to_string(aImage.mWidth) + " " + std::to_string(aImage.mHeight) + "\n-1\n";
+        bytes.assign(header.begin(), header.end());
+        for (int y = aImage.mHeight - 1; y >= 0; y--)
+            for (int x = 0; x < aImage.mWidth; x++) {
+                const Vec3& p = aImage.At(x, y);
+                for (int c = 0; c < 3; c++) {
+                    const float value = p[c];
+                    unsigned char raw[4];
+                    std::memcpy(raw, &value, 4);  // the machines we build on are little endian
+                    bytes.insert(bytes.end(), raw, raw + 4);
+                }
+            }
+    } else {
+        throw Error(aPath + ": unknown image format (use .png, .hdr or .pfm)");
+    }
+    detail::WriteFileAtomically(aPath, bytes);
+}
+
+Image ReadPfm(const std::string& aPath) {
+    std::ifstream file(aPath, std::ios::binary);
+    if (!file) throw Error(aPath + ": cannot open");
+    std::string magic;
+    int width = 0, height = 0;
+    double scale = 0.0;
+    file >> magic >> width >> height >> scale;
+    if (magic != "PF" || width <= 0 || height <= 0 || scale >= 0.0 || width > 65536 || height > 65536)
+        throw Error(aPath + ": not a little-endian 3-channel PFM file");
+    file.get();  // the single whitespace after the header
+    Image image(width, height);
+    for (int y = height - 1; y >= 0; y--)
+        for (int x = 0; x < width; x++)
+            for (int c = 0; c < 3; c++) {
+                float value;
+                if (!file.read(reinterpret_cast<char*>(&value), 4)) throw Error(aPath + ": the file is truncated");
+                image.At(x, y)[c] = value;
+            }
+    return image;
+}
+
+// -------------------------------------------------------------------------------------
+// glTF loading
+// -------------------------------------------------------------------------------------
+namespace detail {
+
+using Mat4 = glm::dmat4;
+
+class GltfLoader {
+public:
+    explicit GltfLoader(const std::string& aPath) : mPath(aPath) {}
+
+    Scene Load(GltfLoadReport* oReport) {
+        ParseFile();
+        CheckModelFeatures();
+        ConvertMaterials();
+        const int sceneIndex = mModel.defaultScene >= 0 ? mModel.defaultScene : 0;
+        if (mModel.scenes.empty()) Fail("the file has no scene");
+        if (sceneIndex >= int(mModel.scenes.size())) Fail("the default scene " + std::to_string(sceneIndex) + " does not exist");
+        for (int root : mModel.scenes[size_t(sceneIndex)].nodes) VisitNode(root, Mat4(1.0), 0);
+        ReadBackground();
+        if (!mHasCamera) Fail("the scene has no camera node (a perspective camera is required)");
+        mScene.mName = mPath;
+        mScene.Finalize();  // its Error messages start with the path too
+        if (oReport) oReport->mSkippedDegenerateTriangles = mSkippedTriangles;
+        return std::move(mScene);
+    }
+
+private:
+    [[noreturn]] void Fail(const std::string& aProblem) const { throw Error(mPath + ": " + aProblem); }
+
+    void ParseFile() {
+        std::ifstream probe(mPath, std::ios::binary);
+        if (!probe) Fail(std::string("cannot open the file (") + std::strerror(errno) + ")");
+        probe.close();
+        tinygltf::TinyGLTF gltf;
+        // Images are not supported; the loader must not try to decode them. A model that
+        // uses one is rejected by CheckModelFeatures with a clear message.
+        gltf.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
+                               const unsigned char*, int, void*) { return true; }, nullptr);
+        std::string error, warning;
+        const bool binary = EndsWith(mPath, ".glb");
+        const bool ok = binary ? gltf.LoadBinaryFromFile(&mModel, &error, &warning, mPath)
+                               : gltf.LoadASCIIFromFile(&mModel, &error, &warning, mPath);
+        if (!ok || !error.empty()) {
+            std::string message = error.empty() ? std::string("not a valid glTF file") : error;
+            while (!message.empty() && (message.back() == '\n' || message.back() == ' ')) message.pop_back();
+            std::replace(message.begin(), message.end(), '\n', ';');
+            Fail("glTF parse error: " + message);
+        }
+    }
+
+    void CheckModelFeatures() {
+        static const std::set<std::string> kSupported = {
+            "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
+            "KHR_materials_ior", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
+        for (const std::string& required : mModel.extensionsRequired)
+            if (!kSupported.count(required)) Fail("required extension '" + required + "' is not supported");
+        if (!mModel.skins.empty()) Fail("skins are not supported");
+        for (const tinygltf::Accessor& accessor : mModel.accessors)
+            if (accessor.sparse.isSparse) Fail("sparse accessors are not supported");
+    }
+
+    // --- materials -------------------------------------------------------------------
+    static double NumberOr(const tinygltf::Value& aObject, const char* aKey, double aDefault) {
+        if (!aObject.IsObject() || !aObject.Has(aKey)) return aDefault;
+        const tinygltf::Value& v = aObject.Get(aKey);
+        return v.IsNumber() ? v.GetNumberAsDouble() : std::numeric_limits<double>::quiet_NaN();
+    }
+    Vec3 ColorOr(const tinygltf::Value& aObject, const char* aKey, const Vec3& aDefault, const std::string& aWhat) const {
+        if (!aObject.IsObject() || !aObject.Has(aKey)) return aDefault;
+        const tinygltf::Value& v = aObject.Get(aKey);
+        if (!v.IsArray() || v.ArrayLen() != 3) Fail(aWhat + ": '" + aKey + "' must be an array of 3 numbers");
+        Vec3 color;
+        for (int c = 0; c < 3; c++) {
+            if (!v.Get(c).IsNumber()) Fail(aWhat + ": '" + aKey + "' must be an array of 3 numbers");
+            color[c] = float(v.Get(c).GetNumberAsDouble());
+        }
+        return color;
+    }
+    void CheckColor(const Vec3& aColor, const std::string& aWhat, bool aAtMostOne) const {
+        if (!IsFinite(aColor) || aColor.x < 0.f || aColor.y < 0.f || aColor.z < 0.f)
+            Fail(aWhat + " must be finite and non-negative");
+        if (aAtMostOne && MaxComponent(aColor) > 1.f) Fail(aWhat + " must not exceed 1 (it would create energy)");
+    }
+
+    void ConvertMaterials() {
+        for (size_t m = 0; m < mModel.materials.size(); m++) {
+            const tinygltf::Material& source = mModel.materials[m];
+            const std::string what = "material " + std::to_string(m) + (source.name.empty() ? "" : " '" + source.name + "'");
+            const auto& pbr = source.pbrMetallicRoughness;
+            auto textureUsed = [&](int aIndex, const char* aName) {
+                if (aIndex >= 0) Fail(what + " uses a texture (" + aName + "); textures are not supported");
+            };
+            textureUsed(pbr.baseColorTexture.index, "baseColorTexture");
+            textureUsed(pbr.metallicRoughnessTexture.index, "metallicRoughnessTexture");
+            textureUsed(source.normalTexture.index, "normalTexture");
+            textureUsed(source.occlusionTexture.index, "occlusionTexture");
+            textureUsed(source.emissiveTexture.index, "emissiveTexture");
+            if (source.alphaMode != "OPAQUE") Fail(what + " has alphaMode " + source.alphaMode + "; only OPAQUE is supported");
+
+            Material material;
+            material.mName = source.name;
+            material.mTwoSided = source.doubleSided;
+            auto extension = source.extensions.find("SMALLVCM_material");
+            if (extension != source.extensions.end()) {
+                const tinygltf::Value& e = extension->second;
+                if (!e.IsObject()) Fail(what + ": SMALLVCM_material must be an object");
+                material.mDiffuseReflectance = ColorOr(e, "diffuse", Vec3(0.f), what);
+                material.mPhongReflectance = ColorOr(e, "phong", Vec3(0.f), what);
+                material.mMirrorReflectance = ColorOr(e, "mirror", Vec3(0.f), what);
+                material.mPhongExponent = float(NumberOr(e, "phongExponent", 1.0));
+                material.mIor = float(NumberOr(e, "ior", -1.0));
+            } else {
+                // The documented mapping of pbrMetallicRoughness (docs/scene_format.md).
+                Vec3 baseColor(1.f);
+                if (pbr.baseColorFactor.size() >= 3)
+                    baseColor = Vec3(float(pbr.baseColorFactor[0]), float(pbr.baseColorFactor[1]), float(pbr.baseColorFactor[2]));
+                const float metallic = float(pbr.metallicFactor);
+                const float roughness = float(pbr.roughnessFactor);
+                if (!(metallic >= 0.f && metallic <= 1.f) || !(roughness >= 0.f && roughness <= 1.f))
+                    Fail(what + ": metallicFactor and roughnessFactor must be in [0, 1]");
+                auto transmission = source.extensions.find("KHR_materials_transmission");
+                const double transmissionFactor = transmission != source.extensions.end()
+                    ? NumberOr(transmission->second, "transmissionFactor", 0.0) : 0.0;
+                if (transmissionFactor > 0.0) {
+                    auto ior = source.extensions.find("KHR_materials_ior");
+                    material.mMirrorReflectance = Vec3(1.f);
+                    material.mIor = float(ior != source.extensions.end() ? NumberOr(ior->second, "ior", 1.5) : 1.5);
+                } else {
+                    const Vec3 specular = glm::mix(Vec3(0.04f), baseColor, metallic);
+                    material.mDiffuseReflectance = (1.f - metallic) * 0.96f * baseColor;
+                    if (roughness == 0.f) {
+                        material.mMirrorReflectance = specular;
+                    } else {
+                        material.mPhongReflectance = specular;
+                        material.mPhongExponent = std::min(10000.f, std::max(0.f, 2.f / std::pow(roughness, 4.f) - 2.f));
+                    }
+                }
+            }
+            CheckColor(material.mDiffuseReflectance, what + ": the diffuse reflectance", true);
+            CheckColor(material.mPhongReflectance, what + ": the Phong reflectance", true);
+            CheckColor(material.mMirrorReflectance, what + ": the mirror reflectance", true);
+            if (MaxComponent(material.mDiffuseReflectance + material.mPhongReflectance) > 1.f)
+                Fail(what + ": diffuse + Phong reflectance exceeds 1 (it would create energy)");
+            if (!std::isfinite(material.mPhongExponent) || material.mPhongExponent < 0.f)
+                Fail(what + ": the Phong exponent must be finite and >= 0");
+            if (!std::isfinite(material.mIor) || (material.mIor >= 0.f && material.mIor < 1e-3f))
+                Fail(what + ": ior must be a positive index of refraction, or -1 for none");
+            if (material.mIor > 0.f && !IsBlack(material.mDiffuseReflectance + material.mPhongReflectance))
+                material.mTwoSided = false;  // glass decides inside from outside by the normal
+
+            // Emission: emissiveFactor times KHR_materials_emissive_strength.
+            Vec3 emission(0.f);
+            if (source.emissiveFactor.size() == 3)
+                emission = Vec3(float(source.emissiveFactor[0]), float(source.emissiveFactor[1]), float(source.emissiveFactor[2]));
+            auto strength = source.extensions.find("KHR_materials_emissive_strength");
+            if (strength != source.extensions.end())
+                emission *= float(NumberOr(strength->second, "emissiveStrength", 1.0));
+            CheckColor(emission, what + ": the emission", false);
+            mMaterialEmission.push_back(emission);
+            // Emitters are black: lights do not reflect (SmallVCM's convention).
+            if (!IsBlack(emission)) {
+                Material black;
+                black.mName = material.mName;
+                material = black;
+            }
+            mScene.AddMaterial(material);
+        }
+    }
+
+    // The default material of glTF (no material index): white, metallic 1, roughness 1.
+    int DefaultMaterial() {
+        if (mDefaultMaterial < 0) {
+            Material material;
+            material.mName = "glTF default";
+            material.mPhongReflectance = Vec3(1.f);
+            material.mPhongExponent = 0.f;
+            mDefaultMaterial = mScene.AddMaterial(material);
+            mMaterialEmission.push_back(Vec3(0.f));
+        }
+        return mDefaultMaterial;
+    }
+
+    int MaterialIndex(int aIndex, const std::string& aWhat) {
+        if (aIndex < 0) return DefaultMaterial();
+        if (aIndex >= int(mModel.materials.size())) Fail(aWhat + " refers to material " + std::to_string(aIndex) + ", which does not exist");
+        return aIndex;
+    }
+
+    // --- nodes ---------------------------------------------------------------------------
+    Mat4 LocalMatrix(const tinygltf::Node& aNode, const std::string& aWhat) const {
+        if (aNode.matrix.size() == 16) {
+            Mat4 m;
+            for (int c = 0; c < 4; c++) for (int r = 0; r < 4; r++) m[c][r] = aNode.matrix[size_t(4 * c + r)];
+            return m;
+        }
+        if (!aNode.matrix.empty()) Fail(aWhat + ": 'matrix' must have 16 numbers");
+        Mat4 translation(1.0), rotation(1.0), scale(1.0);
+        if (aNode.translation.size() == 3)
+            translation[3] = glm::dvec4(aNode.translation[0], aNode.translation[1], aNode.translation[2], 1.0);
+        if (aNode.rotation.size() == 4) {
+            const double x = aNode.rotation[0], y = aNode.rotation[1], z = aNode.rotation[2], w = aNode.rotation[3];
+            const double n = std::sqrt(x * x + y * y + z * z + w * w);
+            if (!(n > 0.0)) Fail(aWhat + ": the rotation quaternion is zero");
+            const double qx = x / n, qy = y / n, qz = z / n, qw = w / n;
+            rotation[0] = glm::dvec4(1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy + qz * qw), 2 * (qx * qz - qy * qw), 0);
+            rotation[1] = glm::dvec4(2 * (qx * qy - qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz + qx * qw), 0);
+            rotation[2] = glm::dvec4(2 * (qx * qz + qy * qw), 2 * (qy * qz - qx * qw), 1 - 2 * (qx * qx + qy * qy), 0);
+        }
+        if (aNode.scale.size() == 3) {
+            scale[0][0] = aNode.scale[0]; scale[1][1] = aNode.scale[1]; scale[2][2] = aNode.scale[2];
+        }
+        return translation * rotation * scale;
+    }
+
+    void VisitNode(int aNodeIndex, const Mat4& aParent, int aDepth) {
+        if (aNodeIndex < 0 || aNodeIndex >= int(mModel.nodes.size())) Fail("a scene refers to node " + std::to_string(aNodeIndex) + ", which does not exist");
+        if (aDepth > 64) Fail("the node hierarchy is deeper than 64 levels, or has a cycle");
+        const tinygltf::Node& node = mModel.nodes[size_t(aNodeIndex)];
+        const std::string what = "node " + std::to_string(aNodeIndex) + (node.name.empty() ? "" : " '" + node.name + "'");
+        const Mat4 world = aParent * LocalMatrix(node, what);
+        for (int c = 0; c < 4; c++) for (int r = 0; r < 4; r++)
+            if (!std::isfinite(world[c][r])) Fail(what + ": its transform is not finite");
+        if (node.skin >= 0) Fail(what + ": skins are not supported");
+        if (node.mesh >= 0) AddMesh(node.mesh, world, what);
+        if (node.camera >= 0) AddCamera(node.camera, world, what);
+        auto sphere = node.extensions.find("SMALLVCM_sphere");
+        if (sphere != node.extensions.end()) AddSphere(sphere->second, world, what);
+        auto light = node.extensions.find("KHR_lights_punctual");
+        if (light != node.extensions.end()) AddPunctualLight(light->second, world, what);
+        for (int child : node.children) VisitNode(child, world, aDepth + 1);
+    }
+
+    // Reads an accessor as aComponents-wide rows of doubles, after checking its type,
+    // component type and that every byte it names lies inside its buffer.
+    std::vector<double> ReadAccessor(int aIndex, int aType, bool aIndices, const std::string& aWhat) const {
+        if (aIndex < 0 || aIndex >= int(mModel.accessors.size())) Fail(aWhat + " refers to accessor " + std::to_string(aIndex) + ", which does not exist");
+        const tinygltf::Accessor& accessor = mModel.accessors[size_t(aIndex)];
+        const std::string where = aWhat + " (accessor " + std::to_string(aIndex) + ")";
+        if (accessor.type != aType) Fail(where + ": wrong type (" + (aIndices ? "SCALAR" : "VEC3") + " expected)");
+        const int componentType = accessor.componentType;
+        size_t componentSize;
+        if (aIndices) {
+            if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) componentSize = 1;
+            else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) componentSize = 2;
+            else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) componentSize = 4;
+            else Fail(where + ": indices must be unsigned byte, short or int");
+        } else {
+            if (componentType != TINYGLTF_COMPONENT_TYPE_FLOAT) Fail(where + ": positions must be FLOAT");
+            componentSize = 4;
+        }
+        const size_t components = aIndices ? 1 : 3;
+        if (accessor.bufferView < 0 || accessor.bufferView >= int(mModel.bufferViews.size()))
+            Fail(where + ": missing or invalid bufferView");
+        const tinygltf::BufferView& view = mModel.bufferViews[size_t(accessor.bufferView)];
+        if (view.buffer < 0 || view.buffer >= int(mModel.buffers.size())) Fail(where + ": its bufferView refers to a missing buffer");
+        const tinygltf::Buffer& buffer = mModel.buffers[size_t(view.buffer)];
+        const size_t elementSize = componentSize * components;
+        const size_t stride = view.byteStride > 0 ? view.byteStride : elementSize;
+        if (stride < elementSize) Fail(where + ": byteStride is smaller than an element");
+        const size_t count = accessor.count;
+        if (count == 0) return {};
+        const size_t lastByte = accessor.byteOffset + stride * (count - 1) + elementSize;
+        if (view.byteOffset + view.byteLength > buffer.data.size() || lastByte > view.byteLength || count > (size_t(1) << 31))
+            Fail(where + ": reads past the end of its buffer");
+        const unsigned char* base = buffer.data.data() + view.byteOffset + accessor.byteOffset;
+        std::vector<double> values(count * components);
+        for (size_t i = 0; i < count; i++) {
+            const unsigned char* element = base + i * stride;
+            for (size_t c = 0; c < components; c++) {
+                const unsigned char* p = element + c * componentSize;
+                double value;
+                if (componentSize == 1) value = *p;
+                else if (componentSize == 2) { uint16_t v; std::memcpy(&v, p, 2); value = v; }
+                else if (aIndices) { uint32_t v; std::memcpy(&v, p, 4); value = v; }
+                else { float v; std::memcpy(&v, p, 4); value = v; }
+                values[i * components + c] = value;
+            }
+        }
+        return values;
+    }
+
+    void AddMesh(int aMeshIndex, const Mat4& aWorld, const std::string& aWhat) {
+        if (aMeshIndex >= int(mModel.meshes.size())) Fail(aWhat + " refers to mesh " + std::to_string(aMeshIndex) + ", which does not exist");
+        const tinygltf::Mesh& mesh = mModel.meshes[size_t(aMeshIndex)];
+        // A transform that mirrors (negative determinant) reverses the winding (glTF spec).
+        const bool flip = glm::determinant(glm::dmat3(aWorld)) < 0.0;
+        for (size_t p = 0; p < mesh.primitives.size(); p++) {
+            const tinygltf::Primitive& primitive = mesh.primitives[p];
+            const std::string what = aWhat + ", mesh " + std::to_string(aMeshIndex) + " primitive " + std::to_string(p);
+            if (primitive.mode != -1 && primitive.mode != TINYGLTF_MODE_TRIANGLES)
+                Fail(what + ": primitive mode " + std::to_string(primitive.mode) + " is not supported (only TRIANGLES)");
+            if (!primitive.targets.empty()) Fail(what + ": morph targets are not supported");
+            auto position = primitive.attributes.find("POSITION");
+            if (position == primitive.attributes.end()) Fail(what + ": has no POSITION attribute");
+            const std::vector<double> positions = ReadAccessor(position->second, TINYGLTF_TYPE_VEC3, false, what + " POSITION");
+            const size_t vertexCount = positions.size() / 3;
+            std::vector<double> indices;
+            if (primitive.indices >= 0) {
+                indices = ReadAccessor(primitive.indices, TINYGLTF_TYPE_SCALAR, true, what + " indices");
+            } else {
+                indices.resize(vertexCount);
+                for (size_t i = 0; i < vertexCount; i++) indices[i] = double(i);
+            }
+            if (indices.size() % 3 != 0) Fail(what + ": the index count " + std::to_string(indices.size()) + " is not a multiple of 3");
+            std::vector<Vec3> world(vertexCount);
+            for (size_t v = 0; v < vertexCount; v++) {
+                const glm::dvec4 local(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2], 1.0);
+                const glm::dvec3 w = glm::dvec3(aWorld * local);
+                if (!std::isfinite(w.x) || !std::isfinite(w.y) || !std::isfinite(w.z))
+                    Fail(what + ": vertex " + std::to_string(v) + " is not finite (NaN or infinity)");
+                world[v] = Vec3(w);
+            }
+            const int material = MaterialIndex(primitive.material, what);
+            std::vector<int> triangleIds;
+            for (size_t t = 0; t + 2 < indices.size(); t += 3) {
+                size_t i0 = size_t(indices[t]), i1 = size_t(indices[t + 1]), i2 = size_t(indices[t + 2]);
+                if (i0 >= vertexCount || i1 >= vertexCount || i2 >= vertexCount)
+                    Fail(what + ": index out of range in triangle " + std::to_string(t / 3) + " (vertex count " + std::to_string(vertexCount) + ")");
+                if (flip) std::swap(i1, i2);
+                const Vec3 cross = glm::cross(world[i1] - world[i0], world[i2] - world[i0]);
+                const float doubleArea = glm::length(cross);
+                if (!(doubleArea > 0.f) || !std::isfinite(doubleArea)) { mSkippedTriangles++; continue; }
+                triangleIds.push_back(mScene.AddTriangle(world[i0], world[i1], world[i2], material));
+            }
+            // An emissive primitive instance is one area light over all its triangles.
+            if (!IsBlack(mMaterialEmission[size_t(material)]) && !triangleIds.empty())
+                mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)]);
+        }
+    }
+
+    void AddSphere(const tinygltf::Value& aSphere, const Mat4& aWorld, const std::string& aWhat) {
+        if (!aSphere.IsObject() || !aSphere.Has("radius") || !aSphere.Get("radius").IsNumber())
+            Fail(aWhat + ": SMALLVCM_sphere needs a numeric 'radius'");
+        if (!aSphere.Has("material") || !aSphere.Get("material").IsInt())
+            Fail(aWhat + ": SMALLVCM_sphere needs an integer 'material'");
+        const double radius = aSphere.Get("radius").GetNumberAsDouble();
+        if (!std::isfinite(radius) || !(radius > 0.0)) Fail(aWhat + ": the sphere radius must be finite and positive");
+        // The node's transform must scale uniformly: a sphere stays a sphere.
+        const double sx = glm::length(glm::dvec3(aWorld[0])), sy = glm::length(glm::dvec3(aWorld[1])), sz = glm::length(glm::dvec3(aWorld[2]));
+        if (std::abs(sx - sy) > 1e-4 * sx || std::abs(sx - sz) > 1e-4 * sx || !(sx > 0.0))
+            Fail(aWhat + ": a sphere node must have a uniform scale (non-uniform scale would make an ellipsoid)");
+        const int material = MaterialIndex(aSphere.Get("material").GetNumberAsInt(), aWhat + ": SMALLVCM_sphere");
+        const int id = mScene.AddSphere(Vec3(glm::dvec3(aWorld[3])), float(radius * sx), material);
+        if (!IsBlack(mMaterialEmission[size_t(material)])) mScene.AddSphereLight(id, mMaterialEmission[size_t(material)]);
+    }
+
+    void AddPunctualLight(const tinygltf::Value& aValue, const Mat4& aWorld, const std::string& aWhat) {
+        if (!aValue.IsObject() || !aValue.Has("light") || !aValue.Get("light").IsInt())
+            Fail(aWhat + ": KHR_lights_punctual needs an integer 'light'");
+        const int index = aValue.Get("light").GetNumberAsInt();
+        if (index < 0 || index >= int(mModel.lights.size())) Fail(aWhat + " refers to light " + std::to_string(index) + ", which does not exist");
+        const tinygltf::Light& light = mModel.lights[size_t(index)];
+        const std::string what = "light " + std::to_string(index) + (light.name.empty() ? "" : " '" + light.name + "'");
+        if (light.range > 0.0) Fail(what + ": 'range' is not supported (lights here have no cut-off)");
+        Vec3 color(1.f);
+        if (light.color.size() == 3) color = Vec3(float(light.color[0]), float(light.color[1]), float(light.color[2]));
+        const Vec3 emission = color * float(light.intensity);
+        CheckColor(emission, what + ": color * intensity", false);
+        if (light.type == "point") {
+            mScene.AddPointLight(Vec3(glm::dvec3(aWorld[3])), emission);
+        } else if (light.type == "directional") {
+            const glm::dvec3 direction = -glm::dvec3(aWorld[2]);
+            if (!(glm::length(direction) > 0.0)) Fail(aWhat + ": the directional light's node has a degenerate transform");
+            mScene.AddDirectionalLight(Vec3(glm::normalize(direction)), emission);
+        } else {
+            Fail(what + ": light type '" + light.type + "' is not supported (point and directional are)");
+        }
+    }
+
+    void AddCamera(int aCameraIndex, const Mat4& aWorld, const std::string& aWhat) {
+        if (mHasCamera) return;  // the first camera in depth-first order is used
+        if (aCameraIndex >= int(mModel.cameras.size())) Fail(aWhat + " refers to camera " + std::to_string(aCameraIndex) + ", which does not exist");
+        const tinygltf::Camera& camera = mModel.cameras[size_t(aCameraIndex)];
+        if (camera.type != "perspective") Fail("camera " + std::to_string(aCameraIndex) + ": type '" + camera.type + "' is not supported (only perspective)");
+        const double yfov = camera.perspective.yfov;
+        const double aspect = camera.perspective.aspectRatio > 0.0 ? camera.perspective.aspectRatio : 1.0;
+        if (!(yfov > 0.0 && yfov < 3.1) || !std::isfinite(aspect))
+            Fail("camera " + std::to_string(aCameraIndex) + ": yfov must be in (0, 3.1) radians");
+        // The horizontal field of view is what stays fixed when the image size changes.
+        const double horizontalFov = 2.0 * std::atan(std::tan(0.5 * yfov) * aspect);
+        if (!(horizontalFov < 3.1)) Fail("camera " + std::to_string(aCameraIndex) + ": the horizontal field of view is 180 degrees or more");
+        const glm::dvec3 up(aWorld[1]), back(aWorld[2]);
+        if (!(glm::length(up) > 0.0) || !(glm::length(back) > 0.0) || glm::length(glm::cross(up, back)) < 1e-9)
+            Fail(aWhat + ": the camera's transform is degenerate");
+        mScene.mCamera.Setup(Vec3(glm::dvec3(aWorld[3])), Vec3(-back), Vec3(up), float(horizontalFov * 180.0 / 3.14159265358979323846));
+        mHasCamera = true;
+    }
+
+    void ReadBackground() {
+        auto background = mModel.extensions.find("SMALLVCM_background");
+        if (background == mModel.extensions.end()) return;
+        const Vec3 radiance = ColorOr(background->second, "radiance", Vec3(-1.f), "SMALLVCM_background");
+        if (radiance.x < 0.f && !background->second.Has("radiance")) Fail("SMALLVCM_background needs 'radiance'");
+        CheckColor(radiance, "SMALLVCM_background: the radiance", false);
+        mScene.AddBackgroundLight(radiance);
+    }
+
+    std::string mPath;
+    tinygltf::Model mModel;
+    Scene mScene;
+    std::vector<Vec3> mMaterialEmission;  // per scene material
+    int mDefaultMaterial = -1;
+    bool mHasCamera = false;
+    int mSkippedTriangles = 0;
+};
+
+} // namespace detail
+
+Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport) {
+    try {
+        return detail::GltfLoader(aPath).Load(oReport);
+    } catch (const Error&) {
+        throw;
+    } catch (const std::exception& e) {
+        // tinygltf and nlohmann-json may throw on input they cannot handle.
+        throw Error(aPath + ": " + e.what());
+    }
+}
+
+} // namespace smallvcm
+
+#endif // SMALLVCM_IMPLEMENTATION
