@@ -59,7 +59,9 @@
 //    generate). pdfs end in W (solid angle) or A (area). Members mFoo, arguments aFoo,
 //    outputs oFoo, as in SmallVCM and the report's notation (dVCM, dVC, dVM, eta).
 //  * Non-specular surfaces are one-sided: they reflect only on the side their
-//    geometric normal (counter-clockwise winding) points to. Emitters do not reflect.
+//    geometric normal (counter-clockwise winding) points to. Emitters are one-sided too
+//    and reflect only if their material says so (SmallVCM's lights, and glTF emitters
+//    without a SMALLVCM_material, are black).
 //  * Raster y = 0 is the top image row. Film values are radiance, no tone mapping.
 //
 // =====================================================================================
@@ -1642,7 +1644,8 @@ public:
                             AddContribution(pixel, pathLength, firstSpecular, throughput * radiance * weight);
                         }
                     }
-                    break;  // lights do not reflect
+                    // The path goes on only if the emitter's material reflects (the
+                    // Cornell lights are black; the furnace test's walls are not).
                 }
 
                 Bsdf bsdf;
@@ -2031,7 +2034,6 @@ public:
                 Hit hit;
                 if (!mScene.Intersect(ray, hit)) break;
                 const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
-                if (hit.mLightId >= 0) break;  // emitters do not reflect
                 Bsdf bsdf;
                 bsdf.Setup(ray, hit, mScene, true);
                 if (!bsdf.IsValid()) break;
@@ -2091,7 +2093,7 @@ public:
                 if (hit.mLightId >= 0) {
                     if (cam.mPathLength >= mOptions.mMinPathLength)
                         AddCameraHitLight(pixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.mNormal);
-                    break;  // lights do not reflect
+                    // Continues only if the emitter's material reflects (see PathTracer).
                 }
                 Bsdf bsdf;
                 bsdf.Setup(ray, hit, mScene, false);
@@ -2878,8 +2880,9 @@ private:
                 emission *= float(NumberOr(strength->second, "emissiveStrength", 1.0));
             CheckColor(emission, what + ": the emission", false);
             mMaterialEmission.push_back(emission);
-            // Emitters are black: lights do not reflect (SmallVCM's convention).
-            if (!IsBlack(emission)) {
+            // Emitters are black (SmallVCM's lights do not reflect) unless an explicit
+            // SMALLVCM_material gives them a reflectance.
+            if (!IsBlack(emission) && extension == source.extensions.end()) {
                 Material black;
                 black.mName = material.mName;
                 material = black;

@@ -1,0 +1,120 @@
+// Shared helpers of the tests: scenes (the Cornell files and the analytic furnaces built
+// in code) and small statistics. Tests run from the tests/ folder.
+#pragma once
+#include "smallvcm.hpp"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+namespace testutil {
+
+using namespace smallvcm;
+
+inline std::string CornellPath(int aIndex) {
+    static const char* const kFiles[] = {"cornell_0_sun.gltf", "cornell_1_mirror_ceiling.gltf", "cornell_2_point.gltf",
+                                         "cornell_3_background.gltf", "cornell_4_default.gltf"};
+    return std::string("../scenes/") + kFiles[aIndex];
+}
+
+inline Scene LoadCornell(int aIndex, int aWidth, int aHeight) {
+    Scene scene = LoadGltfScene(CornellPath(aIndex));
+    scene.mCamera.SetResolution(aWidth, aHeight);
+    return scene;
+}
+
+// A geodesic sphere (subdivided icosahedron) of radius aRadius around the origin with
+// its triangles wound to face INWARDS, so that one-sided Lambert and one-sided emission
+// work from inside. aSubdivisions = 3 gives 1280 triangles.
+inline std::vector<std::array<Vec3, 3>> InwardGeodesicSphere(float aRadius, int aSubdivisions) {
+    const float t = (1.f + std::sqrt(5.f)) / 2.f;
+    std::vector<Vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+    std::vector<std::array<int, 3>> f = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                         {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+                                         {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    std::vector<std::array<Vec3, 3>> triangles;
+    for (const auto& face : f) triangles.push_back({glm::normalize(v[face[0]]), glm::normalize(v[face[1]]), glm::normalize(v[face[2]])});
+    for (int s = 0; s < aSubdivisions; s++) {
+        std::vector<std::array<Vec3, 3>> finer;
+        for (const auto& tri : triangles) {
+            const Vec3 a = glm::normalize(tri[0] + tri[1]), b = glm::normalize(tri[1] + tri[2]), c = glm::normalize(tri[2] + tri[0]);
+            finer.push_back({tri[0], a, c});
+            finer.push_back({tri[1], b, a});
+            finer.push_back({tri[2], c, b});
+            finer.push_back({a, b, c});
+        }
+        triangles = finer;
+    }
+    // The icosahedron above is wound outwards; swap two vertices to face inwards.
+    for (auto& tri : triangles) {
+        std::swap(tri[1], tri[2]);
+        for (Vec3& p : tri) p *= aRadius;
+    }
+    return triangles;
+}
+
+// Furnace 1: a closed diffuse sphere of albedo aAlbedo whose whole inside emits aEmitted.
+// Every camera ray sees L = Le (1 - a^k) / (1 - a) for a maximum path length k.
+inline Scene MakeEmissiveFurnace(float aAlbedo, float aEmitted, int aWidth, int aHeight) {
+    Scene scene;
+    scene.mName = "emissive furnace";
+    Material wall;
+    wall.mDiffuseReflectance = Vec3(aAlbedo);
+    const int material = scene.AddMaterial(wall);
+    std::vector<int> ids;
+    for (const auto& tri : InwardGeodesicSphere(1.f, 3)) ids.push_back(scene.AddTriangle(tri[0], tri[1], tri[2], material));
+    scene.AddAreaLight(ids, Vec3(aEmitted));
+    scene.mCamera.Setup(Vec3(0.1f, -0.2f, 0.05f), Vec3(0.3f, 1.f, 0.2f), Vec3(0.f, 0.f, 1.f), 60.f);
+    scene.mCamera.SetResolution(aWidth, aHeight);
+    scene.Finalize();
+    return scene;
+}
+
+// Furnace 2: a point light of intensity pi at the centre of a diffuse sphere of radius 1
+// and albedo 0.5. Direct: a E / pi = 0.5; with bounces L = 0.5 + 0.5 L = 1; with a
+// maximum path length k (the camera segment counts): L = 1 - 0.5^(k-1).
+inline Scene MakePointLightFurnace(int aWidth, int aHeight) {
+    Scene scene;
+    scene.mName = "point light furnace";
+    Material wall;
+    wall.mDiffuseReflectance = Vec3(0.5f);
+    const int material = scene.AddMaterial(wall);
+    for (const auto& tri : InwardGeodesicSphere(1.f, 4)) scene.AddTriangle(tri[0], tri[1], tri[2], material);
+    scene.AddPointLight(Vec3(0.f), Vec3(kPi));
+    scene.mCamera.Setup(Vec3(0.05f, -0.1f, 0.02f), Vec3(-0.2f, 1.f, 0.1f), Vec3(0.f, 0.f, 1.f), 60.f);
+    scene.mCamera.SetResolution(aWidth, aHeight);
+    scene.Finalize();
+    return scene;
+}
+
+inline RenderResult RenderWith(const Scene& aScene, Algorithm aAlgorithm, int aIterations, uint64_t aSeed = 7,
+                               int aMaxPathLength = 10) {
+    RenderOptions options;
+    options.mAlgorithm = aAlgorithm;
+    options.mIterations = aIterations;
+    options.mSeed = aSeed;
+    options.mMaxPathLength = aMaxPathLength;
+    options.mProgress = false;
+    return Render(aScene, options);
+}
+
+// Mean and standard error of the mean of per-pixel values (one channel average each):
+// pixels are independent samples of the same value in a furnace.
+struct MeanAndError { double mean = 0.0, standardError = 0.0; };
+inline MeanAndError PixelStatistics(const Image& aImage) {
+    double sum = 0.0, sumSqr = 0.0;
+    const double n = double(aImage.mPixels.size());
+    for (const Vec3& p : aImage.mPixels) {
+        const double v = (double(p.x) + double(p.y) + double(p.z)) / 3.0;
+        sum += v;
+        sumSqr += v * v;
+    }
+    MeanAndError r;
+    r.mean = sum / n;
+    const double variance = std::max(0.0, sumSqr / n - r.mean * r.mean) * n / (n - 1.0);
+    r.standardError = std::sqrt(variance / n);
+    return r;
+}
+
+} // namespace testutil
