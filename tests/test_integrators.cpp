@@ -1,0 +1,323 @@
+// [integrators] Whole-scene checks of every estimator: analytic furnaces, agreement of
+// the estimators with each other on the Cornell scenes (per-region z-tests), no NaN /
+// Inf / negative pixels, technique layers that sum to the image, splat placement and
+// determinism. Slow variants at higher settings carry the hidden tag [.slow].
+#include "test_util.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cstdio>
+#include <cstring>
+
+using namespace smallvcm;
+using namespace testutil;
+
+namespace {
+
+const Algorithm kEstimators[] = {Algorithm::kPathTracing, Algorithm::kLightTracing,
+                                 Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
+                                 Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging};
+
+// Per-iteration statistics of block means: each iteration is an independent estimate of
+// the image, so the spread of a block's per-iteration values gives its standard error.
+struct BlockStatistics {
+    int mBlocksX = 0, mBlocksY = 0, mIterations = 0;
+    std::vector<glm::dvec3> mSum, mSumSqr;
+
+    glm::dvec3 Mean(int aBlock) const { return mSum[size_t(aBlock)] / double(mIterations); }
+    glm::dvec3 StandardError(int aBlock) const {
+        const glm::dvec3 mean = Mean(aBlock);
+        const glm::dvec3 variance = (mSumSqr[size_t(aBlock)] / double(mIterations) - mean * mean) *
+                                    (double(mIterations) / double(mIterations - 1));
+        return glm::sqrt(glm::max(variance, glm::dvec3(0.0)) / double(mIterations));
+    }
+};
+
+// Runs aIterations single iterations of one renderer and records, per block of
+// aBlockSize x aBlockSize pixels, the sum and sum of squares of the block's mean.
+BlockStatistics RenderBlocks(const Scene& aScene, Algorithm aAlgorithm, int aIterations, int aBlockSize, uint64_t aSeed) {
+    RenderOptions options;
+    options.mAlgorithm = aAlgorithm;
+    options.mProgress = false;
+    std::unique_ptr<AbstractRenderer> renderer = CreateRenderer(aScene, options);
+    const int width = aScene.mCamera.Width(), height = aScene.mCamera.Height();
+    BlockStatistics stats;
+    stats.mBlocksX = width / aBlockSize;
+    stats.mBlocksY = height / aBlockSize;
+    stats.mIterations = aIterations;
+    stats.mSum.assign(size_t(stats.mBlocksX * stats.mBlocksY), glm::dvec3(0.0));
+    stats.mSumSqr = stats.mSum;
+    Image previous(width, height);
+    for (int i = 0; i < aIterations; i++) {
+        Rng rng = IterationRng(aSeed, i);
+        renderer->RunIteration(i, rng);
+        const Image cumulative = renderer->GetFilm().Resolve(1.0);
+        std::vector<glm::dvec3> blocks(stats.mSum.size(), glm::dvec3(0.0));
+        for (int y = 0; y < stats.mBlocksY * aBlockSize; y++)
+            for (int x = 0; x < stats.mBlocksX * aBlockSize; x++) {
+                const glm::dvec3 value = glm::dvec3(cumulative.At(x, y)) - glm::dvec3(previous.At(x, y));
+                blocks[size_t((y / aBlockSize) * stats.mBlocksX + x / aBlockSize)] += value / double(aBlockSize * aBlockSize);
+            }
+        for (size_t b = 0; b < blocks.size(); b++) {
+            stats.mSum[b] += blocks[b];
+            stats.mSumSqr[b] += blocks[b] * blocks[b];
+        }
+        previous = cumulative;
+    }
+    return stats;
+}
+
+// Blocks whose every pixel sees, first, a purely diffuse surface. Light tracing cannot
+// render specular surfaces seen directly, and on glossy ones (the Cornell floor, Phong
+// exponent 90, reflecting the spheres) its estimate is right in expectation but so
+// heavy-tailed that a z-test would need far more iterations; it is compared elsewhere.
+std::vector<bool> BlocksSeeingOnlyDiffuse(const Scene& aScene, int aBlockSize) {
+    const Camera& camera = aScene.mCamera;
+    const int blocksX = camera.Width() / aBlockSize, blocksY = camera.Height() / aBlockSize;
+    std::vector<bool> usable(size_t(blocksX * blocksY), true);
+    for (int y = 0; y < blocksY * aBlockSize; y++)
+        for (int x = 0; x < blocksX * aBlockSize; x++)
+            for (float sub : {0.1f, 0.5f, 0.9f}) {
+                const Ray ray = camera.GenerateRay(Vec2(float(x) + sub, float(y) + 1.f - sub));
+                Hit hit;
+                if (aScene.Intersect(ray, hit) && (aScene.GetMaterial(hit.mMaterialId).HasSpecular() ||
+                                                   !IsBlack(aScene.GetMaterial(hit.mMaterialId).mPhongReflectance)))
+                    usable[size_t((y / aBlockSize) * blocksX + x / aBlockSize)] = false;
+            }
+    return usable;
+}
+
+void CheckFinitePositive(const Image& aImage, const std::string& aWhat) {
+    int bad = 0;
+    for (const Vec3& p : aImage.mPixels)
+        if (!IsFinite(p) || p.x < 0.f || p.y < 0.f || p.z < 0.f) bad++;
+    INFO(aWhat);
+    CHECK(bad == 0);
+}
+
+} // namespace
+
+TEST_CASE("Every estimator renders the emissive furnace's analytic radiance", "[integrators]") {
+    // A closed sphere, albedo a, emitting Le everywhere: L = Le (1 - a^k) / (1 - a) for
+    // paths of at most k segments. Tolerance: 4 standard errors of the image mean,
+    // measured from the pixels (independent samples of one value), plus 1e-3 relative
+    // for the geodesic sphere's facets (not a perfect sphere; the answer is the same for
+    // any closed surface, so this only covers float rounding).
+    const float albedo = 0.5f, emitted = 1.f;
+    const int maxPathLength = 6;
+    const double expected = emitted * (1.0 - std::pow(albedo, maxPathLength)) / (1.0 - albedo);
+    const Scene scene = MakeEmissiveFurnace(albedo, emitted, 32, 32);
+    for (Algorithm algorithm : kEstimators) {
+        const RenderResult result = RenderWith(scene, algorithm, 8, 11, maxPathLength);
+        const MeanAndError stats = PixelStatistics(result.mImage);
+        INFO(AlgorithmShortName(algorithm) << ": mean " << stats.mean << " +- " << stats.standardError << ", expected " << expected);
+        CHECK(std::abs(stats.mean - expected) <= 4.0 * stats.standardError + 1e-3 * expected);
+    }
+}
+
+TEST_CASE("Every estimator renders the point-light furnace's analytic radiance", "[integrators]") {
+    // Point light of intensity pi at the centre of a unit sphere of albedo 0.5:
+    // L = 1 - 0.5^(k-1) for at most k segments (the camera segment is one of them).
+    // Same tolerance rule as above. Photon mapping is unbiased here: on a sphere the
+    // photons within distance r of a point lie on a cap of area exactly pi r^2
+    // (Archimedes), and the photon density is uniform.
+    const int maxPathLength = 8;
+    const double expected = 1.0 - std::pow(0.5, maxPathLength - 1);
+    const Scene scene = MakePointLightFurnace(32, 32);
+    for (Algorithm algorithm : kEstimators) {
+        const RenderResult result = RenderWith(scene, algorithm, 8, 13, maxPathLength);
+        const MeanAndError stats = PixelStatistics(result.mImage);
+        INFO(AlgorithmShortName(algorithm) << ": mean " << stats.mean << " +- " << stats.standardError << ", expected " << expected);
+        CHECK(std::abs(stats.mean - expected) <= 4.0 * stats.standardError + 1e-3 * expected);
+    }
+}
+
+TEST_CASE("Photon mapping's bias shrinks with the radius on the Cornell box", "[integrators]") {
+    // In the furnaces the constant kernel is unbiased, so the bias is shown on the
+    // Cornell box (corners, light falloff, caustics): PPM with a fixed radius against a
+    // BPT reference, per 4x4 block. At these radii (0.2, 0.1, 0.05 of the scene radius)
+    // and 256 iterations the bias dominates the noise, so the mean absolute block error
+    // must fall with the radius; the printed numbers show it.
+    const Scene scene = LoadCornell(4, 32, 32);
+    const BlockStatistics reference = RenderBlocks(scene, Algorithm::kBidirectionalPathTracing, 256, 4, 101);
+    double previousError = 1e30;
+    for (float factor : {0.2f, 0.1f, 0.05f}) {
+        RenderOptions options;
+        options.mAlgorithm = Algorithm::kProgressivePhotonMapping;
+        options.mRadiusFactor = factor;
+        options.mRadiusAlpha = 1.f;  // fixed radius: the bias of that radius, not of a schedule
+        options.mIterations = 256;
+        options.mSeed = 202;
+        options.mProgress = false;
+        const Image image = Render(scene, options).mImage;
+        double error = 0.0;
+        for (int b = 0; b < reference.mBlocksX * reference.mBlocksY; b++) {
+            glm::dvec3 block(0.0);
+            const int bx = b % reference.mBlocksX, by = b / reference.mBlocksX;
+            for (int y = 0; y < 4; y++) for (int x = 0; x < 4; x++) block += glm::dvec3(image.At(4 * bx + x, 4 * by + y)) / 16.0;
+            const glm::dvec3 d = glm::abs(block - reference.Mean(b));
+            error += (d.x + d.y + d.z) / 3.0;
+        }
+        error /= double(reference.mBlocksX * reference.mBlocksY);
+        UNSCOPED_INFO("radius factor " << factor << ": mean absolute block error " << error);
+        CHECK(error < previousError);
+        previousError = error;
+    }
+}
+
+TEST_CASE("The unbiased estimators agree region by region on every Cornell scene", "[integrators]") {
+    // Per 4x4-pixel block and channel, z = (m_a - m_b) / sqrt(se_a^2 + se_b^2), with each
+    // standard error measured from the spread of 256 independent iterations (1024 for
+    // PT, whose caustic estimates are heavy-tailed). About 600 z-values per scene: |z| < 5
+    // keeps the chance of a false alarm per scene near 1e-3 for normal errors, and a
+    // systematic error of a few percent in a region still fails.
+    // What is compared with BPT: VCM (its merging bias is far below the noise at r =
+    // 0.003 R); LT where every pixel sees a diffuse surface first; PT where it can
+    // sample every path: not on scenes 0 and 2, where a delta light (sun, point) casts
+    // caustics through the glass and mirror spheres that no path tracer can find.
+    const int blockSize = 4;
+    for (int sceneIndex = 0; sceneIndex < 5; sceneIndex++) {
+        const Scene scene = LoadCornell(sceneIndex, 32, 32);
+        const BlockStatistics bpt = RenderBlocks(scene, Algorithm::kBidirectionalPathTracing, 256, blockSize, 1000 + sceneIndex);
+        const std::vector<bool> onlyDiffuse = BlocksSeeingOnlyDiffuse(scene, blockSize);
+        const bool deltaLightCaustics = sceneIndex == 0 || sceneIndex == 2;
+        for (Algorithm other : {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kVertexConnectionMerging}) {
+            if (other == Algorithm::kPathTracing && deltaLightCaustics) continue;
+            const int iterations = other == Algorithm::kPathTracing ? 1024 : 256;
+            const BlockStatistics stats = RenderBlocks(scene, other, iterations, blockSize, 2000 + sceneIndex);
+            double worstZ = 0.0;
+            int compared = 0;
+            for (int b = 0; b < bpt.mBlocksX * bpt.mBlocksY; b++) {
+                if (other == Algorithm::kLightTracing && !onlyDiffuse[size_t(b)]) continue;
+                const glm::dvec3 difference = stats.Mean(b) - bpt.Mean(b);
+                const glm::dvec3 se = glm::sqrt(stats.StandardError(b) * stats.StandardError(b) + bpt.StandardError(b) * bpt.StandardError(b));
+                for (int c = 0; c < 3; c++) {
+                    if (se[c] == 0.0) { CHECK(difference[c] == Approx(0.0).margin(1e-6)); continue; }
+                    worstZ = std::max(worstZ, std::abs(difference[c]) / se[c]);
+                }
+                compared++;
+            }
+            INFO("scene " << sceneIndex << ", " << AlgorithmShortName(other) << " vs bpt: worst |z| " << worstZ << " over " << compared << " blocks");
+            CHECK(compared > 0);
+            CHECK(worstZ < 5.0);
+        }
+    }
+}
+
+TEST_CASE("No estimator writes NaN, infinity or a negative value on any scene", "[integrators]") {
+    for (int sceneIndex = 0; sceneIndex < 5; sceneIndex++) {
+        const Scene scene = LoadCornell(sceneIndex, 24, 16);
+        for (Algorithm algorithm : kEstimators) {
+            RenderOptions options;
+            options.mAlgorithm = algorithm;
+            options.mIterations = 4;
+            options.mTechniqueLayers = true;
+            options.mProgress = false;
+            const RenderResult result = Render(scene, options);
+            const std::string what = "scene " + std::to_string(sceneIndex) + " " + AlgorithmShortName(algorithm);
+            CheckFinitePositive(result.mImage, what);
+            for (const auto& layer : result.mLayers) CheckFinitePositive(layer.second, what + " layer " + layer.first);
+        }
+    }
+}
+
+TEST_CASE("Technique layers sum to the image for PT, BPT and VCM", "[integrators]") {
+    // Each contribution is written to exactly one weighted layer, so the sum matches the
+    // image up to float rounding of the resolve (relative 1e-5 of the pixel, 1e-7 abs).
+    const Scene scene = LoadCornell(4, 24, 24);
+    for (Algorithm algorithm : {Algorithm::kPathTracing, Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging,
+                                Algorithm::kBidirectionalPhotonMapping, Algorithm::kLightTracing}) {
+        RenderOptions options;
+        options.mAlgorithm = algorithm;
+        options.mIterations = 3;
+        options.mTechniqueLayers = true;
+        options.mProgress = false;
+        const RenderResult result = Render(scene, options);
+        // BPT writes two families: the five classes and the (s, t) pyramid (+ longer
+        // paths). Each family alone must sum to the image; unweighted layers sum to more.
+        std::vector<std::vector<std::string>> families;
+        if (algorithm == Algorithm::kPathTracing) {
+            families.push_back({"emitted", "direct_nonspecular", "direct_specular", "indirect_nonspecular", "indirect_specular"});
+        } else {
+            families.push_back({"unidirectional", "nee", "light_tracing", "connection", "merging"});
+            if (algorithm == Algorithm::kBidirectionalPathTracing) {
+                std::vector<std::string> pyramid = {"longer_than_5"};
+                for (int length = 1; length <= 5; length++)
+                    for (int s = 0; s <= length; s++) pyramid.push_back("s" + std::to_string(s) + "_t" + std::to_string(length + 1 - s));
+                families.push_back(pyramid);
+            }
+        }
+        for (const auto& family : families) {
+            Image sum(result.mImage.mWidth, result.mImage.mHeight);
+            int found = 0;
+            for (const auto& layer : result.mLayers)
+                if (std::find(family.begin(), family.end(), layer.first) != family.end()) {
+                    found++;
+                    for (size_t i = 0; i < sum.mPixels.size(); i++) sum.mPixels[i] += layer.second.mPixels[i];
+                }
+            INFO(AlgorithmShortName(algorithm) << ": family of " << family.size() << " layers, found " << found);
+            REQUIRE(found == int(family.size()));
+            double worst = 0.0;
+            for (size_t i = 0; i < sum.mPixels.size(); i++)
+                for (int c = 0; c < 3; c++) {
+                    const double image = result.mImage.mPixels[i][c];
+                    worst = std::max(worst, std::abs(double(sum.mPixels[i][c]) - image) / (1e-5 * std::abs(image) + 1e-7));
+                }
+            CHECK(worst <= 1.0);
+        }
+    }
+}
+
+TEST_CASE("Light tracing splats land in the pixels that see the lit surface, also on non-square images", "[integrators]") {
+    // A small lit square in front of a black backdrop: the pixels light tracing reaches
+    // must be exactly the pixels where the eye light sees the square (up to the pixels its
+    // edges cross, which both may or may not reach).
+    Scene scene;
+    Material white;
+    white.mDiffuseReflectance = Vec3(0.8f);
+    const int m = scene.AddMaterial(white);
+    const Vec3 a(-0.3f, 2.f, -0.1f), b(0.1f, 2.f, -0.1f), c(0.1f, 2.f, 0.2f), d(-0.3f, 2.f, 0.2f);
+    scene.AddTriangle(a, b, c, m);  // wound to face the camera (normal -y)
+    scene.AddTriangle(a, c, d, m);
+    scene.AddPointLight(Vec3(0.f, 0.f, 0.f), Vec3(10.f));
+    scene.mCamera.Setup(Vec3(0.f), Vec3(0.f, 1.f, 0.f), Vec3(0.f, 0.f, 1.f), 50.f);
+    scene.mCamera.SetResolution(48, 20);
+    scene.Finalize();
+    // The square subtends ~0.25% of the light's sphere: 1024 iterations of 960 light paths put
+    // ~2500 photons on it, enough to reach each of its ~50 interior pixels many times.
+    const Image lt = RenderWith(scene, Algorithm::kLightTracing, 1024).mImage;
+    const Image eye = RenderWith(scene, Algorithm::kEyeLight, 16).mImage;
+    Vec2 cornerA, cornerC;
+    REQUIRE(scene.mCamera.WorldToRaster(a, cornerA));
+    REQUIRE(scene.mCamera.WorldToRaster(c, cornerC));
+    int inside = 0, mismatched = 0;
+    for (int y = 0; y < 20; y++)
+        for (int x = 0; x < 48; x++) {
+            const bool onEdge = std::abs(float(x) + 0.5f - cornerA.x) < 1.f || std::abs(float(x) + 0.5f - cornerC.x) < 1.f ||
+                                std::abs(float(y) + 0.5f - cornerA.y) < 1.f || std::abs(float(y) + 0.5f - cornerC.y) < 1.f;
+            if (onEdge) continue;
+            const bool litByLt = lt.At(x, y).x > 0.f;
+            const bool seenByEye = eye.At(x, y).x > 0.f;
+            inside += seenByEye;
+            mismatched += litByLt != seenByEye;
+        }
+    INFO("interior pixels of the square: " << inside);
+    CHECK(inside > 20);
+    CHECK(mismatched == 0);
+}
+
+TEST_CASE("The same seed and thread count give a bit-identical image", "[integrators]") {
+    const Scene scene = LoadCornell(1, 24, 24);
+    RenderOptions options;
+    options.mAlgorithm = Algorithm::kVertexConnectionMerging;
+    options.mIterations = 4;
+    options.mThreads = 2;
+    options.mSeed = 99;
+    options.mProgress = false;
+    const Image first = Render(scene, options).mImage;
+    const Image second = Render(scene, options).mImage;
+    CHECK(std::memcmp(first.mPixels.data(), second.mPixels.data(), first.mPixels.size() * sizeof(Vec3)) == 0);
+    options.mSeed = 100;
+    const Image other = Render(scene, options).mImage;
+    CHECK(std::memcmp(first.mPixels.data(), other.mPixels.data(), first.mPixels.size() * sizeof(Vec3)) != 0);
+}
