@@ -7,6 +7,8 @@
 //    el   eye light (|cos| shading, back faces red: a geometry check, not an estimator)
 //    pt   path tracing with next-event estimation and MIS
 //    lt   light tracing (paths from the lights splatted onto the image)
+//    pm   photon mapping: a kd-tree of photons, k nearest, visualised at the first hit
+//    pmfg photon mapping with the partitioned estimator and final gathering
 //    ppm  progressive photon mapping (merging at the first non-specular camera vertex)
 //    bpm  bidirectional photon mapping (merging at every camera vertex, with MIS)
 //    bpt  bidirectional path tracing (vertex connection, with MIS)
@@ -74,8 +76,10 @@
 //  [SECTION] Scene: materials, lights, camera
 //  [SECTION] BSDF
 //  [SECTION] Film
+//  [SECTION] Integrator interface
 //  [SECTION] Integrator: eye light
 //  [SECTION] Integrator: path tracing
+//  [SECTION] Integrator: photon mapping (classic)
 //  [SECTION] Integrator: the VertexCM family (LT, PPM, BPM, BPT, VCM)
 //  [SECTION] Render loop
 //  [SECTION] Image output and metrics
@@ -1478,6 +1482,8 @@ enum class Algorithm {
     kBidirectionalPhotonMapping,
     kBidirectionalPathTracing,
     kVertexConnectionMerging,
+    kPhotonMapping,
+    kPhotonMappingFinalGather,
 };
 
 // SmallVCM's short names ("el", "pt", "lt", "ppm", "bpm", "bpt", "vcm").
@@ -1490,13 +1496,16 @@ inline const char* AlgorithmShortName(Algorithm aAlgorithm) {
     case Algorithm::kBidirectionalPhotonMapping: return "bpm";
     case Algorithm::kBidirectionalPathTracing: return "bpt";
     case Algorithm::kVertexConnectionMerging: return "vcm";
+    case Algorithm::kPhotonMapping: return "pm";
+    case Algorithm::kPhotonMappingFinalGather: return "pmfg";
     }
     return "?";
 }
 inline bool ParseAlgorithm(const std::string& aName, Algorithm& oAlgorithm) {
     for (Algorithm a : {Algorithm::kEyeLight, Algorithm::kPathTracing, Algorithm::kLightTracing,
                         Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
-                        Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging})
+                        Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging,
+                        Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather})
         if (aName == AlgorithmShortName(a)) { oAlgorithm = a; return true; }
     return false;
 }
@@ -1516,6 +1525,11 @@ struct RenderOptions {
     MisHeuristic mMis = MisHeuristic::kBalance;
     bool mTechniqueLayers = false;// write per-technique layers into the film
     bool mProgress = true;        // progress line on stderr (only on a terminal, after 2 s)
+    // Classic photon mapping (pm, pmfg): photons emitted per iteration, photons per
+    // estimate, and the largest search radius as a fraction of the scene radius.
+    int mPhotonCount = 200000;
+    int mNearestPhotons = 100;
+    float mMaxPhotonRadiusFactor = 0.05f;
 };
 
 // The heuristic as a function of one pdf: w_i = Mis(p_i) / sum_j Mis(p_j).
@@ -1710,6 +1724,342 @@ private:
     std::vector<int> mLayers;
 };
 
+
+// =====================================================================================
+// [SECTION] Integrator: photon mapping (classic)
+// =====================================================================================
+// Jensen's photon mapping (1996; "Realistic Image Synthesis Using Photon Mapping", 2001).
+// Each iteration traces mPhotonCount photons from the lights (power-carrying particles:
+// a photon's power is its light sub-path throughput / photon count, Russian roulette
+// keeps it near constant) and stores them at non-specular hits in a balanced kd-tree:
+//   global map   every stored photon;
+//   caustic map  photons that reached their surface through specular bounces only
+//                (light -> specular+ -> here).
+// The radiance estimate at x towards w from the k nearest photons within r_max is
+//     L(x, w) ~ sum_p f(x, w_p, w) dPhi_p / (pi r^2),        r = distance to the k-th
+// (the slide "photon map-based reflection"); with fewer than k photons inside r_max,
+// r = r_max. Known bias of this constant kernel with k-NN: the estimate is a blur of the
+// true radiance over a disc whose size adapts to the photon density -- peaks are
+// flattened, edges and corners leak (photons of a neighbouring surface within r count),
+// and dividing by the disc through the k-th photon overestimates slightly for small k
+// (the k-th photon lies on the boundary). All of it vanishes as the photon count grows
+// with k fixed, so the estimator is consistent: more photons, smaller discs. More
+// iterations average independent photon maps: they reduce the noise, not the bias.
+//
+//   pm    visualises the global map at the first non-specular camera vertex (camera
+//         paths follow specular bounces by ray tracing; a light seen directly, or through
+//         specular bounces, counts its emission).
+//   pmfg  the partitioned estimator ("improved photon mapping" slide): at the first
+//         non-specular camera vertex x,
+//           direct    next-event estimation only (one light sample, no MIS needed: light
+//                     reaching x straight from a light is counted here and nowhere else);
+//           caustics  the caustic map at x;
+//           indirect  final gathering: one BSDF sample of x's non-specular part, followed
+//                     through specular bounces to a non-specular y, where the global map
+//                     gives the radiance towards x (a gather ray ending on a light adds
+//                     nothing: that light is direct, or a caustic);
+//           specular  x's specular components continue the camera path by ray tracing;
+//         with layers: emitted, direct, caustics, indirect, and "specular" for everything
+//         found after one or more specular camera bounces. They sum to the image.
+
+struct Photon {
+    Vec3 mPosition{0.f};
+    Vec3 mPower{0.f};        // flux carried, already divided by the photon count
+    Vec3 mDirFix{0.f};       // unit direction back towards where the photon came from
+    int mPathLength = 0;     // segments from the light
+};
+
+// A balanced kd-tree over points, built by recursive median splits on the axis of
+// largest extent (the photons are reordered in place: node = median of its range).
+// KNearest returns the k nearest points within a maximum radius, exactly.
+class KdTree {
+public:
+    struct Neighbor {
+        uint32_t mIndex;
+        float mDistSqr;
+        bool operator<(const Neighbor& aOther) const { return mDistSqr < aOther.mDistSqr; }
+    };
+
+    // Builds the tree over aCount points given by aPositionOf(i); oOrder[j] is the point
+    // stored at tree position j (the caller reorders its own data the same way).
+    template <class PositionOf>
+    void Build(size_t aCount, PositionOf&& aPositionOf, std::vector<uint32_t>& oOrder) {
+        oOrder.resize(aCount);
+        for (size_t i = 0; i < aCount; i++) oOrder[i] = uint32_t(i);
+        mPositions.resize(aCount);
+        mAxes.assign(aCount, 0);
+        BuildRange(aPositionOf, oOrder, 0, aCount);
+        for (size_t i = 0; i < aCount; i++) mPositions[i] = aPositionOf(oOrder[i]);
+    }
+
+    size_t Size() const { return mPositions.size(); }
+    const Vec3& Position(size_t aIndex) const { return mPositions[aIndex]; }
+
+    // The (up to) aK nearest points with distance^2 <= aMaxDistSqr that aAccept(index)
+    // accepts, sorted by distance (ties broken by nothing in particular).
+    template <class Accept>
+    void KNearest(const Vec3& aQuery, int aK, float aMaxDistSqr, Accept&& aAccept, std::vector<Neighbor>& oNeighbors) const {
+        oNeighbors.clear();
+        float worst = aMaxDistSqr;
+        if (!mPositions.empty()) Search(aQuery, size_t(aK), worst, aAccept, oNeighbors, 0, mPositions.size());
+        std::sort_heap(oNeighbors.begin(), oNeighbors.end());
+    }
+
+private:
+    template <class PositionOf>
+    void BuildRange(PositionOf& aPositionOf, std::vector<uint32_t>& ioOrder, size_t aBegin, size_t aEnd) {
+        if (aEnd - aBegin <= 1) return;
+        Aabb box;
+        for (size_t i = aBegin; i < aEnd; i++) box.Extend(aPositionOf(ioOrder[i]));
+        const Vec3 extent = box.mMax - box.mMin;
+        const int axis = (extent.x >= extent.y && extent.x >= extent.z) ? 0 : (extent.y >= extent.z ? 1 : 2);
+        const size_t middle = (aBegin + aEnd) / 2;
+        std::nth_element(ioOrder.begin() + long(aBegin), ioOrder.begin() + long(middle), ioOrder.begin() + long(aEnd),
+                         [&](uint32_t a, uint32_t b) { return aPositionOf(a)[axis] < aPositionOf(b)[axis]; });
+        mAxes[middle] = uint8_t(axis);
+        BuildRange(aPositionOf, ioOrder, aBegin, middle);
+        BuildRange(aPositionOf, ioOrder, middle + 1, aEnd);
+    }
+
+    // Depth-first search with a max-heap of the best aK so far; a subtree is entered
+    // only if its splitting plane is closer than the current worst distance.
+    template <class Accept>
+    void Search(const Vec3& aQuery, size_t aK, float& ioWorst, Accept& aAccept, std::vector<Neighbor>& ioHeap,
+                size_t aBegin, size_t aEnd) const {
+        if (aBegin >= aEnd) return;
+        const size_t middle = (aBegin + aEnd) / 2;
+        const Vec3& p = mPositions[middle];
+        const int axis = mAxes[middle];
+        const float planeDistance = aQuery[axis] - p[axis];
+        const bool leftFirst = planeDistance < 0.f;
+        if (leftFirst) Search(aQuery, aK, ioWorst, aAccept, ioHeap, aBegin, middle);
+        else Search(aQuery, aK, ioWorst, aAccept, ioHeap, middle + 1, aEnd);
+        const Vec3 d = p - aQuery;
+        const float distSqr = glm::dot(d, d);
+        if (distSqr <= ioWorst && aAccept(middle)) {
+            if (ioHeap.size() == aK) { std::pop_heap(ioHeap.begin(), ioHeap.end()); ioHeap.pop_back(); }
+            ioHeap.push_back(Neighbor{uint32_t(middle), distSqr});
+            std::push_heap(ioHeap.begin(), ioHeap.end());
+            if (ioHeap.size() == aK) ioWorst = ioHeap.front().mDistSqr;
+        }
+        if (planeDistance * planeDistance <= ioWorst) {
+            if (leftFirst) Search(aQuery, aK, ioWorst, aAccept, ioHeap, middle + 1, aEnd);
+            else Search(aQuery, aK, ioWorst, aAccept, ioHeap, aBegin, middle);
+        }
+    }
+
+    std::vector<Vec3> mPositions;
+    std::vector<uint8_t> mAxes;
+};
+
+// A photon map: photons in kd-tree order, and the radiance estimate over them.
+class PhotonMap {
+public:
+    void Build(std::vector<Photon> aPhotons) {
+        std::vector<uint32_t> order;
+        mTree.Build(aPhotons.size(), [&](size_t i) { return aPhotons[i].mPosition; }, order);
+        mPhotons.resize(aPhotons.size());
+        for (size_t i = 0; i < order.size(); i++) mPhotons[i] = aPhotons[order[i]];
+    }
+    size_t Size() const { return mPhotons.size(); }
+    const Photon& GetPhoton(size_t aIndex) const { return mPhotons[aIndex]; }
+    const KdTree& Tree() const { return mTree; }
+
+    // sum f dPhi / (pi r^2) over the aK nearest photons within aMaxRadius whose path
+    // length is at most aMaxPhotonLength (so the full path stays within the limit).
+    Vec3 EstimateRadiance(const Vec3& aPoint, const Bsdf& aBsdf, int aK, float aMaxRadius, int aMaxPhotonLength,
+                          std::vector<KdTree::Neighbor>& aScratch) const {
+        mTree.KNearest(aPoint, aK, Sqr(aMaxRadius), [&](size_t i) { return mPhotons[i].mPathLength <= aMaxPhotonLength; }, aScratch);
+        if (aScratch.empty()) return Vec3(0.f);
+        const float radiusSqr = int(aScratch.size()) == aK ? aScratch.back().mDistSqr : Sqr(aMaxRadius);
+        if (!(radiusSqr > 0.f)) return Vec3(0.f);
+        Vec3 sum(0.f);
+        for (const KdTree::Neighbor& n : aScratch) {
+            const Photon& photon = mPhotons[n.mIndex];
+            float cosGen;
+            sum += aBsdf.Evaluate(photon.mDirFix, cosGen) * photon.mPower;
+        }
+        return sum / (kPi * radiusSqr);
+    }
+
+private:
+    KdTree mTree;
+    std::vector<Photon> mPhotons;
+};
+
+// Traces aPhotonCount photons and builds the global and caustic maps.
+inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLength, Rng& aRng,
+                         PhotonMap& oGlobal, PhotonMap& oCaustic) {
+    std::vector<Photon> global, caustic;
+    const int lightCount = aScene.LightCount();
+    const float lightPickProb = 1.f / float(lightCount);
+    for (int p = 0; p < aPhotonCount; p++) {
+        const Light& light = aScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
+        const Vec2 rndDirection = aRng.GetVec2();
+        const Vec2 rndPosition = aRng.GetVec2();
+        LightEmission emission;
+        if (!light.Emit(aScene.GetSceneSphere(), rndDirection, rndPosition, emission) || !(emission.mEmissionPdfW > 0.f))
+            continue;
+        Vec3 power = emission.mEnergy / (emission.mEmissionPdfW * lightPickProb * float(aPhotonCount));
+        Ray ray = aScene.SpawnRay(emission.mPosition, emission.mDirection);
+        bool onlySpecular = true;
+        for (int pathLength = 1; pathLength < aMaxPathLength; pathLength++) {
+            Hit hit;
+            if (!aScene.Intersect(ray, hit)) break;
+            const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+            Bsdf bsdf;
+            bsdf.Setup(ray, hit, aScene, true);
+            if (!bsdf.IsValid()) break;
+            if (!bsdf.IsDelta()) {
+                const Photon photon{hitPoint, power, -ray.mDirection, pathLength};
+                global.push_back(photon);
+                if (onlySpecular && pathLength > 1) caustic.push_back(photon);
+            }
+            Vec3 direction;
+            float pdfW, cosThetaOut;
+            uint32_t event;
+            const Vec3 factor = bsdf.Sample(aRng.GetVec3(), direction, pdfW, cosThetaOut, &event);
+            if (IsBlack(factor)) break;
+            const float continuationProb = bsdf.ContinuationProb();
+            if (aRng.GetFloat() >= continuationProb) break;
+            power *= factor * (cosThetaOut / (pdfW * continuationProb));
+            onlySpecular = onlySpecular && (event & kEventSpecular) != 0;
+            ray = aScene.SpawnRay(hitPoint, direction);
+        }
+    }
+    oGlobal.Build(std::move(global));
+    oCaustic.Build(std::move(caustic));
+}
+
+class PhotonMapper : public AbstractRenderer {
+public:
+    PhotonMapper(const Scene& aScene, const RenderOptions& aOptions) : AbstractRenderer(aScene, aOptions) {
+        mFinalGather = aOptions.mAlgorithm == Algorithm::kPhotonMappingFinalGather;
+        mMaxRadius = aOptions.mMaxPhotonRadiusFactor * aScene.GetSceneSphere().mRadius;
+        if (mOptions.mTechniqueLayers) {
+            if (mFinalGather) for (int l = 0; l < kLayerCount; l++) mLayers[l] = mFilm.AddLayer(kLayerNames[l]);
+            else for (int l : {kEmitted, kPhotons}) mLayers[l] = mFilm.AddLayer(kLayerNames[l]);
+        }
+    }
+
+    void RunIteration(int /*aIteration*/, Rng& aRng) override {
+        TracePhotons(mScene, mOptions.mPhotonCount, mOptions.mMaxPathLength, aRng, mGlobal, mCaustic);
+        const Camera& camera = mScene.mCamera;
+        for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
+            const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aRng.GetVec2();
+            Ray ray = camera.GenerateRay(raster);
+            Vec3 throughput(1.f);
+            bool afterSpecular = false;
+            // Follow the camera path through specular bounces to non-specular vertices.
+            for (int pathLength = 1; pathLength <= mOptions.mMaxPathLength; pathLength++) {
+                Hit hit;
+                if (!mScene.Intersect(ray, hit)) {
+                    const Light* background = mScene.GetBackground();
+                    if (background && pathLength >= mOptions.mMinPathLength)
+                        Add(pixel, afterSpecular ? kSpecular : kEmitted,
+                            throughput * background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection, Vec3(0.f), nullptr, nullptr));
+                    break;
+                }
+                const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+                if (hit.mLightId >= 0 && pathLength >= mOptions.mMinPathLength)
+                    Add(pixel, afterSpecular ? kSpecular : kEmitted,
+                        throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), ray.mDirection, hit.mNormal, nullptr, nullptr));
+                Bsdf bsdf;
+                bsdf.Setup(ray, hit, mScene, false);
+                if (!bsdf.IsValid()) break;
+                if (!bsdf.IsDelta()) {
+                    if (mFinalGather) EstimatePartitioned(aRng, pixel, pathLength, hitPoint, bsdf, throughput, afterSpecular);
+                    else Add(pixel, kPhotons, throughput * Estimate(mGlobal, hitPoint, bsdf, pathLength));
+                }
+                // Only specular components carry the camera path on (by ray tracing).
+                if (!ContinueSpecular(aRng, bsdf, hitPoint, throughput, ray)) break;
+                afterSpecular = true;
+            }
+        }
+    }
+
+    const PhotonMap& GlobalMap() const { return mGlobal; }
+    const PhotonMap& CausticMap() const { return mCaustic; }
+
+private:
+    enum Layer { kEmitted = 0, kDirect, kCaustics, kIndirect, kSpecular, kPhotons, kLayerCount };
+    static constexpr const char* kLayerNames[kLayerCount] = {"emitted", "direct", "caustics", "indirect", "specular", "photons"};
+
+    void Add(int aPixel, Layer aLayer, const Vec3& aContribution) {
+        mFilm.AddColor(aPixel, aContribution);
+        if (mOptions.mTechniqueLayers && mLayers[aLayer] >= 0) mFilm.AddToLayer(mLayers[aLayer], aPixel, aContribution);
+    }
+
+    // Photon estimate at a camera vertex of length aPathLength: photons of length a
+    // make paths of length a + aPathLength.
+    Vec3 Estimate(const PhotonMap& aMap, const Vec3& aPoint, const Bsdf& aBsdf, int aPathLength) {
+        if (aPathLength + 1 > mOptions.mMaxPathLength) return Vec3(0.f);
+        return aMap.EstimateRadiance(aPoint, aBsdf, mOptions.mNearestPhotons, mMaxRadius,
+                                     mOptions.mMaxPathLength - aPathLength, mScratch);
+    }
+
+    // Samples the BSDF; continues (true) only if a specular component was picked.
+    bool ContinueSpecular(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, Vec3& ioThroughput, Ray& ioRay) {
+        Vec3 direction;
+        float pdfW, cosThetaOut;
+        uint32_t event;
+        const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), direction, pdfW, cosThetaOut, &event);
+        if (IsBlack(factor) || !(event & kEventSpecular)) return false;
+        ioThroughput *= factor * (cosThetaOut / pdfW);
+        ioRay = mScene.SpawnRay(aHitPoint, direction);
+        return true;
+    }
+
+    void EstimatePartitioned(Rng& aRng, int aPixel, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
+                             const Vec3& aThroughput, bool aAfterSpecular) {
+        auto layer = [&](Layer aPart) { return aAfterSpecular ? kSpecular : aPart; };
+        // Direct: one light sample.
+        if (aPathLength + 1 <= mOptions.mMaxPathLength && aPathLength + 1 >= mOptions.mMinPathLength) {
+            const int lightCount = mScene.LightCount();
+            const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
+            LightSample sample;
+            if (light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2(), sample) && !IsBlack(sample.mRadiance)) {
+                float cosToLight;
+                const Vec3 factor = aBsdf.Evaluate(sample.mDirToLight, cosToLight);
+                if (!IsBlack(factor) && !mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance))
+                    Add(aPixel, layer(kDirect), aThroughput * factor * sample.mRadiance *
+                                                    (cosToLight * float(lightCount) / sample.mDirectPdfW));
+            }
+        } else {
+            aRng.GetFloat();
+            aRng.GetVec2();
+        }
+        // Caustics: the caustic map here.
+        Add(aPixel, layer(kCaustics), aThroughput * Estimate(mCaustic, aHitPoint, aBsdf, aPathLength));
+        // Indirect: final gathering from the global map.
+        Vec3 direction;
+        float pdfW, cosThetaOut;
+        uint32_t event;
+        const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), direction, pdfW, cosThetaOut, &event);
+        if (IsBlack(factor) || (event & kEventSpecular)) return;  // the specular part is traced by the caller
+        Vec3 gatherThroughput = aThroughput * factor * (cosThetaOut / pdfW);
+        Ray ray = mScene.SpawnRay(aHitPoint, direction);
+        for (int length = aPathLength + 1; length < mOptions.mMaxPathLength; length++) {
+            Hit hit;
+            if (!mScene.Intersect(ray, hit)) return;
+            const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+            Bsdf bsdf;
+            bsdf.Setup(ray, hit, mScene, false);
+            if (!bsdf.IsValid()) return;
+            if (!bsdf.IsDelta()) {
+                Add(aPixel, layer(kIndirect), gatherThroughput * Estimate(mGlobal, hitPoint, bsdf, length));
+                return;
+            }
+            if (!ContinueSpecular(aRng, bsdf, hitPoint, gatherThroughput, ray)) return;
+        }
+    }
+
+    bool mFinalGather = false;
+    float mMaxRadius = 0.f;
+    PhotonMap mGlobal, mCaustic;
+    std::vector<KdTree::Neighbor> mScratch;
+    int mLayers[kLayerCount] = {-1, -1, -1, -1, -1, -1};
+};
 
 // =====================================================================================
 // [SECTION] Integrator: the VertexCM family (LT, PPM, BPM, BPT, VCM)
@@ -2416,6 +2766,8 @@ inline std::unique_ptr<AbstractRenderer> CreateRenderer(const Scene& aScene, con
     switch (aOptions.mAlgorithm) {
     case Algorithm::kEyeLight: return std::make_unique<EyeLight>(aScene, aOptions);
     case Algorithm::kPathTracing: return std::make_unique<PathTracer>(aScene, aOptions);
+    case Algorithm::kPhotonMapping:
+    case Algorithm::kPhotonMappingFinalGather: return std::make_unique<PhotonMapper>(aScene, aOptions);
     default: return std::make_unique<VertexCM>(aScene, aOptions);
     }
 }
@@ -2431,6 +2783,10 @@ inline void ValidateRenderOptions(const RenderOptions& aOptions) {
     if (aOptions.mMinPathLength > aOptions.mMaxPathLength) throw Error("min path length: must not exceed the max path length");
     if (!(aOptions.mRadiusFactor > 0.f) || !std::isfinite(aOptions.mRadiusFactor)) throw Error("radius factor: must be a finite number > 0");
     if (!(aOptions.mRadiusAlpha > 0.f && aOptions.mRadiusAlpha <= 1.f)) throw Error("radius alpha: must be in (0, 1]");
+    if (aOptions.mPhotonCount < 1) throw Error("photon count: must be >= 1");
+    if (aOptions.mNearestPhotons < 1) throw Error("nearest photons: must be >= 1");
+    if (!(aOptions.mMaxPhotonRadiusFactor > 0.f) || !std::isfinite(aOptions.mMaxPhotonRadiusFactor))
+        throw Error("max photon radius: must be a finite number > 0");
 }
 
 inline uint64_t SplitMix64(uint64_t aX) {

@@ -36,7 +36,7 @@ void PrintHelp() {
         "                        0 glossy + small spheres + sun      1 glossy + large mirror + ceiling light\n"
         "                        2 glossy + small spheres + point    3 glossy + small spheres + background\n"
         "                        4 small mirror and glass spheres + ceiling light (SmallVCM's default)\n"
-        "  -a ALGORITHM        el, pt, lt, ppm, bpm, bpt, vcm (default vcm)\n"
+        "  -a ALGORITHM        el, pt, lt, ppm, bpm, bpt, vcm, pm, pmfg (default vcm)\n"
         "  -i ITERATIONS       number of iterations, one sample per pixel each (default 1)\n"
         "  -t SECONDS          time budget; with -t and no -i, runs until the time is up\n"
         "  -o FILE             output image: .png, .hdr or .pfm (default smallvcm.png)\n"
@@ -48,6 +48,9 @@ void PrintHelp() {
         "  --radius-factor F   merging radius as a fraction of the scene radius (default 0.003)\n"
         "  --radius-alpha A    radius shrinking exponent in (0, 1] (default 0.75)\n"
         "  --mis balance|power MIS heuristic (default balance)\n"
+        "  --photons N         pm, pmfg: photons traced per iteration (default 200000)\n"
+        "  --knn K             pm, pmfg: nearest photons per estimate (default 100)\n"
+        "  --max-radius F      pm, pmfg: largest search radius, fraction of the scene radius (default 0.05)\n"
         "  --layers            also write per-technique layers as FILE-stem.LAYER.ext\n"
         "  -q                  quiet: no summary line, no progress\n"
         "  --help              this text\n");
@@ -131,7 +134,7 @@ CommandLine Parse(int argc, char** argv) {
         else if (arg == "-a") {
             const std::string name = value(i);
             if (!smallvcm::ParseAlgorithm(name, cl.mOptions.mAlgorithm))
-                throw Error("-a: unknown algorithm '" + name + "' (el, pt, lt, ppm, bpm, bpt, vcm)");
+                throw Error("-a: unknown algorithm '" + name + "' (el, pt, lt, ppm, bpm, bpt, vcm, pm, pmfg)");
         }
         else if (arg == "-i") { cl.mOptions.mIterations = ParseNumber<int>(arg, value(i), 1, 100000000, "an integer in [1, 1e8]"); cl.mIterationsGiven = true; }
         else if (arg == "-t") cl.mOptions.mSeconds = ParseNumber<double>(arg, value(i), 1e-3, 1e7, "a number of seconds in [0.001, 1e7]");
@@ -158,6 +161,9 @@ CommandLine Parse(int argc, char** argv) {
             else if (name == "power") cl.mOptions.mMis = smallvcm::MisHeuristic::kPower;
             else throw Error("--mis: unknown heuristic '" + name + "' (balance, power)");
         }
+        else if (arg == "--photons") cl.mOptions.mPhotonCount = ParseNumber<int>(arg, value(i), 1, 100000000, "an integer in [1, 1e8]");
+        else if (arg == "--knn") cl.mOptions.mNearestPhotons = ParseNumber<int>(arg, value(i), 1, 100000, "an integer in [1, 100000]");
+        else if (arg == "--max-radius") cl.mOptions.mMaxPhotonRadiusFactor = ParseNumber<float>(arg, value(i), 1e-6f, 10.f, "a number in [1e-6, 10]");
         else if (arg == "--layers") cl.mOptions.mTechniqueLayers = true;
         else if (arg == "-q") cl.mQuiet = true;
         else throw Error(arg + ": unknown option (see --help)");
