@@ -2978,6 +2978,7 @@ Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr)
 #include <stb/stb_image_write.h>
 
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <set>
@@ -3107,9 +3108,34 @@ private:
     [[noreturn]] void Fail(const std::string& aProblem) const { throw Error(mPath + ": " + aProblem); }
 
     void ParseFile() {
+        std::error_code ignored;
+        if (std::filesystem::is_directory(mPath, ignored)) Fail("is a directory, not a glTF file");
         std::ifstream probe(mPath, std::ios::binary);
         if (!probe) Fail(std::string("cannot open the file (") + std::strerror(errno) + ")");
+        // tinygltf turns extras and extensions into values recursively: a file nested
+        // thousands of levels deep would overflow the stack, so bound the nesting first.
+        const std::string bytes((std::istreambuf_iterator<char>(probe)), std::istreambuf_iterator<char>());
         probe.close();
+        size_t jsonBegin = 0, jsonEnd = bytes.size();
+        if (EndsWith(mPath, ".glb") && bytes.size() >= 20) {  // the JSON chunk of a .glb
+            uint32_t length;
+            std::memcpy(&length, bytes.data() + 12, 4);
+            jsonBegin = 20;
+            jsonEnd = std::min(bytes.size(), size_t(20) + length);
+        }
+        int depth = 0, deepest = 0;
+        bool inString = false, escaped = false;
+        for (size_t i = jsonBegin; i < jsonEnd; i++) {
+            const char c = bytes[i];
+            if (inString) {
+                if (escaped) escaped = false;
+                else if (c == '\\') escaped = true;
+                else if (c == '"') inString = false;
+            } else if (c == '"') inString = true;
+            else if (c == '[' || c == '{') deepest = std::max(deepest, ++depth);
+            else if (c == ']' || c == '}') depth--;
+        }
+        if (deepest > 512) Fail("the JSON is nested " + std::to_string(deepest) + " levels deep (at most 512 are read)");
         tinygltf::TinyGLTF gltf;
         // Images are not supported; the loader must not try to decode them. A model that
         // uses one is rejected by CheckModelFeatures with a clear message.
@@ -3125,6 +3151,8 @@ private:
             std::replace(message.begin(), message.end(), '\n', ';');
             Fail("glTF parse error: " + message);
         }
+        if (mModel.asset.version.compare(0, 2, "2.") != 0)
+            Fail("glTF version " + mModel.asset.version + " is not supported (asset.version must be \"2.0\")");
     }
 
     void CheckModelFeatures() {
@@ -3295,6 +3323,8 @@ private:
     void VisitNode(int aNodeIndex, const Mat4& aParent, int aDepth) {
         if (aNodeIndex < 0 || aNodeIndex >= int(mModel.nodes.size())) Fail("a scene refers to node " + std::to_string(aNodeIndex) + ", which does not exist");
         if (aDepth > 64) Fail("the node hierarchy is deeper than 64 levels, or has a cycle");
+        if (!mVisitedNodes.insert(aNodeIndex).second)
+            Fail("node " + std::to_string(aNodeIndex) + " is reached twice: it has more than one parent, or is part of a cycle (glTF nodes form trees)");
         const tinygltf::Node& node = mModel.nodes[size_t(aNodeIndex)];
         const std::string what = "node " + std::to_string(aNodeIndex) + (node.name.empty() ? "" : " '" + node.name + "'");
         const Mat4 world = aParent * LocalMatrix(node, what);
@@ -3339,8 +3369,12 @@ private:
         if (stride < elementSize) Fail(where + ": byteStride is smaller than an element");
         const size_t count = accessor.count;
         if (count == 0) return {};
-        const size_t lastByte = accessor.byteOffset + stride * (count - 1) + elementSize;
-        if (view.byteOffset + view.byteLength > buffer.data.size() || lastByte > view.byteLength || count > (size_t(1) << 31))
+        // Every sum below is checked before it is formed, so a huge offset cannot wrap.
+        const size_t bufferSize = buffer.data.size();
+        const bool viewInside = view.byteOffset <= bufferSize && view.byteLength <= bufferSize - view.byteOffset;
+        const bool firstInside = accessor.byteOffset <= view.byteLength && elementSize <= view.byteLength - accessor.byteOffset;
+        const size_t room = firstInside ? view.byteLength - accessor.byteOffset - elementSize : 0;
+        if (!viewInside || !firstInside || count > (size_t(1) << 31) || (count > 1 && stride > room / (count - 1)))
             Fail(where + ": reads past the end of its buffer");
         const unsigned char* base = buffer.data.data() + view.byteOffset + accessor.byteOffset;
         std::vector<double> values(count * components);
@@ -3419,7 +3453,10 @@ private:
         const double sx = glm::length(glm::dvec3(aWorld[0])), sy = glm::length(glm::dvec3(aWorld[1])), sz = glm::length(glm::dvec3(aWorld[2]));
         if (std::abs(sx - sy) > 1e-4 * sx || std::abs(sx - sz) > 1e-4 * sx || !(sx > 0.0))
             Fail(aWhat + ": a sphere node must have a uniform scale (non-uniform scale would make an ellipsoid)");
-        const int material = MaterialIndex(aSphere.Get("material").GetNumberAsInt(), aWhat + ": SMALLVCM_sphere");
+        const int materialIndex = aSphere.Get("material").GetNumberAsInt();
+        if (materialIndex < 0)
+            Fail(aWhat + ": SMALLVCM_sphere refers to material " + std::to_string(materialIndex) + ", which does not exist");
+        const int material = MaterialIndex(materialIndex, aWhat + ": SMALLVCM_sphere");
         const int id = mScene.AddSphere(Vec3(glm::dvec3(aWorld[3])), float(radius * sx), material);
         if (!IsBlack(mMaterialEmission[size_t(material)])) mScene.AddSphereLight(id, mMaterialEmission[size_t(material)]);
     }
@@ -3482,6 +3519,7 @@ private:
     int mDefaultMaterial = -1;
     bool mHasCamera = false;
     int mSkippedTriangles = 0;
+    std::set<int> mVisitedNodes;
 };
 
 } // namespace detail

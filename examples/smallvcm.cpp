@@ -138,7 +138,11 @@ CommandLine Parse(int argc, char** argv) {
         }
         else if (arg == "-i") { cl.mOptions.mIterations = ParseNumber<int>(arg, value(i), 1, 100000000, "an integer in [1, 1e8]"); cl.mIterationsGiven = true; }
         else if (arg == "-t") cl.mOptions.mSeconds = ParseNumber<double>(arg, value(i), 1e-3, 1e7, "a number of seconds in [0.001, 1e7]");
-        else if (arg == "-o") cl.mOutput = value(i);
+        else if (arg == "-o") {
+            cl.mOutput = value(i);
+            if (!smallvcm::IsSupportedImagePath(cl.mOutput))
+                throw Error("-o: '" + cl.mOutput + "' has an unknown image format (use .png, .hdr or .pfm)");
+        }
         else if (arg == "-r") {
             const std::string text = value(i);
             const size_t x = text.find('x');

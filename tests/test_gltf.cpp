@@ -1,0 +1,519 @@
+// [gltf] Scene loading: the Cornell files load with SmallVCM's numbers
+// (shared/SMALLVCM_SCENES.md), every file of the bad-input corpus (tests/data/bad, table
+// in its README.md) is rejected with an Error naming the file and the problem, files
+// with zero-area triangles load with the skipped ones counted, the pbrMetallicRoughness
+// mapping of docs/scene_format.md section 4.2 is what the loader does, and node
+// transforms place and orient meshes as glTF says. Inputs are written by
+// tests/data/make_bad_gltf.py; tests run from tests/, so paths are data/... and ../scenes/...
+#include "gltf_corpus.hpp"
+#include "test_util.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <map>
+#include <set>
+#include <sstream>
+
+namespace {
+
+using namespace smallvcm;
+using testutil::CornellPath;
+
+std::string Str(const Vec3& aV) {
+    std::ostringstream out;
+    out << "(" << aV.x << ", " << aV.y << ", " << aV.z << ")";
+    return out.str();
+}
+
+// Component-wise |a - b| <= tol, with both vectors printed on failure.
+#define CHECK_VEC3(aActual, aExpected, aTolerance)                                                  \
+    do {                                                                                            \
+        const Vec3 actual_ = (aActual), expected_ = (aExpected);                                    \
+        INFO(#aActual " = " << Str(actual_) << ", expected " << Str(expected_));                   \
+        CHECK(std::abs(actual_.x - expected_.x) <= (aTolerance));                                    \
+        CHECK(std::abs(actual_.y - expected_.y) <= (aTolerance));                                    \
+        CHECK(std::abs(actual_.z - expected_.z) <= (aTolerance));                                    \
+    } while (0)
+
+using corpus::StartsWith;
+
+// --- the Cornell files ------------------------------------------------------------
+
+// SmallVCM's material table (SMALLVCM_SCENES.md section 3), by SmallVCM id.
+struct ExpectedMaterial {
+    Vec3 mDiffuse, mPhong;
+    float mExponent;  // checked only where the Phong lobe exists
+    Vec3 mMirror;
+    float mIor;
+};
+const std::map<int, ExpectedMaterial>& SmallVcmMaterials() {
+    static const std::map<int, ExpectedMaterial> kMaterials = {
+        {0, {Vec3(0.f), Vec3(0.f), 1.f, Vec3(0.f), -1.f}},
+        {1, {Vec3(0.f), Vec3(0.f), 1.f, Vec3(0.f), -1.f}},
+        {2, {Vec3(0.1f), Vec3(0.7f), 90.f, Vec3(0.f), -1.f}},
+        {3, {Vec3(0.156863f, 0.803922f, 0.172549f), Vec3(0.f), 1.f, Vec3(0.f), -1.f}},
+        {4, {Vec3(0.803922f, 0.152941f, 0.152941f), Vec3(0.f), 1.f, Vec3(0.f), -1.f}},
+        {5, {Vec3(0.803922f), Vec3(0.f), 1.f, Vec3(0.f), -1.f}},
+        {6, {Vec3(0.f), Vec3(0.f), 1.f, Vec3(1.f), -1.f}},
+        {7, {Vec3(0.f), Vec3(0.f), 1.f, Vec3(1.f), 1.6f}},
+        {8, {Vec3(0.156863f, 0.172549f, 0.803922f), Vec3(0.f), 1.f, Vec3(0.f), -1.f}},
+    };
+    return kMaterials;
+}
+
+// The SmallVCM id of a Cornell material: its name starts "SmallVCM material N: ".
+int SmallVcmId(const Material& aMaterial) {
+    const std::string prefix = "SmallVCM material ";
+    if (!StartsWith(aMaterial.mName, prefix)) return -1;
+    return std::atoi(aMaterial.mName.c_str() + prefix.size());
+}
+
+int SmallVcmIdOf(const Scene& aScene, int aMaterialIndex) {
+    return SmallVcmId(aScene.mMaterials.at(size_t(aMaterialIndex)));
+}
+
+struct CornellExpectation {
+    int mIndex;
+    size_t mTriangles, mSpheres;
+    int mArea, mPoint, mDirectional, mBackground;
+    std::set<int> mMaterialIds;  // SmallVCM ids present
+    bool mGlossy;                // glossy floor (2) and blue back wall (8)
+};
+
+const std::vector<CornellExpectation>& CornellExpectations() {
+    static const std::vector<CornellExpectation> kScenes = {
+        {0, 20, 2, 0, 0, 1, 0, {2, 3, 4, 5, 6, 7, 8}, true},
+        {1, 20, 1, 2, 0, 0, 0, {0, 1, 2, 3, 4, 5, 6, 8}, true},
+        {2, 10, 2, 0, 1, 0, 0, {2, 3, 4, 5, 6, 7, 8}, true},
+        {3, 20, 2, 0, 0, 0, 1, {2, 3, 4, 5, 6, 7, 8}, true},
+        {4, 20, 2, 2, 0, 0, 0, {0, 1, 3, 4, 5, 6, 7}, false},
+    };
+    return kScenes;
+}
+
+int CountLights(const Scene& aScene, LightType aType) {
+    int count = 0;
+    for (const Light& light : aScene.mLights) count += light.mType == aType ? 1 : 0;
+    return count;
+}
+
+} // namespace
+
+TEST_CASE("Every Cornell scene loads with SmallVCM's primitive, light and material counts", "[gltf]") {
+    for (const CornellExpectation& e : CornellExpectations()) {
+        const std::string path = CornellPath(e.mIndex);
+        INFO(path);
+        GltfLoadReport report;
+        report.mSkippedDegenerateTriangles = -1;
+        const Scene scene = LoadGltfScene(path, &report);
+        CHECK(scene.IsFinalized());
+        CHECK(scene.mName == path);
+        CHECK(report.mSkippedDegenerateTriangles == 0);
+        CHECK(scene.mTriangles.size() == e.mTriangles);
+        CHECK(scene.mSpheres.size() == e.mSpheres);
+        CHECK(CountLights(scene, LightType::kArea) == e.mArea);
+        CHECK(CountLights(scene, LightType::kPoint) == e.mPoint);
+        CHECK(CountLights(scene, LightType::kDirectional) == e.mDirectional);
+        CHECK(CountLights(scene, LightType::kBackground) == e.mBackground);
+        CHECK(CountLights(scene, LightType::kSphere) == 0);
+        CHECK(scene.LightCount() == e.mArea + e.mPoint + e.mDirectional + e.mBackground);
+        CHECK(scene.mMaterials.size() == e.mMaterialIds.size());
+        std::set<int> ids;
+        for (const Material& material : scene.mMaterials) ids.insert(SmallVcmId(material));
+        CHECK(ids == e.mMaterialIds);
+    }
+}
+
+TEST_CASE("Cornell materials are SmallVCM's materials 0-8", "[gltf]") {
+    for (const CornellExpectation& e : CornellExpectations()) {
+        const Scene scene = LoadGltfScene(CornellPath(e.mIndex));
+        for (const Material& material : scene.mMaterials) {
+            INFO(CornellPath(e.mIndex) << ": " << material.mName);
+            const int id = SmallVcmId(material);
+            REQUIRE(SmallVcmMaterials().count(id) == 1);
+            const ExpectedMaterial& expected = SmallVcmMaterials().at(id);
+            CHECK_VEC3(material.mDiffuseReflectance, expected.mDiffuse, 1e-6f);
+            CHECK_VEC3(material.mPhongReflectance, expected.mPhong, 1e-6f);
+            if (!IsBlack(expected.mPhong)) CHECK(material.mPhongExponent == Approx(expected.mExponent));
+            CHECK_VEC3(material.mMirrorReflectance, expected.mMirror, 1e-6f);
+            CHECK(material.mIor == Approx(expected.mIor));
+            CHECK_FALSE(material.mTwoSided);  // SmallVCM's surfaces are one-sided
+        }
+        // Walls in SmallVCM's order: floor, back, ceiling, left, right (2 triangles each).
+        const std::vector<std::pair<int, Vec3>> walls = {
+            {e.mGlossy ? 2 : 5, Vec3(0, 0, 1)}, {e.mGlossy ? 8 : 5, Vec3(0, -1, 0)}, {5, Vec3(0, 0, -1)},
+            {3, Vec3(1, 0, 0)}, {4, Vec3(-1, 0, 0)}};
+        for (size_t w = 0; w < walls.size(); w++)
+            for (size_t t = 2 * w; t < 2 * w + 2; t++) {
+                INFO(CornellPath(e.mIndex) << ": triangle " << t);
+                const Triangle& triangle = scene.mTriangles.at(t);
+                CHECK(SmallVcmIdOf(scene, triangle.mMaterialId) == walls[w].first);
+                CHECK_VEC3(triangle.mNormal, walls[w].second, 2e-6f);
+                CHECK(triangle.Area() == Approx(3.276902f).epsilon(1e-5));
+                CHECK(triangle.mLightId == -1);
+            }
+    }
+}
+
+TEST_CASE("Cornell spheres, scene radius and camera are SmallVCM's", "[gltf]") {
+    const Vec3 large(0.00972998f, 0.02453005f, -0.48002f);
+    const Vec3 smallLeft(-0.53885f, 0.02453005f, -0.78002f), smallRight(0.55831f, 0.02453005f, -0.78002f);
+    for (const CornellExpectation& e : CornellExpectations()) {
+        INFO(CornellPath(e.mIndex));
+        const Scene scene = LoadGltfScene(CornellPath(e.mIndex));
+        const SceneSphere& bounds = scene.GetSceneSphere();
+        CHECK(std::abs(bounds.mRadius - 2.2170596f) <= 1e-5f);
+        CHECK_VEC3(bounds.mCenter, Vec3(0.00972998f, 0.02453005f, 0.f), 1e-5f);
+
+        if (e.mIndex == 1) {
+            REQUIRE(scene.mSpheres.size() == 1);
+            CHECK_VEC3(scene.mSpheres[0].mCenter, large, 1e-6f);
+            CHECK(scene.mSpheres[0].mRadius == 0.8f);
+            CHECK(SmallVcmIdOf(scene, scene.mSpheres[0].mMaterialId) == 6);
+        } else {
+            REQUIRE(scene.mSpheres.size() == 2);
+            CHECK_VEC3(scene.mSpheres[0].mCenter, smallLeft, 1e-6f);
+            CHECK_VEC3(scene.mSpheres[1].mCenter, smallRight, 1e-6f);
+            CHECK(scene.mSpheres[0].mRadius == 0.5f);
+            CHECK(scene.mSpheres[1].mRadius == 0.5f);
+            CHECK(SmallVcmIdOf(scene, scene.mSpheres[0].mMaterialId) == 6);
+            CHECK(SmallVcmIdOf(scene, scene.mSpheres[1].mMaterialId) == 7);
+        }
+        for (const Sphere& sphere : scene.mSpheres) CHECK(sphere.mLightId == -1);
+
+        // SMALLVCM_SCENES.md section 5: position, basis, horizontal field of view 45 degrees.
+        const Camera& camera = scene.mCamera;
+        CHECK_VEC3(camera.Position(), Vec3(-0.0439815f, -4.12529f, 0.222539f), 1e-6f);
+        CHECK_VEC3(camera.Forward(), glm::normalize(Vec3(0.00688625f, 0.998505f, -0.0542161f)), 1e-6f);
+        CHECK_VEC3(camera.Right(), Vec3(0.999976f, -0.006896f, 0.f), 1e-5f);
+        CHECK_VEC3(camera.Up(), Vec3(3.739e-4f, 0.054215f, 0.998529f), 1e-5f);
+        CHECK(camera.HorizontalFovDegrees() == Approx(45.f).epsilon(1e-6));
+    }
+}
+
+TEST_CASE("Cornell light emission matches SmallVCM's lights", "[gltf]") {
+    const float areaRadiance = 25.03329895614464f;
+    for (const CornellExpectation& e : CornellExpectations()) {
+        INFO(CornellPath(e.mIndex));
+        const Scene scene = LoadGltfScene(CornellPath(e.mIndex));
+        for (const Light& light : scene.mLights) {
+            switch (light.mType) {
+            case LightType::kArea:
+                // The light-box bottom: one triangle per light, area 0.125, facing down,
+                // radiance 25.0333 per channel (power pi A L = 9.83 per triangle).
+                CHECK_VEC3(light.mEmission, Vec3(areaRadiance), 1e-5f);
+                REQUIRE(light.mTriangleNormal.size() == 1);
+                CHECK(light.mArea == Approx(0.125f).epsilon(1e-4));
+                CHECK_VEC3(light.mTriangleNormal[0], Vec3(0.f, 0.f, -1.f), 1e-6f);
+                break;
+            case LightType::kDirectional:
+                CHECK_VEC3(light.mEmission, Vec3(10.f, 4.f, 0.f), 1e-5f);
+                CHECK_VEC3(light.mDirection, Vec3(-0.485071f, 0.727607f, -0.485071f), 1e-5f);
+                break;
+            case LightType::kPoint:
+                CHECK_VEC3(light.mEmission, Vec3(5.570423f), 1e-5f);
+                CHECK_VEC3(light.mPosition, Vec3(0.f, -0.5f, 1.f), 1e-6f);
+                break;
+            case LightType::kBackground:
+                CHECK_VEC3(light.mEmission, Vec3(135.f, 206.f, 250.f) / 255.f, 1e-6f);
+                CHECK(scene.GetBackground() == &light);
+                break;
+            case LightType::kSphere:
+                FAIL("no Cornell scene has a sphere light");
+            }
+        }
+        // The emitting triangles are the last two (light-box bottom), one light each.
+        if (e.mArea == 2) {
+            const Triangle& a = scene.mTriangles[18];
+            const Triangle& b = scene.mTriangles[19];
+            CHECK(a.mLightId >= 0);
+            CHECK(b.mLightId >= 0);
+            CHECK(a.mLightId != b.mLightId);
+            CHECK(SmallVcmIdOf(scene, a.mMaterialId) == 0);
+            CHECK(SmallVcmIdOf(scene, b.mMaterialId) == 1);
+            // SmallVCM's vertex order: (lb0, lb5, lb4) and (lb5, lb0, lb1).
+            CHECK_VEC3(a.mP0, Vec3(-0.25f, 0.25f, 1.26002f), 1e-6f);
+            CHECK_VEC3(a.mP1, Vec3(0.25f, -0.25f, 1.26002f), 1e-6f);
+            CHECK_VEC3(a.mP2, Vec3(-0.25f, -0.25f, 1.26002f), 1e-6f);
+            CHECK_VEC3(b.mP0, Vec3(0.25f, -0.25f, 1.26002f), 1e-6f);
+            CHECK_VEC3(b.mP1, Vec3(-0.25f, 0.25f, 1.26002f), 1e-6f);
+            CHECK_VEC3(b.mP2, Vec3(0.25f, 0.25f, 1.26002f), 1e-6f);
+            for (int t = 0; t < 18; t++) CHECK(scene.mTriangles[size_t(t)].mLightId == -1);
+        }
+    }
+}
+
+// --- the bad-input corpus -------------------------------------------------------------
+
+namespace {
+
+using CorpusRow = corpus::Row;
+
+std::vector<CorpusRow> ReadCorpusTable(const std::string& aReadme) { return corpus::ReadTable(aReadme); }
+
+std::set<std::string> SceneFilesIn(const std::string& aFolder) {
+    std::set<std::string> names;
+    for (const auto& entry : std::filesystem::directory_iterator(aFolder)) {
+        const std::string name = entry.path().filename().string();
+        const std::string extension = entry.path().extension().string();
+        if (extension == ".gltf" || extension == ".glb") names.insert(name);
+    }
+    return names;
+}
+
+// Loads aPath and describes the outcome: "loaded", "Error", or the other exception.
+struct LoadOutcome {
+    std::string mKind, mMessage;
+};
+LoadOutcome TryLoad(const std::string& aPath) {
+    try {
+        LoadGltfScene(aPath);
+        return {"loaded", ""};
+    } catch (const Error& e) {
+        return {"Error", e.what()};
+    } catch (const std::exception& e) {
+        return {"another std::exception", e.what()};
+    } catch (...) {
+        return {"a non-standard exception", ""};
+    }
+}
+
+} // namespace
+
+TEST_CASE("The bad-input corpus table lists every file of tests/data/bad", "[gltf]") {
+    const std::vector<CorpusRow> rows = ReadCorpusTable("data/bad/README.md");
+    std::set<std::string> listed;
+    int rejected = 0, loading = 0;
+    for (const CorpusRow& row : rows) {
+        INFO(row.mFile);
+        CHECK(listed.insert(row.mFile).second);  // no duplicates
+        (row.mFragment.empty() ? loading : rejected)++;
+    }
+    CHECK(listed == SceneFilesIn("data/bad"));
+    CHECK(rejected >= 32);
+    CHECK(loading >= 1);
+}
+
+TEST_CASE("Every bad input is rejected with an Error naming the file and the problem", "[gltf]") {
+    for (const CorpusRow& row : ReadCorpusTable("data/bad/README.md")) {
+        if (row.mFragment.empty()) continue;
+        const std::string path = "data/bad/" + row.mFile;
+        const LoadOutcome outcome = TryLoad(path);
+        INFO(path << " (" << row.mWhat << ")\n  expected: Error containing '" << row.mFragment << "'\n  got: "
+                  << outcome.mKind << (outcome.mMessage.empty() ? "" : ": " + outcome.mMessage));
+        CHECK(outcome.mKind == "Error");
+        CHECK(StartsWith(outcome.mMessage, path + ": "));
+        // The fragment must be in the problem, not in the path ("directory.gltf").
+        const std::string problem = outcome.mMessage.substr(std::min(outcome.mMessage.size(), path.size() + 2));
+        CHECK(problem.find(row.mFragment) != std::string::npos);
+        CHECK(outcome.mMessage.find('\n') == std::string::npos);  // one line
+    }
+}
+
+TEST_CASE("A path that does not exist is an Error naming the path", "[gltf]") {
+    const LoadOutcome outcome = TryLoad("data/bad/no_such_file.gltf");
+    CHECK(outcome.mKind == "Error");
+    CHECK(StartsWith(outcome.mMessage, "data/bad/no_such_file.gltf: cannot open the file"));
+}
+
+// --- degenerate triangles ---------------------------------------------------------------
+
+TEST_CASE("Zero-area triangles are skipped and counted, the rest of the scene loads", "[gltf]") {
+    int files = 0;
+    for (const CorpusRow& row : ReadCorpusTable("data/bad/README.md")) {
+        if (!row.mFragment.empty()) continue;
+        files++;
+        const std::string path = "data/bad/" + row.mFile;
+        INFO(path << " (" << row.mWhat << ")");
+        GltfLoadReport report;
+        Scene scene;
+        REQUIRE_NOTHROW(scene = LoadGltfScene(path, &report));
+        CHECK(report.mSkippedDegenerateTriangles == row.mSkipped);
+        // Kept = the floor's good triangles plus the emitter's two.
+        CHECK(int(scene.mTriangles.size()) == row.mKept);
+        for (const Triangle& triangle : scene.mTriangles) CHECK(triangle.Area() > 0.f);
+        CHECK(scene.LightCount() == 1);
+        // Without a report the same file loads too.
+        CHECK_NOTHROW(LoadGltfScene(path));
+    }
+    CHECK(files == 2);
+}
+
+// --- pbrMetallicRoughness mapping, SMALLVCM_material, indices, .glb ----------------------
+
+namespace {
+
+// The floor's material (the floor is the first primitive, triangles 0 and 1).
+Material FloorMaterial(const std::string& aFile, Scene* oScene = nullptr) {
+    Scene scene = LoadGltfScene("data/gltf/" + aFile);
+    REQUIRE(scene.mTriangles.size() == 4);
+    CHECK(scene.mTriangles[0].mMaterialId == scene.mTriangles[1].mMaterialId);
+    const Material material = scene.mMaterials.at(size_t(scene.mTriangles[0].mMaterialId));
+    if (oScene) *oScene = std::move(scene);
+    return material;
+}
+
+void CheckMaterial(const Material& aMaterial, const Vec3& aDiffuse, const Vec3& aPhong, float aExponent,
+                   const Vec3& aMirror, float aIor, bool aTwoSided) {
+    CHECK_VEC3(aMaterial.mDiffuseReflectance, aDiffuse, 1e-6f);
+    CHECK_VEC3(aMaterial.mPhongReflectance, aPhong, 1e-6f);
+    if (!IsBlack(aPhong)) CHECK(aMaterial.mPhongExponent == Approx(aExponent).epsilon(1e-5));
+    CHECK_VEC3(aMaterial.mMirrorReflectance, aMirror, 1e-6f);
+    CHECK(aMaterial.mIor == Approx(aIor));
+    CHECK(aMaterial.mTwoSided == aTwoSided);
+}
+
+} // namespace
+
+TEST_CASE("pbrMetallicRoughness maps to Lambert + Phong + mirror as docs/scene_format.md says", "[gltf]") {
+    // ks = lerp(0.04, b, m), rho_d = (1 - m) 0.96 b; r = 0: mirror ks; r > 0: Phong ks, n = 2/r^4 - 2.
+    SECTION("dielectric, roughness 1: Lambert 0.96 b plus a Phong lobe 0.04 with n = 0") {
+        CheckMaterial(FloorMaterial("material_lambert.gltf"), 0.96f * Vec3(0.5f, 0.25f, 1.f), Vec3(0.04f), 0.f,
+                      Vec3(0.f), -1.f, false);
+    }
+    SECTION("metal, roughness 0: a perfect mirror of reflectance b") {
+        CheckMaterial(FloorMaterial("material_mirror.gltf"), Vec3(0.f), Vec3(0.f), 1.f, Vec3(0.9f, 0.8f, 0.7f),
+                      -1.f, false);
+    }
+    SECTION("metal, roughness 0.5: Phong of reflectance b, exponent 2/0.5^4 - 2 = 30") {
+        CheckMaterial(FloorMaterial("material_rough_metal.gltf"), Vec3(0.f), Vec3(0.9f, 0.6f, 0.3f), 30.f,
+                      Vec3(0.f), -1.f, false);
+    }
+    SECTION("metallic 0.25, roughness 0.5: both lobes") {
+        // ks = 0.04 * 0.75 + 0.5 * 0.25 = 0.155, rho_d = 0.75 * 0.96 * 0.5 = 0.36.
+        CheckMaterial(FloorMaterial("material_dielectric_glossy.gltf"), Vec3(0.36f), Vec3(0.155f), 30.f, Vec3(0.f),
+                      -1.f, false);
+    }
+    SECTION("KHR_materials_transmission: clear glass, ior from KHR_materials_ior") {
+        CheckMaterial(FloorMaterial("material_glass.gltf"), Vec3(0.f), Vec3(0.f), 1.f, Vec3(1.f), 1.6f, false);
+    }
+    SECTION("KHR_materials_transmission without KHR_materials_ior: ior 1.5") {
+        CheckMaterial(FloorMaterial("material_glass_default_ior.gltf"), Vec3(0.f), Vec3(0.f), 1.f, Vec3(1.f), 1.5f,
+                      false);
+    }
+    SECTION("a material with no factors: glTF defaults b = 1, m = 1, r = 1 -> Phong 1, n = 0") {
+        CheckMaterial(FloorMaterial("material_default.gltf"), Vec3(0.f), Vec3(1.f), 0.f, Vec3(0.f), -1.f, false);
+    }
+    SECTION("a primitive without a material gets glTF's default material, mapped the same way") {
+        Scene scene;
+        const Material material = FloorMaterial("material_none.gltf", &scene);
+        CHECK(scene.mMaterials.size() == 3);  // the file's two plus the default
+        CheckMaterial(material, Vec3(0.f), Vec3(1.f), 0.f, Vec3(0.f), -1.f, false);
+    }
+    SECTION("doubleSided: diffuse and Phong reflect on both sides") {
+        CheckMaterial(FloorMaterial("material_double_sided.gltf"), Vec3(0.48f), Vec3(0.04f), 0.f, Vec3(0.f), -1.f,
+                      true);
+    }
+}
+
+TEST_CASE("SMALLVCM_material overrides pbrMetallicRoughness", "[gltf]") {
+    SECTION("Lambert + Phong where the pbr factors say mirror") {
+        CheckMaterial(FloorMaterial("material_override.gltf"), Vec3(0.1f, 0.2f, 0.3f), Vec3(0.4f, 0.3f, 0.2f), 90.f,
+                      Vec3(0.f), -1.f, false);
+    }
+    SECTION("glass where the pbr factors say Lambert") {
+        CheckMaterial(FloorMaterial("material_override_glass.gltf"), Vec3(0.f), Vec3(0.f), 1.f, Vec3(1.f), 1.6f,
+                      false);
+    }
+}
+
+TEST_CASE("Emitters are black unless a SMALLVCM_material gives them a reflectance", "[gltf]") {
+    // The emitter is material 1 of the test scenes (emissive strength 10).
+    SECTION("white pbr factors, no SMALLVCM_material: black") {
+        const Scene scene = LoadGltfScene("data/gltf/emitter_pbr_white.gltf");
+        const Material& emitter = scene.mMaterials.at(1);
+        CHECK(IsBlack(emitter.mDiffuseReflectance));
+        CHECK(IsBlack(emitter.mPhongReflectance));
+        CHECK(IsBlack(emitter.mMirrorReflectance));
+        CHECK(emitter.mIor < 0.f);
+        REQUIRE(scene.LightCount() == 1);
+        CHECK_VEC3(scene.mLights[0].mEmission, Vec3(10.f), 1e-6f);
+    }
+    SECTION("SMALLVCM_material with diffuse 0.3: kept") {
+        const Scene scene = LoadGltfScene("data/gltf/emitter_with_reflectance.gltf");
+        CHECK_VEC3(scene.mMaterials.at(1).mDiffuseReflectance, Vec3(0.3f), 1e-6f);
+        REQUIRE(scene.LightCount() == 1);
+        CHECK_VEC3(scene.mLights[0].mEmission, Vec3(10.f), 1e-6f);
+        CHECK(scene.mLights[0].mArea == Approx(0.25f));
+    }
+}
+
+TEST_CASE("Indices may be absent or UNSIGNED_BYTE/SHORT/INT, and .glb files load", "[gltf]") {
+    const Scene reference = LoadGltfScene("data/gltf/material_lambert.gltf");
+    for (const char* file : {"indices_none.gltf", "indices_unsigned_byte.gltf", "indices_unsigned_short.gltf",
+                             "minimal.glb"}) {
+        INFO(file);
+        const Scene scene = LoadGltfScene(std::string("data/gltf/") + file);
+        REQUIRE(scene.mTriangles.size() == reference.mTriangles.size());
+        for (size_t t = 0; t < scene.mTriangles.size(); t++) {
+            CHECK_VEC3(scene.mTriangles[t].mP0, reference.mTriangles[t].mP0, 0.f);
+            CHECK_VEC3(scene.mTriangles[t].mP1, reference.mTriangles[t].mP1, 0.f);
+            CHECK_VEC3(scene.mTriangles[t].mP2, reference.mTriangles[t].mP2, 0.f);
+        }
+        CHECK(scene.LightCount() == 1);
+    }
+}
+
+// --- node transforms ----------------------------------------------------------------------
+
+namespace {
+
+// World positions of the floor's first triangle (local (-1,-1,0), (1,-1,0), (1,1,0)),
+// normal of both floor triangles; the light (triangles 2, 3) must be where it was.
+void CheckFloor(const std::string& aFile, const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Vec3& aNormal) {
+    INFO(aFile);
+    const Scene scene = LoadGltfScene("data/gltf/" + aFile);
+    REQUIRE(scene.mTriangles.size() == 4);
+    const Triangle& first = scene.mTriangles[0];
+    CHECK_VEC3(first.mP0, aP0, 1e-5f);
+    CHECK_VEC3(first.mP1, aP1, 1e-5f);
+    CHECK_VEC3(first.mP2, aP2, 1e-5f);
+    CHECK_VEC3(scene.mTriangles[0].mNormal, aNormal, 1e-6f);
+    CHECK_VEC3(scene.mTriangles[1].mNormal, aNormal, 1e-6f);
+    CHECK_VEC3(scene.mTriangles[2].mP0, Vec3(-0.25f, -0.25f, 1.f), 0.f);
+    CHECK_VEC3(scene.mTriangles[2].mNormal, Vec3(0.f, 0.f, -1.f), 1e-6f);
+}
+
+} // namespace
+
+TEST_CASE("Node transforms place meshes at their world coordinates", "[gltf]") {
+    SECTION("translation (1,2,3), rotation 90 degrees about +z, scale (2, 0.5, 1.5): p -> (1 - 0.5 y, 2 + 2 x, 3 + 1.5 z)") {
+        CheckFloor("transform_trs.gltf", Vec3(1.5f, 0.f, 3.f), Vec3(1.5f, 4.f, 3.f), Vec3(0.5f, 4.f, 3.f), Vec3(0, 0, 1));
+    }
+    SECTION("the same rotation and translation as a column-major matrix: p -> (1 - y, 2 + x, 3 + z)") {
+        CheckFloor("transform_matrix.gltf", Vec3(2.f, 1.f, 3.f), Vec3(2.f, 3.f, 3.f), Vec3(0.f, 3.f, 3.f), Vec3(0, 0, 1));
+    }
+    SECTION("parent (translation (0,0,1), 90 degrees about +z) times child (translation (1,0,0))") {
+        // world = parent * child: p -> (-y, x + 1, z + 1)
+        CheckFloor("transform_parent_child.gltf", Vec3(1.f, 0.f, 1.f), Vec3(1.f, 2.f, 1.f), Vec3(-1.f, 2.f, 1.f),
+                   Vec3(0, 0, 1));
+    }
+    SECTION("a sphere node: centre = world translation, radius times the uniform scale") {
+        const Scene scene = LoadGltfScene("data/gltf/sphere_scaled.gltf");
+        REQUIRE(scene.mSpheres.size() == 1);
+        CHECK_VEC3(scene.mSpheres[0].mCenter, Vec3(0.1f, 0.2f, 0.3f), 1e-6f);
+        CHECK(scene.mSpheres[0].mRadius == Approx(0.3f));
+    }
+}
+
+TEST_CASE("A mirroring node transform keeps the front face where glTF puts it", "[gltf]") {
+    // glTF: with a negative determinant the front faces are clockwise, i.e. the front
+    // normal is the local one transformed by the inverse transpose. The floor's local
+    // front is +z.
+    SECTION("scale (-1, 1, 1): vertices mirrored in x, the front stays +z") {
+        const Scene scene = LoadGltfScene("data/gltf/transform_mirror_x.gltf");
+        const std::set<std::array<float, 3>> expected = {{1, -1, 0}, {-1, -1, 0}, {-1, 1, 0}};
+        const Triangle& first = scene.mTriangles.at(0);
+        CHECK(std::set<std::array<float, 3>>{{first.mP0.x, first.mP0.y, first.mP0.z},
+                                            {first.mP1.x, first.mP1.y, first.mP1.z},
+                                            {first.mP2.x, first.mP2.y, first.mP2.z}} == expected);
+        CHECK_VEC3(scene.mTriangles.at(0).mNormal, Vec3(0, 0, 1), 1e-6f);
+        CHECK_VEC3(scene.mTriangles.at(1).mNormal, Vec3(0, 0, 1), 1e-6f);
+    }
+    SECTION("scale (1, 1, -1): the plane z = 0 maps to itself, the front turns to -z") {
+        const Scene scene = LoadGltfScene("data/gltf/transform_mirror_z.gltf");
+        CHECK_VEC3(scene.mTriangles.at(0).mNormal, Vec3(0, 0, -1), 1e-6f);
+        CHECK_VEC3(scene.mTriangles.at(1).mNormal, Vec3(0, 0, -1), 1e-6f);
+    }
+}
