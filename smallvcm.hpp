@@ -236,8 +236,8 @@ inline Vec3 SamplePowerCosHemisphereW(const Vec2& aSamples, float aPower, float*
     return Vec3(std::cos(term1) * sinTheta, std::sin(term1) * sinTheta, cosTheta);
 }
 inline float PowerCosHemispherePdfW(const Vec3& aLocalDirection, float aPower) {
-    const float cosTheta = std::max(0.f, aLocalDirection.z);
-    return (aPower + 1.f) * std::pow(cosTheta, aPower) * (0.5f * kInvPi);
+    if (!(aLocalDirection.z > 0.f)) return 0.f;  // pow(0, 0) = 1 would leave exponent 0 mass below
+    return (aPower + 1.f) * std::pow(aLocalDirection.z, aPower) * (0.5f * kInvPi);
 }
 
 // --- Uniform sphere: pdf = 1 / (4 pi) ----------------------------------------------
@@ -332,22 +332,33 @@ inline bool IntersectSphere(const Vec3& aCenter, float aRadius, const Ray& aRay,
     return false;
 }
 
-// Triangle (Moeller-Trumbore) given p0 and the edges e1 = p1 - p0, e2 = p2 - p0.
-// Edges are inclusive (u >= 0, v >= 0, u + v <= 1), so a ray through an edge shared by
-// two triangles hits at least one of them; rays parallel to the plane miss.
-inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aE1, const Vec3& aE2, const Ray& aRay,
+// Triangle, watertight (Woop, Benthin and Wald 2013). The vertices are moved into a frame
+// where the ray runs along +z from the origin, and three 2D edge functions U, V, W decide
+// inclusion. Two triangles sharing an edge evaluate its function on the same two vertices
+// in opposite order, getting exactly opposite signs, so a ray through a shared edge hits
+// at least one of them (edges are inclusive). Rays parallel to the plane miss.
+inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Ray& aRay,
                               float aTMin, float aTMax, float& oT) {
-    const Vec3 pvec = glm::cross(aRay.mDirection, aE2);
-    const float det = glm::dot(aE1, pvec);
+    const Vec3& d = aRay.mDirection;
+    const Vec3 absD = glm::abs(d);
+    const int kz = absD.x > absD.y ? (absD.x > absD.z ? 0 : 2) : (absD.y > absD.z ? 1 : 2);
+    int kx = (kz + 1) % 3, ky = (kx + 1) % 3;
+    if (d[kz] < 0.f) std::swap(kx, ky);  // keeps the winding, so U, V, W keep their signs
+    const float sx = d[kx] / d[kz], sy = d[ky] / d[kz], sz = 1.f / d[kz];
+    const Vec3 a = aP0 - aRay.mOrigin, b = aP1 - aRay.mOrigin, c = aP2 - aRay.mOrigin;
+    const float ax = a[kx] - sx * a[kz], ay = a[ky] - sy * a[kz];
+    const float bx = b[kx] - sx * b[kz], by = b[ky] - sy * b[kz];
+    const float cx = c[kx] - sx * c[kz], cy = c[ky] - sy * c[kz];
+    float u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
+    if (u == 0.f || v == 0.f || w == 0.f) {  // on an edge in float: decide in double
+        u = float(double(cx) * double(by) - double(cy) * double(bx));
+        v = float(double(ax) * double(cy) - double(ay) * double(cx));
+        w = float(double(bx) * double(ay) - double(by) * double(ax));
+    }
+    if ((u < 0.f || v < 0.f || w < 0.f) && (u > 0.f || v > 0.f || w > 0.f)) return false;
+    const float det = u + v + w;
     if (det == 0.f || !std::isfinite(det)) return false;
-    const float invDet = 1.f / det;
-    const Vec3 tvec = aRay.mOrigin - aP0;
-    const float u = glm::dot(tvec, pvec) * invDet;
-    if (u < 0.f || u > 1.f) return false;
-    const Vec3 qvec = glm::cross(tvec, aE1);
-    const float v = glm::dot(aRay.mDirection, qvec) * invDet;
-    if (v < 0.f || u + v > 1.f) return false;
-    const float t = glm::dot(aE2, qvec) * invDet;
+    const float t = sz * (u * a[kz] + v * b[kz] + w * c[kz]) / det;
     if (!(t > aTMin && t < aTMax)) return false;
     oT = t;
     return true;
@@ -368,25 +379,29 @@ struct Aabb {
     }
 };
 
-// Slab test against a box; aInvDir = 1 / direction (infinities are fine: IEEE handles
-// them, and the max/min ordering below discards the NaN of 0 * inf).
+// Slab test against a box; aInvDir = 1 / direction. Infinities are fine (IEEE); the NaN
+// of 0 * inf (a ray lying in the plane of a face) is skipped explicitly below.
 inline bool IntersectAabb(const Vec3& aMin, const Vec3& aMax, const Vec3& aOrigin,
                           const Vec3& aInvDir, float aTMax, float& oTNear) {
-    const Vec3 t0 = (aMin - aOrigin) * aInvDir;
-    const Vec3 t1 = (aMax - aOrigin) * aInvDir;
-    const Vec3 tSmall = glm::min(t0, t1);
-    const Vec3 tLarge = glm::max(t0, t1);
-    const float tNear = std::max(std::max(tSmall.x, tSmall.y), std::max(tSmall.z, 0.f));
-    const float tFar = std::min(std::min(tLarge.x, tLarge.y), std::min(tLarge.z, aTMax));
+    float tNear = 0.f, tFar = aTMax;
+    for (int k = 0; k < 3; k++) {
+        const float t0 = (aMin[k] - aOrigin[k]) * aInvDir[k];
+        const float t1 = (aMax[k] - aOrigin[k]) * aInvDir[k];
+        // 0 * inf = NaN: the ray runs in the plane of this face, so it is inside the slab.
+        if (std::isnan(t0) || std::isnan(t1)) continue;
+        tNear = std::max(tNear, std::min(t0, t1));
+        tFar = std::min(tFar, std::max(t0, t1));
+    }
     oTNear = tNear;
     return tNear <= tFar * 1.00000024f;  // 1 + 2 ulp: rounding must not drop a hit on a face
 }
 
 // The primitives the BVH is built over, in the layout the traversal reads: triangles as
-// (p0, e1, e2), spheres as centre and radius. The index of a primitive is its position in
+// their three vertices (shared vertices stay bit-identical, which the watertight test
+// needs), spheres as centre and radius. The index of a primitive is its position in
 // the scene: triangles 0..T-1, then spheres T..T+S-1.
 struct PrimitiveSoup {
-    std::vector<Vec3> mTriangleP0, mTriangleE1, mTriangleE2;
+    std::vector<Vec3> mTriangleP0, mTriangleP1, mTriangleP2;
     std::vector<Vec3> mSphereCenter;
     std::vector<float> mSphereRadius;
     int TriangleCount() const { return int(mTriangleP0.size()); }
@@ -395,8 +410,8 @@ struct PrimitiveSoup {
         Aabb box;
         if (aPrimitive < TriangleCount()) {
             box.Extend(mTriangleP0[aPrimitive]);
-            box.Extend(mTriangleP0[aPrimitive] + mTriangleE1[aPrimitive]);
-            box.Extend(mTriangleP0[aPrimitive] + mTriangleE2[aPrimitive]);
+            box.Extend(mTriangleP1[aPrimitive]);
+            box.Extend(mTriangleP2[aPrimitive]);
         } else {
             const int s = aPrimitive - TriangleCount();
             box.Extend(mSphereCenter[s] - Vec3(mSphereRadius[s]));
@@ -406,8 +421,8 @@ struct PrimitiveSoup {
     }
     bool Intersect(int aPrimitive, const Ray& aRay, float aTMin, float aTMax, float& oT) const {
         if (aPrimitive < TriangleCount())
-            return IntersectTriangle(mTriangleP0[aPrimitive], mTriangleE1[aPrimitive],
-                                     mTriangleE2[aPrimitive], aRay, aTMin, aTMax, oT);
+            return IntersectTriangle(mTriangleP0[aPrimitive], mTriangleP1[aPrimitive],
+                                     mTriangleP2[aPrimitive], aRay, aTMin, aTMax, oT);
         const int s = aPrimitive - TriangleCount();
         return IntersectSphere(mSphereCenter[s], mSphereRadius[s], aRay, aTMin, aTMax, oT);
     }
@@ -1102,8 +1117,8 @@ public:
         PrimitiveSoup soup;
         for (const Triangle& triangle : mTriangles) {
             soup.mTriangleP0.push_back(triangle.mP0);
-            soup.mTriangleE1.push_back(triangle.mP1 - triangle.mP0);
-            soup.mTriangleE2.push_back(triangle.mP2 - triangle.mP0);
+            soup.mTriangleP1.push_back(triangle.mP1);
+            soup.mTriangleP2.push_back(triangle.mP2);
         }
         for (const Sphere& sphere : mSpheres) {
             soup.mSphereCenter.push_back(sphere.mCenter);
@@ -2921,7 +2936,8 @@ inline double RelativeMse(const Image& aImage, const Image& aReference) {
     for (size_t i = 0; i < aImage.mPixels.size(); i++)
         for (int c = 0; c < 3; c++) {
             const double reference = aReference.mPixels[i][c];
-            sum += Sqr(float(aImage.mPixels[i][c] - reference)) / (reference * reference + 0.01);
+            const double difference = double(aImage.mPixels[i][c]) - reference;
+            sum += difference * difference / (reference * reference + 0.01);
         }
     return sum / (3.0 * double(std::max<size_t>(1, aImage.mPixels.size())));
 }

@@ -1,0 +1,708 @@
+// [bsdf] The BSDF on SmallVCM's materials: reciprocity, forward/reverse pdf agreement,
+// energy conservation (Monte Carlo albedo), Sample/Evaluate/Pdf consistency with a
+// chi-square test of the sampled directions, Fresnel and refraction, one-sidedness and
+// the Russian-roulette continuation probabilities. Every Bsdf is built with
+// Bsdf::Setup(worldDirFix, normal, material, fixIsLight), on a tilted normal so that the
+// local frame is not the world's.
+#include "test_util.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <functional>
+#include <string>
+#include <vector>
+
+using namespace smallvcm;
+
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586;
+const Vec3 kNormal = glm::normalize(Vec3(0.3f, -0.5f, 0.8f));
+
+// --- materials (SmallVCM's numbers where they exist) -----------------------------------
+Material Lambert(const Vec3& aAlbedo) {
+    Material m;
+    m.mName = "Lambert";
+    m.mDiffuseReflectance = aAlbedo;
+    return m;
+}
+Material Phong(float aExponent) {
+    Material m;
+    m.mName = "Phong " + std::to_string(int(aExponent));
+    m.mPhongReflectance = Vec3(0.9f);
+    m.mPhongExponent = aExponent;
+    return m;
+}
+Material GlossyFloor() {  // SmallVCM material 2
+    Material m;
+    m.mName = "glossy floor";
+    m.mDiffuseReflectance = Vec3(0.1f);
+    m.mPhongReflectance = Vec3(0.7f);
+    m.mPhongExponent = 90.f;
+    return m;
+}
+Material Mirror() {  // SmallVCM material 6
+    Material m;
+    m.mName = "mirror";
+    m.mMirrorReflectance = Vec3(1.f);
+    return m;
+}
+Material Glass() {  // SmallVCM material 7
+    Material m;
+    m.mName = "glass";
+    m.mMirrorReflectance = Vec3(1.f);
+    m.mIor = 1.6f;
+    return m;
+}
+Material DiffuseMirror() {
+    Material m;
+    m.mName = "diffuse + mirror";
+    m.mDiffuseReflectance = Vec3(0.4f);
+    m.mMirrorReflectance = Vec3(0.5f);
+    return m;
+}
+// Diffuse with a Fresnel-weighted dielectric: the only kind of material whose component
+// probabilities depend on the direction (through F, because the mirror's luminance 0.6
+// differs from the refraction's 1), so that the reverse pdf differs from the direct one.
+// SmallVCM adds its lobes without coupling them, so this one is not energy conserving
+// (0.5 + 0.6 F + (1 - F) can exceed 1) and stays out of the energy test.
+Material DiffuseGlass() {
+    Material m;
+    m.mName = "diffuse + glass";
+    m.mDiffuseReflectance = Vec3(0.5f);
+    m.mMirrorReflectance = Vec3(0.6f);
+    m.mIor = 1.5f;
+    return m;
+}
+
+std::vector<Material> NonSpecularMaterials() {
+    return {Lambert(Vec3(0.8f, 0.5f, 0.2f)), Phong(1.f), Phong(10.f), Phong(90.f), GlossyFloor(), DiffuseMirror(), DiffuseGlass()};
+}
+
+// --- directions ----------------------------------------------------------------------
+// An orthonormal basis around the normal, built here rather than with the header's Frame.
+struct Basis {
+    Vec3 x, y, z;
+    explicit Basis(const Vec3& aNormal) : z(aNormal) {
+        const Vec3 helper = std::abs(z.x) < 0.9f ? Vec3(1.f, 0.f, 0.f) : Vec3(0.f, 1.f, 0.f);
+        x = glm::normalize(glm::cross(z, helper));
+        y = glm::cross(z, x);
+    }
+    Vec3 ToWorld(const Vec3& aLocal) const { return aLocal.x * x + aLocal.y * y + aLocal.z * z; }
+    Vec3 ToLocal(const Vec3& aWorld) const { return Vec3(glm::dot(aWorld, x), glm::dot(aWorld, y), glm::dot(aWorld, z)); }
+};
+const Basis kBasis(kNormal);
+
+// A world direction at polar angle acos(aCos) from the normal and azimuth aPhi.
+Vec3 DirectionAt(float aCos, float aPhi) {
+    const float s = std::sqrt(std::max(0.f, 1.f - aCos * aCos));
+    return glm::normalize(kBasis.ToWorld(Vec3(s * std::cos(aPhi), s * std::sin(aPhi), aCos)));
+}
+// A random direction in the upper hemisphere with cos >= 0.02 (away from the grazing cut).
+Vec3 RandomUpper(Rng& aRng) {
+    return DirectionAt(0.02f + 0.98f * aRng.GetFloat(), float(kTwoPi) * aRng.GetFloat());
+}
+
+Bsdf Make(const Vec3& aFix, const Material& aMaterial, bool aFixIsLight = false, const Vec3& aNormal = kNormal) {
+    Bsdf bsdf;
+    bsdf.Setup(aFix, aNormal, aMaterial, aFixIsLight);
+    return bsdf;
+}
+
+// --- statistics (as in test_sampling.cpp) -------------------------------------------------
+// Upper chi-square quantile at significance 1e-3 by Wilson-Hilferty: (X/k)^(1/3) is nearly
+// normal with mean 1 - 2/(9k) and variance 2/(9k); z = 3.0902 is the normal quantile.
+double ChiSquareThreshold(int aDof) {
+    const double z = 3.090232306167813, k = double(aDof), a = 2.0 / (9.0 * k);
+    return k * std::pow(1.0 - a + z * std::sqrt(a), 3.0);
+}
+struct ChiSquare {
+    double statistic = 0.0;
+    int dof = 0;
+    double threshold = 0.0;
+};
+// Pearson's statistic; cells expecting fewer than 5 samples are pooled into one, and a
+// pool still below 5 joins the smallest remaining cell.
+ChiSquare ComputeChiSquare(const std::vector<double>& aObserved, const std::vector<double>& aExpected) {
+    std::vector<double> observed, expected;
+    double pooledObserved = 0.0, pooledExpected = 0.0;
+    for (size_t i = 0; i < aExpected.size(); i++) {
+        if (aExpected[i] < 5.0) { pooledObserved += aObserved[i]; pooledExpected += aExpected[i]; }
+        else { observed.push_back(aObserved[i]); expected.push_back(aExpected[i]); }
+    }
+    if (pooledExpected >= 5.0 || expected.empty()) {
+        observed.push_back(pooledObserved);
+        expected.push_back(pooledExpected);
+    } else if (pooledObserved > 0.0 || pooledExpected > 0.0) {
+        size_t smallest = 0;
+        for (size_t i = 1; i < expected.size(); i++) if (expected[i] < expected[smallest]) smallest = i;
+        observed[smallest] += pooledObserved;
+        expected[smallest] += pooledExpected;
+    }
+    ChiSquare result;
+    for (size_t i = 0; i < expected.size(); i++) {
+        const double d = observed[i] - expected[i];
+        result.statistic += expected[i] > 0.0 ? d * d / expected[i] : (observed[i] > 0.0 ? 1e30 : 0.0);
+    }
+    result.dof = std::max(1, int(expected.size()) - 1);
+    result.threshold = ChiSquareThreshold(result.dof);
+    return result;
+}
+
+struct Estimate {
+    double mean = 0.0, standardError = 0.0;
+};
+Estimate MeanOf(const std::vector<double>& aValues) {
+    double sum = 0.0, sumSqr = 0.0;
+    for (double v : aValues) { sum += v; sumSqr += v * v; }
+    const double n = double(aValues.size());
+    Estimate e;
+    e.mean = sum / n;
+    e.standardError = std::sqrt(std::max(0.0, sumSqr / n - e.mean * e.mean) / (n - 1.0));
+    return e;
+}
+
+// Monte Carlo albedo of one channel: the mean of f cos / pdf over Sample() (unusable
+// samples count as 0), with its standard error measured from the same samples.
+Estimate Albedo(const Bsdf& aBsdf, int aSamples, uint64_t aSeed, int aChannel = 0) {
+    Rng rng(aSeed, 0);
+    std::vector<double> weights(size_t(aSamples), 0.0);
+    for (double& w : weights) {
+        Vec3 direction;
+        float pdf = 0.f, cosine = 0.f;
+        const Vec3 f = aBsdf.Sample(rng.GetVec3(), direction, pdf, cosine);
+        if (pdf > 0.f && !IsBlack(f)) w = double(f[aChannel]) * cosine / pdf;
+    }
+    return MeanOf(weights);
+}
+
+// Independent double-precision Fresnel reflectance for unpolarised light going from index
+// aEtaI to aEtaT at incidence cosine aCosI > 0.
+double FresnelReference(double aCosI, double aEtaI, double aEtaT) {
+    const double sinT2 = (aEtaI / aEtaT) * (aEtaI / aEtaT) * (1.0 - aCosI * aCosI);
+    if (sinT2 >= 1.0) return 1.0;
+    const double cosT = std::sqrt(1.0 - sinT2);
+    const double rs = (aEtaI * aCosI - aEtaT * cosT) / (aEtaI * aCosI + aEtaT * cosT);
+    const double rp = (aEtaT * aCosI - aEtaI * cosT) / (aEtaT * aCosI + aEtaI * cosT);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+} // namespace
+
+// ---------------------------------------------------------------------------------
+// Reciprocity and pdf symmetry
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("Non-specular BSDFs are reciprocal: f(a, b) = f(b, a)", "[bsdf]") {
+    // Tolerance 1e-4 relative: cos(R, w) is computed once as R(a).b and once as R(b).a,
+    // which may differ by an ulp; f ~ cos^n turns that into n 6e-8 / cos, up to ~5e-5 for
+    // n = 90 at the lobe's edge.
+    for (const Material& material : NonSpecularMaterials()) {
+        INFO(material.mName);
+        Rng rng(301, 0);
+        int nonZero = 0;
+        for (int i = 0; i < 2000; i++) {
+            const Vec3 a = RandomUpper(rng), b = RandomUpper(rng);
+            for (const bool fixIsLight : {false, true}) {
+                float cosAB, cosBA;
+                const Vec3 fab = Make(a, material, fixIsLight).Evaluate(b, cosAB);
+                const Vec3 fba = Make(b, material, fixIsLight).Evaluate(a, cosBA);
+                for (int c = 0; c < 3; c++) REQUIRE(fab[c] == Approx(fba[c]).epsilon(1e-4).margin(1e-12));
+                REQUIRE(cosAB == Approx(glm::dot(b, kNormal)).epsilon(1e-5));
+                REQUIRE(cosBA == Approx(glm::dot(a, kNormal)).epsilon(1e-5));
+                if (!IsBlack(fab)) nonZero++;
+            }
+        }
+        REQUIRE(nonZero > 400);  // the lobes were actually evaluated somewhere
+    }
+}
+
+TEST_CASE("The reverse pdf of Evaluate(b) set up at a equals the direct pdf of Evaluate(a) set up at b", "[bsdf]") {
+    // Same tolerance as reciprocity, for the same reason (the Phong lobe's cos^n).
+    for (const Material& material : NonSpecularMaterials()) {
+        INFO(material.mName);
+        Rng rng(302, 0);
+        for (int i = 0; i < 2000; i++) {
+            const Vec3 a = RandomUpper(rng), b = RandomUpper(rng);
+            const Bsdf atA = Make(a, material), atB = Make(b, material);
+            float cosine, directA, reverseA, directB, reverseB;
+            atA.Evaluate(b, cosine, &directA, &reverseA);
+            atB.Evaluate(a, cosine, &directB, &reverseB);
+            REQUIRE(reverseA == Approx(directB).epsilon(1e-4).margin(1e-12));
+            REQUIRE(reverseB == Approx(directA).epsilon(1e-4).margin(1e-12));
+            // Pdf() gives the same two numbers as Evaluate.
+            REQUIRE(atA.Pdf(b) == directA);
+            REQUIRE(atA.Pdf(b, true) == reverseA);
+        }
+    }
+}
+
+TEST_CASE("For diffuse under glass the reverse pdf uses the Fresnel term of the other direction", "[bsdf]") {
+    // Component probabilities ~ luminance: diffuse 0.5, mirror 0.6 F(cos), refraction 1 - F.
+    // Direct pdf = P_diffuse(F(fix)) cos(gen)/pi; reverse = P_diffuse(F(gen)) cos(fix)/pi.
+    const Material material = DiffuseGlass();
+    const Vec3 a = DirectionAt(0.95f, 0.3f), b = DirectionAt(0.1f, 2.f);
+    const double lumD = double(Luminance(material.mDiffuseReflectance)), lumM = double(Luminance(material.mMirrorReflectance));
+    auto diffuseProbability = [&](float aCos) {
+        const double f = FresnelReference(aCos, 1.0, 1.5);
+        return lumD / (lumD + f * lumM + (1.0 - f));
+    };
+    float cosine, direct, reverse;
+    Make(a, material).Evaluate(b, cosine, &direct, &reverse);
+    const float cosA = glm::dot(a, kNormal), cosB = glm::dot(b, kNormal);
+    REQUIRE(direct == Approx(diffuseProbability(cosA) * cosB / kPi).epsilon(1e-4));
+    REQUIRE(reverse == Approx(diffuseProbability(cosB) * cosA / kPi).epsilon(1e-4));
+    // Near-normal and grazing directions have different Fresnel terms, so this is not vacuous.
+    REQUIRE(std::abs(diffuseProbability(cosA) - diffuseProbability(cosB)) > 0.05);
+}
+
+// ---------------------------------------------------------------------------------
+// Energy conservation
+// ---------------------------------------------------------------------------------
+
+namespace {
+const float kIncidentCosines[] = {1.f, 0.9f, 0.7f, 0.5f, 0.3f, 0.1f, 0.02f};
+}
+
+TEST_CASE("Lambert's albedo is its reflectance for every incident direction", "[bsdf]") {
+    // f cos / pdf = (rho/pi) cos / (cos/pi) = rho for every sample, up to float rounding:
+    // the per-sample check is exact to 1e-5, and the mean must equal rho within 4 measured
+    // standard errors plus that rounding (the standard error itself is ~1e-8 here).
+    const Vec3 rho(0.8f, 0.5f, 0.2f);
+    const Material material = Lambert(rho);
+    for (const float cosIn : kIncidentCosines) {
+        INFO("cos incident " << cosIn);
+        const Bsdf bsdf = Make(DirectionAt(cosIn, 1.f), material);
+        REQUIRE(bsdf.IsValid());
+        Rng rng(311, 0);
+        for (int i = 0; i < 2000; i++) {
+            Vec3 direction;
+            float pdf, cosine;
+            const Vec3 f = bsdf.Sample(rng.GetVec3(), direction, pdf, cosine);
+            for (int c = 0; c < 3; c++) REQUIRE(f[c] * cosine / pdf == Approx(rho[c]).epsilon(1e-5));
+        }
+        for (int c = 0; c < 3; c++) {
+            const Estimate albedo = Albedo(bsdf, 20000, 312, c);
+            REQUIRE(std::abs(albedo.mean - rho[c]) <= 4.0 * albedo.standardError + 1e-5 * rho[c]);
+        }
+    }
+}
+
+TEST_CASE("Phong's albedo never exceeds its reflectance and equals it at normal incidence", "[bsdf]") {
+    // Albedo = rho_s E[(n+2)/(n+1) cos(theta_gen)] over the lobe: exactly rho_s when the
+    // lobe is centred on the normal (E[cos] = (n+1)/(n+2)), less when the horizon cuts
+    // it. Tolerance: 4 standard errors measured from the samples.
+    for (const float exponent : {1.f, 10.f, 90.f}) {
+        const Material material = Phong(exponent);
+        const double rho = material.mPhongReflectance.x;
+        for (const float cosIn : kIncidentCosines) {
+            INFO("exponent " << exponent << ", cos incident " << cosIn);
+            const Estimate albedo = Albedo(Make(DirectionAt(cosIn, 0.5f), material), 40000, 313);
+            INFO("albedo " << albedo.mean << " +- " << albedo.standardError);
+            REQUIRE(albedo.mean <= rho + 4.0 * albedo.standardError);
+            if (cosIn == 1.f) REQUIRE(std::abs(albedo.mean - rho) <= 4.0 * albedo.standardError);
+        }
+    }
+}
+
+TEST_CASE("No material reflects more energy than it receives", "[bsdf]") {
+    // Monte Carlo albedo (f cos / pdf over Sample) <= 1 + 4 measured standard errors, on
+    // every channel, for many incident directions; glass in importance mode (radiance
+    // mode legitimately scales by eta^2 when it refracts into the denser side). Every
+    // material here has component reflectances summing to at most 1. Mirror and glass
+    // samples weigh exactly 1 up to float rounding (so their standard error is ~1e-8):
+    // 1e-6, a few ulps, is added for that rounding.
+    std::vector<std::pair<Material, bool>> cases;
+    for (const Material& m : NonSpecularMaterials())
+        if (m.mName != "diffuse + glass") cases.push_back({m, false});
+    cases.push_back({Mirror(), false});
+    cases.push_back({Glass(), true});
+    for (const auto& [material, fixIsLight] : cases) {
+        for (const float cosIn : kIncidentCosines) {
+            INFO(material.mName << ", cos incident " << cosIn);
+            const Bsdf bsdf = Make(DirectionAt(cosIn, 2.5f), material, fixIsLight);
+            REQUIRE(bsdf.IsValid());
+            for (int c = 0; c < 3; c++) {
+                const Estimate albedo = Albedo(bsdf, 20000, 314, c);
+                INFO("albedo " << albedo.mean << " +- " << albedo.standardError);
+                REQUIRE(albedo.mean <= 1.0 + 4.0 * albedo.standardError + 1e-6);
+            }
+        }
+    }
+}
+
+TEST_CASE("Albedos of the glossy floor and of diffuse + mirror are the sums of their reflectances", "[bsdf]") {
+    // Floor at normal incidence: 0.1 (diffuse) + 0.7 (Phong, whole lobe above the horizon);
+    // tolerance 4 measured standard errors. Diffuse + mirror: every sample weighs
+    // 0.4 / P(diffuse) = 0.5 / P(mirror) = 0.9 (probabilities ~ luminance), at any angle.
+    const Estimate floor = Albedo(Make(kNormal, GlossyFloor()), 100000, 315);
+    INFO("floor albedo " << floor.mean << " +- " << floor.standardError);
+    REQUIRE(std::abs(floor.mean - 0.8) <= 4.0 * floor.standardError);
+    for (const float cosIn : kIncidentCosines) {
+        const Estimate mix = Albedo(Make(DirectionAt(cosIn, 0.f), DiffuseMirror()), 5000, 316);
+        REQUIRE(mix.mean == Approx(0.9).epsilon(1e-5));
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Sample / Evaluate / Pdf consistency
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("A non-specular sample's f and pdf are what Evaluate and Pdf give for its direction", "[bsdf]") {
+    // Evaluate sees the sampled direction after a trip through world space and back, which
+    // moves its local coordinates by a few 1e-8: the Phong lobe's slope (n / cos relative)
+    // turns that into up to ~1e-5 relative, hence 1e-4; near the horizon the cosine (and
+    // Lambert's pdf with it) is only known to ~1e-7 absolute, hence a 1e-6 margin.
+    for (const Material& material : NonSpecularMaterials()) {
+        for (const float cosIn : kIncidentCosines) {
+            INFO(material.mName << ", cos incident " << cosIn);
+            const Bsdf bsdf = Make(DirectionAt(cosIn, 4.f), material);
+            Rng rng(321, 0);
+            int checked = 0;
+            for (int i = 0; i < 2000; i++) {
+                Vec3 direction;
+                float pdf = 0.f, cosine = 0.f;
+                uint32_t event = kEventNone;
+                const Vec3 f = bsdf.Sample(rng.GetVec3(), direction, pdf, cosine, &event);
+                if (!(event == kEventDiffuse || event == kEventPhong)) continue;
+                checked++;
+                float evalCosine, evalPdf;
+                const Vec3 evaluated = bsdf.Evaluate(direction, evalCosine, &evalPdf);
+                REQUIRE(glm::length(direction) == Approx(1.f).epsilon(1e-5));
+                REQUIRE(glm::dot(direction, kNormal) > 0.f);
+                for (int c = 0; c < 3; c++) REQUIRE(f[c] == Approx(evaluated[c]).epsilon(1e-4).margin(1e-6));
+                REQUIRE(pdf == Approx(evalPdf).epsilon(1e-4).margin(1e-6));
+                REQUIRE(pdf == Approx(bsdf.Pdf(direction)).epsilon(1e-4).margin(1e-6));
+                REQUIRE(cosine == Approx(evalCosine).epsilon(1e-4).margin(1e-6));
+                REQUIRE(cosine == Approx(glm::dot(direction, kNormal)).epsilon(1e-4).margin(1e-6));
+            }
+            REQUIRE(checked > 500);
+        }
+    }
+}
+
+namespace {
+
+// Chi-square test of the directions Bsdf::Sample draws against Bsdf::Pdf and the
+// specular selection probabilities. Cells: a grid over the upper hemisphere of the
+// normal, uniform in cos(theta) and phi (plus one cell for everything below), and one
+// cell each for "specular reflection", "refraction" and "no sample" (a lobe sample below
+// the horizon, or under the Phong cut-off). Expected counts: n times the integral of Pdf
+// over each cell (midpoint rule on 8 x 8 sub-cells), n p_reflect, n p_refract, and the
+// rest for "no sample". aReflect / aRefract are computed by the caller independently.
+ChiSquare SampleDirectionChiSquare(const Bsdf& aBsdf, int aSamples, double aReflect, double aRefract, uint64_t aSeed,
+                                   double* oNonSpecularMass = nullptr) {
+    const int cosBins = 32, phiBins = 64, sub = 8;
+    const int gridCells = cosBins * phiBins + 1;  // + below the horizon
+    const int reflectCell = gridCells, refractCell = gridCells + 1, noneCell = gridCells + 2;
+    auto cellOf = [&](const Vec3& aWorld) {
+        const Vec3 local = kBasis.ToLocal(aWorld);
+        if (local.z < 0.f) return gridCells - 1;
+        const int band = std::min(cosBins - 1, int(double(local.z) * cosBins));
+        double phi = std::atan2(double(local.y), double(local.x));
+        if (phi < 0.0) phi += kTwoPi;
+        return band * phiBins + std::min(phiBins - 1, int(phi / kTwoPi * phiBins));
+    };
+    std::vector<double> expected(size_t(gridCells + 3), 0.0), observed(expected.size(), 0.0);
+    double mass = 0.0;
+    const double dCos = 1.0 / (cosBins * sub), dPhi = kTwoPi / (phiBins * sub);
+    for (int i = 0; i < cosBins * sub; i++) {
+        const double c = (i + 0.5) * dCos, s = std::sqrt(1.0 - c * c);
+        for (int j = 0; j < phiBins * sub; j++) {
+            const double phi = (j + 0.5) * dPhi;
+            const Vec3 w = glm::normalize(kBasis.ToWorld(Vec3(float(s * std::cos(phi)), float(s * std::sin(phi)), float(c))));
+            const double p = double(aBsdf.Pdf(w)) * dCos * dPhi;
+            expected[size_t((i / sub) * phiBins + j / (sub))] += p;
+            mass += p;
+        }
+    }
+    for (int k = 0; k < gridCells; k++) expected[size_t(k)] *= aSamples;
+    expected[size_t(reflectCell)] = aSamples * aReflect;
+    expected[size_t(refractCell)] = aSamples * aRefract;
+    expected[size_t(noneCell)] = std::max(0.0, aSamples * (1.0 - aReflect - aRefract - mass));
+    if (oNonSpecularMass) *oNonSpecularMass = mass;
+
+    Rng rng(aSeed, 0);
+    for (int i = 0; i < aSamples; i++) {
+        Vec3 direction;
+        float pdf, cosine;
+        uint32_t event = kEventNone;
+        const Vec3 f = aBsdf.Sample(rng.GetVec3(), direction, pdf, cosine, &event);
+        int cell = noneCell;
+        if (IsBlack(f) || event == kEventNone) cell = noneCell;
+        else if (event == kEventReflect) cell = reflectCell;
+        else if (event == kEventRefract) cell = refractCell;
+        else cell = cellOf(direction);
+        observed[size_t(cell)] += 1.0;
+    }
+    return ComputeChiSquare(observed, expected);
+}
+
+} // namespace
+
+TEST_CASE("Sampled directions follow Pdf() and the specular selection probabilities (chi-square)", "[bsdf]") {
+    // Threshold: the chi-square quantile at significance 1e-3 (Wilson-Hilferty).
+    struct Case {
+        Material material;
+        float cosIn;
+    };
+    const std::vector<Case> cases = {{Lambert(Vec3(0.8f)), 0.6f},  {Phong(1.f), 0.9f},       {Phong(10.f), 0.7f},
+                                     {Phong(90.f), 0.5f},          {Phong(10.f), 0.15f},     {GlossyFloor(), 0.8f},
+                                     {GlossyFloor(), 0.25f},       {DiffuseMirror(), 0.4f},  {DiffuseGlass(), 0.3f}};
+    for (const Case& c : cases) {
+        INFO(c.material.mName << ", cos incident " << c.cosIn);
+        const Bsdf bsdf = Make(DirectionAt(c.cosIn, 1.3f), c.material);
+        REQUIRE(bsdf.IsValid());
+        // Specular selection, from SmallVCM's rule (probabilities ~ luminance of the
+        // diffuse, Phong, F mirror and (1 - F) refraction albedos), computed here.
+        const Material& m = c.material;
+        const double fresnel = m.mIor > 0.f ? FresnelReference(c.cosIn, 1.0, m.mIor) : 1.0;
+        const double weights[4] = {Luminance(m.mDiffuseReflectance), Luminance(m.mPhongReflectance),
+                                   fresnel * Luminance(m.mMirrorReflectance), m.mIor > 0.f ? 1.0 - fresnel : 0.0};
+        const double total = weights[0] + weights[1] + weights[2] + weights[3];
+        double mass = 0.0;
+        const ChiSquare chi = SampleDirectionChiSquare(bsdf, 300000, weights[2] / total, weights[3] / total, 322, &mass);
+        INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold
+                       << "; non-specular mass " << mass);
+        // The integrated non-specular pdf cannot exceed the non-specular selection probability.
+        REQUIRE(mass <= (weights[0] + weights[1]) / total + 1e-3);
+        REQUIRE(chi.dof >= 20);
+        REQUIRE(chi.statistic < chi.threshold);
+    }
+}
+
+TEST_CASE("Glass picks reflection with probability F and refraction with 1 - F (chi-square)", "[bsdf]") {
+    // Threshold: the chi-square quantile at significance 1e-3 (Wilson-Hilferty), 1 dof.
+    for (const float cosIn : {0.95f, 0.5f, 0.1f}) {
+        INFO("cos incident " << cosIn);
+        const double fresnel = FresnelReference(cosIn, 1.0, 1.6);
+        const ChiSquare chi = SampleDirectionChiSquare(Make(DirectionAt(cosIn, 0.f), Glass(), true), 100000, fresnel, 1.0 - fresnel, 323);
+        INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+        REQUIRE(chi.statistic < chi.threshold);
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Fresnel, mirror and glass
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("FresnelDielectric matches the Fresnel equations and their limits", "[bsdf]") {
+    const float ior = 1.6f;
+    // Normal incidence, from either side: ((n - 1) / (n + 1))^2.
+    const double normal = Sqr((ior - 1.0f) / (ior + 1.0f));
+    REQUIRE(FresnelDielectric(1.f, ior) == Approx(normal).epsilon(1e-5));
+    REQUIRE(FresnelDielectric(-1.f, ior) == Approx(normal).epsilon(1e-5));
+    // Grazing from outside: F -> 1.
+    REQUIRE(FresnelDielectric(1e-6f, ior) > 0.9999f);
+    REQUIRE(FresnelDielectric(1e-3f, ior) > 0.99f);
+    // Total internal reflection from inside beyond the critical angle (cos_c = 0.7806).
+    const float cosCritical = std::sqrt(1.f - 1.f / (ior * ior));
+    for (const float c : {-0.77f, -0.5f, -0.1f, -1e-4f}) REQUIRE(FresnelDielectric(c, ior) == 1.f);
+    REQUIRE(FresnelDielectric(-(cosCritical + 0.01f), ior) < 1.f);
+    // Against an independent double implementation over the whole range, both sides.
+    for (int i = 1; i <= 1000; i++) {
+        const float c = float(i) / 1000.f;
+        REQUIRE(FresnelDielectric(c, ior) == Approx(FresnelReference(c, 1.0, ior)).margin(2e-6));
+        REQUIRE(FresnelDielectric(-c, ior) == Approx(FresnelReference(c, ior, 1.0)).margin(2e-6));
+    }
+    // Monotone from normal incidence to grazing (outside).
+    for (int i = 1; i < 1000; i++) REQUIRE(FresnelDielectric(float(i) / 1000.f, ior) >= FresnelDielectric(float(i + 1) / 1000.f, ior));
+    // No refraction index: a perfect mirror.
+    REQUIRE(FresnelDielectric(0.5f, -1.f) == 1.f);
+}
+
+TEST_CASE("Fresnel reflectance is the same for both directions of a refracted pair", "[bsdf]") {
+    // For a float cosine cosT inside the glass, the outside cosine of the same pair is
+    // computed in double, so that the pair is exact; cosI >= 0.1 keeps both evaluations
+    // well conditioned (away from grazing and from the critical angle, where F's slope
+    // turns float rounding of the cosine into large changes). Tolerance 1e-5.
+    const double ior = 1.6;
+    int pairs = 0;
+    for (int i = 0; i <= 1000; i++) {
+        const float cosT = 0.79f + 0.21f * float(i) / 1000.f;
+        const double cosI = std::sqrt(1.0 - ior * ior * (1.0 - double(cosT) * cosT));
+        if (cosI < 0.1) continue;
+        pairs++;
+        REQUIRE(FresnelDielectric(float(cosI), float(ior)) == Approx(FresnelDielectric(-cosT, float(ior))).margin(1e-5));
+    }
+    REQUIRE(pairs > 900);
+}
+
+TEST_CASE("A refracted direction obeys Snell's law and lies in the plane of incidence", "[bsdf]") {
+    const Material glass = Glass();
+    Rng rng(331, 0);
+    int refracted = 0;
+    for (int i = 0; i < 1000; i++) {
+        const bool fromInside = i % 2 == 1;
+        Vec3 fix = RandomUpper(rng);
+        // From inside, stay within the critical angle so that refraction exists.
+        if (fromInside) fix = -DirectionAt(0.8f + 0.2f * rng.GetFloat(), float(kTwoPi) * rng.GetFloat());
+        const Bsdf bsdf = Make(fix, glass, true);
+        Vec3 gen;
+        float pdf, cosine;
+        uint32_t event;
+        const Vec3 f = bsdf.Sample(Vec3(rng.GetFloat(), rng.GetFloat(), 0.99999f), gen, pdf, cosine, &event);
+        REQUIRE(event == kEventRefract);
+        REQUIRE_FALSE(IsBlack(f));
+        refracted++;
+        const double etaFix = fromInside ? 1.6 : 1.0, etaGen = fromInside ? 1.0 : 1.6;
+        const double cosFix = glm::dot(fix, kNormal), cosGen = glm::dot(gen, kNormal);
+        REQUIRE(cosFix * cosGen < 0.0);  // the other side of the surface
+        const double sinFix = std::sqrt(std::max(0.0, 1.0 - cosFix * cosFix));
+        const double sinGen = std::sqrt(std::max(0.0, 1.0 - cosGen * cosGen));
+        REQUIRE(etaGen * sinGen == Approx(etaFix * sinFix).margin(1e-5));
+        // In the plane of incidence, on the far side of the normal: the tangential parts
+        // point in opposite directions.
+        const Vec3 fixTangent = fix - float(cosFix) * kNormal, genTangent = gen - float(cosGen) * kNormal;
+        REQUIRE(glm::length(glm::cross(fixTangent, genTangent)) <= 1e-5f);
+        REQUIRE(glm::dot(fixTangent, genTangent) <= 0.f);
+        REQUIRE(glm::length(gen) == Approx(1.f).epsilon(1e-5));
+    }
+    REQUIRE(refracted == 1000);
+}
+
+TEST_CASE("Glass splits importance into F reflected and 1 - F refracted, and radiance refraction carries (eta_fix/eta_gen)^2", "[bsdf]") {
+    const Material glass = Glass();
+    for (const float cosIn : {0.95f, 0.6f, 0.2f, -0.99f, -0.85f}) {
+        INFO("cos incident " << cosIn);
+        const Vec3 fix = cosIn > 0.f ? DirectionAt(cosIn, 0.7f) : -DirectionAt(-cosIn, 0.7f);
+        const float fresnel = FresnelDielectric(cosIn, glass.mIor);
+        const double etaFixOverGen = cosIn > 0.f ? 1.0 / 1.6 : 1.6;
+        for (const bool fixIsLight : {true, false}) {
+            const Bsdf bsdf = Make(fix, glass, fixIsLight);
+            REQUIRE(bsdf.IsValid());
+            REQUIRE(bsdf.IsDelta());
+            Vec3 reflectDir, refractDir;
+            float reflectPdf, refractPdf, reflectCos, refractCos;
+            uint32_t reflectEvent, refractEvent;
+            const Vec3 fr = bsdf.Sample(Vec3(0.3f, 0.3f, 0.f), reflectDir, reflectPdf, reflectCos, &reflectEvent);
+            const Vec3 ft = bsdf.Sample(Vec3(0.3f, 0.3f, 0.99999f), refractDir, refractPdf, refractCos, &refractEvent);
+            REQUIRE(reflectEvent == kEventReflect);
+            REQUIRE(refractEvent == kEventRefract);
+            // The selection probabilities are F and 1 - F (mirror reflectance 1).
+            REQUIRE(reflectPdf == Approx(fresnel).epsilon(1e-5));
+            REQUIRE(refractPdf == Approx(1.f - fresnel).epsilon(1e-5));
+            // Reflected and refracted fractions: f cos.
+            const double reflected = fr.x * reflectCos, transmitted = ft.x * refractCos;
+            REQUIRE(reflected == Approx(fresnel).epsilon(1e-5));
+            if (fixIsLight) {
+                REQUIRE(transmitted == Approx(1.0 - fresnel).epsilon(1e-5));
+                REQUIRE(reflected + transmitted == Approx(1.0).epsilon(1e-5));
+            } else {
+                REQUIRE(transmitted == Approx((1.0 - fresnel) * etaFixOverGen * etaFixOverGen).epsilon(1e-5));
+            }
+            // The mirror direction: reflection of fix about the normal.
+            const Vec3 mirror = 2.f * glm::dot(fix, kNormal) * kNormal - fix;
+            REQUIRE(glm::length(reflectDir - mirror) <= 1e-5f);
+            // A delta BSDF has nothing to evaluate.
+            float cosine, pdf;
+            REQUIRE(IsBlack(bsdf.Evaluate(reflectDir, cosine, &pdf)));
+            REQUIRE(pdf == 0.f);
+        }
+    }
+    // Under total internal reflection every sample reflects with weight 1.
+    const Bsdf tir = Make(-DirectionAt(0.3f, 0.f), glass, false);
+    REQUIRE(tir.IsValid());
+    Rng rng(332, 0);
+    for (int i = 0; i < 100; i++) {
+        Vec3 dir;
+        float pdf, cosine;
+        uint32_t event;
+        const Vec3 f = tir.Sample(rng.GetVec3(), dir, pdf, cosine, &event);
+        REQUIRE(event == kEventReflect);
+        REQUIRE(f.x * cosine / pdf == Approx(1.f).epsilon(1e-5));
+    }
+}
+
+TEST_CASE("A mirror reflects about the normal with weight 1 from either side and evaluates to zero elsewhere", "[bsdf]") {
+    for (const float side : {1.f, -1.f}) {
+        const Vec3 fix = side * DirectionAt(0.4f, 2.f);
+        const Bsdf bsdf = Make(fix, Mirror());
+        REQUIRE(bsdf.IsValid());
+        REQUIRE(bsdf.IsDelta());
+        Rng rng(341, 0);
+        for (int i = 0; i < 100; i++) {
+            Vec3 dir;
+            float pdf, cosine;
+            uint32_t event;
+            const Vec3 f = bsdf.Sample(rng.GetVec3(), dir, pdf, cosine, &event);
+            REQUIRE(event == kEventReflect);
+            REQUIRE(glm::length(dir - (2.f * glm::dot(fix, kNormal) * kNormal - fix)) <= 1e-5f);
+            REQUIRE(f.x * cosine / pdf == Approx(1.f).epsilon(1e-5));
+        }
+        float cosine, pdf;
+        REQUIRE(IsBlack(bsdf.Evaluate(side * kNormal, cosine, &pdf)));
+        REQUIRE(pdf == 0.f);
+        REQUIRE(bsdf.Pdf(side * kNormal) == 0.f);
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// One-sidedness
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("Lambert and Phong seen from behind are invalid unless the material is two-sided", "[bsdf]") {
+    for (const Material& material : {Lambert(Vec3(0.5f)), Phong(10.f), GlossyFloor()}) {
+        INFO(material.mName);
+        REQUIRE_FALSE(Make(-DirectionAt(0.7f, 1.f), material).IsValid());
+        REQUIRE_FALSE(Make(-DirectionAt(0.7f, 1.f), material, true).IsValid());
+        REQUIRE(Make(DirectionAt(0.7f, 1.f), material).IsValid());
+        // From the front, nothing is transmitted to the back.
+        float cosine, pdf;
+        REQUIRE(IsBlack(Make(DirectionAt(0.7f, 1.f), material).Evaluate(-DirectionAt(0.5f, 3.f), cosine, &pdf)));
+        REQUIRE(pdf == 0.f);
+    }
+}
+
+TEST_CASE("A two-sided Lambert surface reflects on the side it is seen from", "[bsdf]") {
+    Material material = Lambert(Vec3(0.6f));
+    material.mTwoSided = true;
+    const Vec3 fix = -DirectionAt(0.7f, 1.f);  // behind the geometric normal
+    const Bsdf bsdf = Make(fix, material);
+    REQUIRE(bsdf.IsValid());
+    REQUIRE(bsdf.CosThetaFix() == Approx(0.7f).epsilon(1e-5));
+    float cosine, pdf;
+    const Vec3 back = -DirectionAt(0.5f, 3.f), front = DirectionAt(0.5f, 3.f);
+    REQUIRE(bsdf.Evaluate(back, cosine, &pdf).x == Approx(0.6 / kPi).epsilon(1e-5));
+    REQUIRE(pdf == Approx(0.5 / kPi).epsilon(1e-4));
+    REQUIRE(IsBlack(bsdf.Evaluate(front, cosine)));
+    Rng rng(351, 0);
+    for (int i = 0; i < 1000; i++) {
+        Vec3 dir;
+        float samplePdf, sampleCos;
+        const Vec3 f = bsdf.Sample(rng.GetVec3(), dir, samplePdf, sampleCos);
+        if (IsBlack(f)) continue;
+        REQUIRE(glm::dot(dir, kNormal) < 0.f);
+        REQUIRE(f.x * sampleCos / samplePdf == Approx(0.6f).epsilon(1e-5));
+    }
+    // From the front it behaves like the one-sided material.
+    REQUIRE(Make(-fix, material).Evaluate(front, cosine).x == Approx(0.6 / kPi).epsilon(1e-5));
+}
+
+// ---------------------------------------------------------------------------------
+// Russian roulette
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("Continuation probabilities of SmallVCM's materials: floor 0.8, walls 0.803922, mirror and glass 1", "[bsdf]") {
+    REQUIRE(Make(DirectionAt(0.5f, 0.f), GlossyFloor()).ContinuationProb() == Approx(0.8f).epsilon(1e-6));
+    REQUIRE(Make(DirectionAt(0.5f, 0.f), Mirror()).ContinuationProb() == 1.f);
+    REQUIRE(Make(DirectionAt(0.5f, 0.f), Glass()).ContinuationProb() == 1.f);
+    REQUIRE(Make(-DirectionAt(0.5f, 0.f), Glass()).ContinuationProb() == 1.f);
+    // The same from the materials of the scene files (cornell_0 has the glossy floor and
+    // the blue back wall; every wall's largest channel is 0.803922).
+    const Scene scene = testutil::LoadCornell(0, 16, 16);
+    int checked = 0;
+    for (const Material& material : scene.mMaterials) {
+        INFO(material.mName);
+        double expected = -1.0;
+        if (material.mName.find("glossy floor") != std::string::npos) expected = 0.8;
+        else if (material.mName.find("mirror") != std::string::npos || material.mName.find("glass") != std::string::npos) expected = 1.0;
+        else if (material.mName.find("wall") != std::string::npos || material.mName.find("white") != std::string::npos) expected = 0.803922;
+        REQUIRE(expected > 0.0);
+        REQUIRE(material.ContinuationProbability() == Approx(expected).epsilon(1e-6));
+        REQUIRE(Make(DirectionAt(0.5f, 0.f), material).ContinuationProb() == Approx(expected).epsilon(1e-6));
+        checked++;
+    }
+    REQUIRE(checked == 7);
+}

@@ -1,0 +1,320 @@
+// [film] Film accumulation, layers and Resolve; image metrics against hand-computed
+// values; the image writers (PFM round trip bit for bit, orientation in the file, PNG and
+// HDR signatures) and their failure behaviour (Error naming the path, nothing left behind).
+// Files go to a per-process folder under the system's temporary directory.
+#include "test_util.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+using namespace smallvcm;
+namespace fs = std::filesystem;
+
+namespace {
+
+// A fresh folder for this test case's files, removed when the test case ends.
+class TempFolder {
+public:
+    TempFolder() {
+        mPath = fs::temp_directory_path() / ("smallvcm_test_film_" + std::to_string(::getpid()));
+        fs::remove_all(mPath);
+        fs::create_directories(mPath);
+    }
+    ~TempFolder() {
+        std::error_code ignored;
+        fs::remove_all(mPath, ignored);
+    }
+    std::string File(const std::string& aName) const { return (mPath / aName).string(); }
+    // Every entry of the folder, so a test can see that nothing stray was left.
+    std::vector<std::string> Entries() const {
+        std::vector<std::string> names;
+        for (const auto& entry : fs::directory_iterator(mPath)) names.push_back(entry.path().filename().string());
+        return names;
+    }
+
+private:
+    fs::path mPath;
+};
+
+std::vector<unsigned char> ReadBytes(const std::string& aPath) {
+    std::ifstream file(aPath, std::ios::binary);
+    return std::vector<unsigned char>(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
+}
+
+uint32_t FloatBits(float aValue) {
+    uint32_t bits;
+    std::memcpy(&bits, &aValue, 4);
+    return bits;
+}
+
+// A small image whose every channel of every pixel is different.
+Image MakeGradient(int aWidth, int aHeight) {
+    Image image(aWidth, aHeight);
+    for (int y = 0; y < aHeight; y++)
+        for (int x = 0; x < aWidth; x++) image.At(x, y) = Vec3(float(x) + 0.25f, float(y) + 0.5f, float(x * 100 + y) + 0.125f);
+    return image;
+}
+
+} // namespace
+
+// ---------------------------------------------------------------------------------
+// Film
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("Film adds colours per pixel and Resolve scales them", "[film]") {
+    Film film(4, 3);
+    REQUIRE(film.Width() == 4);
+    REQUIRE(film.Height() == 3);
+    film.AddColor(0, Vec3(1.f, 2.f, 3.f));
+    film.AddColor(0, Vec3(0.5f, 0.5f, 0.5f));
+    film.AddColor(2 * 4 + 3, Vec3(4.f, 0.f, -1.f));  // pixel (3, 2), the last one
+    const Image image = film.Resolve(0.5);
+    REQUIRE(image.mWidth == 4);
+    REQUIRE(image.mHeight == 3);
+    REQUIRE(image.mPixels.size() == 12);
+    REQUIRE(image.At(0, 0) == Vec3(0.75f, 1.25f, 1.75f));
+    REQUIRE(image.At(3, 2) == Vec3(2.f, 0.f, -0.5f));
+    for (int y = 0; y < 3; y++)
+        for (int x = 0; x < 4; x++)
+            if ((x | y) != 0 && !(x == 3 && y == 2)) REQUIRE(image.At(x, y) == Vec3(0.f));
+}
+
+TEST_CASE("Film accumulates in double precision", "[film]") {
+    // A million splats of 0.1f: a float sum would drift by ~1e-3 relative (each addition
+    // to a sum near 1e5 rounds by up to 4e-3); in double the mean comes back as 0.1f.
+    Film film(1, 1);
+    for (int i = 0; i < 1000000; i++) film.AddColor(0, Vec3(0.1f));
+    REQUIRE(film.Resolve(1e-6).At(0, 0).x == Approx(0.1f).epsilon(1e-6));
+}
+
+TEST_CASE("AddLayer is idempotent by name and AddToLayer writes only its layer", "[film]") {
+    Film film(3, 2);
+    REQUIRE(film.LayerCount() == 0);
+    const int direct = film.AddLayer("direct");
+    const int indirect = film.AddLayer("indirect");
+    REQUIRE(direct == 0);
+    REQUIRE(indirect == 1);
+    REQUIRE(film.AddLayer("direct") == direct);
+    REQUIRE(film.AddLayer("indirect") == indirect);
+    REQUIRE(film.LayerCount() == 2);
+    REQUIRE(film.LayerName(direct) == "direct");
+    REQUIRE(film.LayerName(indirect) == "indirect");
+    REQUIRE(film.LayerIndex("indirect") == indirect);
+    REQUIRE(film.LayerIndex("missing") == -1);
+
+    film.AddToLayer(indirect, 4, Vec3(2.f, 4.f, 6.f));
+    film.AddToLayer(indirect, 4, Vec3(2.f, 0.f, 0.f));
+    film.AddColor(1, Vec3(1.f));
+    const Image main = film.Resolve(1.0), first = film.Resolve(1.0, direct), second = film.Resolve(0.25, indirect);
+    REQUIRE(main.At(1, 0) == Vec3(1.f));
+    REQUIRE(main.At(1, 1) == Vec3(0.f));  // pixel 4 = (1, 1): the layer write did not leak
+    REQUIRE(MeanValue(first) == 0.0);
+    REQUIRE(second.At(1, 1) == Vec3(1.f, 1.f, 1.5f));
+    REQUIRE(second.At(1, 0) == Vec3(0.f));
+}
+
+TEST_CASE("Film::Accumulate adds another film's image and layers", "[film]") {
+    Film a(2, 2), b(2, 2);
+    for (Film* film : {&a, &b}) {
+        film->AddLayer("x");
+        film->AddLayer("y");
+    }
+    a.AddColor(3, Vec3(1.f));
+    b.AddColor(3, Vec3(2.f));
+    b.AddColor(0, Vec3(5.f));
+    a.AddToLayer(1, 2, Vec3(0.5f));
+    b.AddToLayer(1, 2, Vec3(0.25f));
+    b.AddToLayer(0, 1, Vec3(7.f));
+    a.Accumulate(b);
+    const Image image = a.Resolve(1.0), x = a.Resolve(1.0, 0), y = a.Resolve(1.0, 1);
+    REQUIRE(image.At(1, 1) == Vec3(3.f));
+    REQUIRE(image.At(0, 0) == Vec3(5.f));
+    REQUIRE(x.At(1, 0) == Vec3(7.f));
+    REQUIRE(y.At(0, 1) == Vec3(0.75f));
+    // b is unchanged.
+    REQUIRE(b.Resolve(1.0).At(1, 1) == Vec3(2.f));
+}
+
+// ---------------------------------------------------------------------------------
+// Metrics
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("MeanValue, Rmse and RelativeMse match hand-computed values", "[film]") {
+    Image image(2, 1), reference(2, 1);
+    image.At(0, 0) = Vec3(1.f, 2.f, 3.f);
+    image.At(1, 0) = Vec3(4.f, 5.f, 6.f);
+    reference.At(0, 0) = Vec3(1.f, 1.f, 1.f);
+    reference.At(1, 0) = Vec3(2.f, 0.f, 0.1f);
+    // Mean over 6 values: 21 / 6.
+    REQUIRE(MeanValue(image) == Approx(3.5).epsilon(1e-12));
+    REQUIRE(MeanValue(reference) == Approx(5.1 / 6.0).epsilon(1e-7));
+    // Differences 0, 1, 2, 2, 5, 5.9: squares sum to 4 + 1 + 4 + 25 + 34.81 = 68.81.
+    REQUIRE(Rmse(image, reference) == Approx(std::sqrt(68.81 / 6.0)).epsilon(1e-6));
+    REQUIRE(Rmse(image, image) == 0.0);
+    // Relative: d^2 / (r^2 + 0.01): 0, 1/1.01, 4/1.01, 4/4.01, 25/0.01, 34.81/0.02.
+    const double relative = (1.0 / 1.01 + 4.0 / 1.01 + 4.0 / 4.01 + 25.0 / 0.01 + 34.81 / 0.02) / 6.0;
+    REQUIRE(RelativeMse(image, reference) == Approx(relative).epsilon(1e-6));
+    REQUIRE(RelativeMse(reference, reference) == 0.0);
+    // Empty images: mean 0.
+    REQUIRE(MeanValue(Image()) == 0.0);
+}
+
+TEST_CASE("Image metrics reject images of different sizes with an Error naming both sizes", "[film]") {
+    const Image a(2, 3), b(3, 2);
+    REQUIRE_THROWS_AS(Rmse(a, b), Error);
+    REQUIRE_THROWS_WITH(RelativeMse(a, b), Catch::Contains("2x3") && Catch::Contains("3x2"));
+}
+
+// ---------------------------------------------------------------------------------
+// Writing and reading
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("A PFM written and read back is bit-for-bit the same image", "[film]") {
+    const TempFolder folder;
+    Image image = MakeGradient(5, 3);
+    // Values a lossy or text format would not keep.
+    image.At(0, 0) = Vec3(-0.f, 1e-40f, 3.4e38f);                                   // signed zero, denormal, near max
+    image.At(1, 0) = Vec3(std::numeric_limits<float>::infinity(), -1.5f, 0.1f);
+    image.At(4, 2) = Vec3(1.f / 3.f, -1e-30f, 16777217.f);
+    const std::string path = folder.File("round trip.pfm");  // a space in the name, too
+    WriteImage(path, image);
+    const Image back = ReadPfm(path);
+    REQUIRE(back.mWidth == 5);
+    REQUIRE(back.mHeight == 3);
+    for (int y = 0; y < 3; y++)
+        for (int x = 0; x < 5; x++)
+            for (int c = 0; c < 3; c++) {
+                INFO("pixel " << x << ", " << y << ", channel " << c);
+                REQUIRE(FloatBits(back.At(x, y)[c]) == FloatBits(image.At(x, y)[c]));
+            }
+}
+
+TEST_CASE("A PFM keeps pixel (0, 0) at the top left and stores the bottom row first", "[film]") {
+    const TempFolder folder;
+    const Image image = MakeGradient(3, 2);
+    const std::string path = folder.File("orientation.pfm");
+    WriteImage(path, image);
+    REQUIRE(ReadPfm(path).At(0, 0) == image.At(0, 0));
+
+    const std::vector<unsigned char> bytes = ReadBytes(path);
+    const std::string header = "PF\n3 2\n-1\n";
+    REQUIRE(bytes.size() == header.size() + 3 * 2 * 12);
+    REQUIRE(std::string(bytes.begin(), bytes.begin() + long(header.size())) == header);
+    auto pixelInFile = [&](int aIndex) {
+        Vec3 p;
+        std::memcpy(&p.x, &bytes[header.size() + size_t(aIndex) * 12 + 0], 4);
+        std::memcpy(&p.y, &bytes[header.size() + size_t(aIndex) * 12 + 4], 4);
+        std::memcpy(&p.z, &bytes[header.size() + size_t(aIndex) * 12 + 8], 4);
+        return p;
+    };
+    // The file's first pixel is the image's bottom-left, its last the top-right.
+    REQUIRE(pixelInFile(0) == image.At(0, 1));
+    REQUIRE(pixelInFile(2) == image.At(2, 1));
+    REQUIRE(pixelInFile(3) == image.At(0, 0));
+    REQUIRE(pixelInFile(5) == image.At(2, 0));
+}
+
+TEST_CASE("PNG and HDR files start with their formats' signatures and the image size", "[film]") {
+    const TempFolder folder;
+    const Image image = MakeGradient(7, 5);
+
+    const std::string png = folder.File("image.png");
+    WriteImage(png, image);
+    const std::vector<unsigned char> pngBytes = ReadBytes(png);
+    const unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+    REQUIRE(pngBytes.size() > 33);
+    REQUIRE(std::memcmp(pngBytes.data(), signature, 8) == 0);
+    // The first chunk is IHDR: big-endian width and height at bytes 16 and 20.
+    REQUIRE(std::string(pngBytes.begin() + 12, pngBytes.begin() + 16) == "IHDR");
+    auto bigEndian = [&](size_t aOffset) {
+        return (uint32_t(pngBytes[aOffset]) << 24) | (uint32_t(pngBytes[aOffset + 1]) << 16) |
+               (uint32_t(pngBytes[aOffset + 2]) << 8) | uint32_t(pngBytes[aOffset + 3]);
+    };
+    REQUIRE(bigEndian(16) == 7);
+    REQUIRE(bigEndian(20) == 5);
+    REQUIRE(pngBytes[24] == 8);  // 8 bits per channel
+    REQUIRE(pngBytes[25] == 2);  // colour type 2: RGB
+
+    const std::string hdr = folder.File("image.hdr");
+    WriteImage(hdr, image);
+    const std::vector<unsigned char> hdrBytes = ReadBytes(hdr);
+    const std::string text(hdrBytes.begin(), hdrBytes.begin() + long(std::min<size_t>(hdrBytes.size(), 200)));
+    REQUIRE(text.rfind("#?RADIANCE\n", 0) == 0);
+    // The resolution line: rows top to bottom (-Y), 5 of them, 7 columns.
+    REQUIRE(text.find("\n-Y 5 +X 7\n") != std::string::npos);
+
+    // Only the two images are left in the folder: no temporary files.
+    std::vector<std::string> entries = folder.Entries();
+    std::sort(entries.begin(), entries.end());
+    REQUIRE(entries == std::vector<std::string>{"image.hdr", "image.png"});
+}
+
+TEST_CASE("Writing to an unwritable path throws an Error naming the path and leaves nothing behind", "[film]") {
+    const TempFolder folder;
+    const Image image = MakeGradient(2, 2);
+    // A folder that does not exist, and a "folder" that is a regular file.
+    const std::string missingFolder = folder.File("no such folder") + "/image.pfm";
+    const std::string notAFolder = folder.File("plain file");
+    std::ofstream(notAFolder) << "x";
+    const std::string underAFile = notAFolder + "/image.png";
+    for (const std::string& path : {missingFolder, underAFile}) {
+        INFO(path);
+        REQUIRE_THROWS_AS(WriteImage(path, image), Error);
+        REQUIRE_THROWS_WITH(WriteImage(path, image), Catch::Contains(path));
+        REQUIRE_FALSE(fs::exists(path));
+        REQUIRE_FALSE(fs::exists(path + ".partial"));
+    }
+    std::vector<std::string> entries = folder.Entries();
+    REQUIRE(entries == std::vector<std::string>{"plain file"});
+}
+
+TEST_CASE("A failed write leaves an existing image untouched", "[film]") {
+    const TempFolder folder;
+    const std::string path = folder.File("keep.pfm");
+    const Image image = MakeGradient(3, 3);
+    WriteImage(path, image);
+    const std::vector<unsigned char> before = ReadBytes(path);
+    REQUIRE_THROWS_WITH(WriteImage(path, Image()), Catch::Contains(path));  // an empty image
+    REQUIRE(ReadBytes(path) == before);
+    REQUIRE_FALSE(fs::exists(path + ".partial"));
+}
+
+TEST_CASE("An unknown image extension throws an Error and writes nothing", "[film]") {
+    const TempFolder folder;
+    const Image image = MakeGradient(2, 2);
+    for (const char* name : {"image.bmp", "image.PNG", "image", "image.pfm.txt"}) {
+        const std::string path = folder.File(name);
+        INFO(path);
+        REQUIRE_FALSE(IsSupportedImagePath(path));
+        REQUIRE_THROWS_AS(WriteImage(path, image), Error);
+        REQUIRE_THROWS_WITH(WriteImage(path, image), Catch::Contains(path));
+    }
+    REQUIRE(folder.Entries().empty());
+    for (const char* name : {"a.png", "a.hdr", "a.pfm"}) REQUIRE(IsSupportedImagePath(name));
+}
+
+TEST_CASE("ReadPfm rejects missing, foreign and truncated files with an Error naming the file", "[film]") {
+    const TempFolder folder;
+    const std::string missing = folder.File("missing.pfm");
+    REQUIRE_THROWS_WITH(ReadPfm(missing), Catch::Contains(missing));
+
+    const std::string foreign = folder.File("foreign.pfm");
+    std::ofstream(foreign, std::ios::binary) << "P6\n2 2\n255\n";
+    REQUIRE_THROWS_WITH(ReadPfm(foreign), Catch::Contains(foreign));
+
+    const std::string truncated = folder.File("truncated.pfm");
+    WriteImage(truncated, MakeGradient(4, 4));
+    std::vector<unsigned char> bytes = ReadBytes(truncated);
+    bytes.resize(bytes.size() - 7);
+    std::ofstream(truncated, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(bytes.data()), long(bytes.size()));
+    REQUIRE_THROWS_WITH(ReadPfm(truncated), Catch::Contains(truncated));
+}

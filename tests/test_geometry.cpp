@@ -1,0 +1,561 @@
+// [geometry] Ray-sphere and ray-triangle intersection (known answers, grazing rays,
+// edges, far-away origins) and the BVH, checked against brute force over every
+// primitive on a random scene and on degenerate primitive distributions.
+#include "test_util.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <array>
+#include <cmath>
+#include <string>
+#include <vector>
+
+using namespace smallvcm;
+
+namespace {
+
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
+// An orthonormal pair perpendicular to aAxis (built here, not with the header's Frame).
+void Perpendiculars(const Vec3& aAxis, Vec3& oA, Vec3& oB) {
+    const Vec3 helper = std::abs(aAxis.x) < 0.9f ? Vec3(1.f, 0.f, 0.f) : Vec3(0.f, 1.f, 0.f);
+    oA = glm::normalize(glm::cross(aAxis, helper));
+    oB = glm::cross(aAxis, oA);
+}
+
+using Triangle3 = std::array<Vec3, 3>;
+
+// The one place that knows IntersectTriangle's signature (the three vertices).
+bool HitTriangle(const Triangle3& aTriangle, const Ray& aRay, float aTMin, float aTMax, float& oT) {
+    return IntersectTriangle(aTriangle[0], aTriangle[1], aTriangle[2], aRay, aTMin, aTMax, oT);
+}
+
+// Primitives kept as plain vertices and spheres; Soup() is the one place that knows the
+// BVH's storage layout. Primitive indices: triangles first, then spheres, as in Scene.
+struct Primitives {
+    std::vector<Triangle3> triangles;
+    std::vector<Vec3> centers;
+    std::vector<float> radii;
+
+    void AddTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2) { triangles.push_back({aP0, aP1, aP2}); }
+    void AddSphere(const Vec3& aCenter, float aRadius) { centers.push_back(aCenter); radii.push_back(aRadius); }
+    PrimitiveSoup Soup() const {
+        PrimitiveSoup soup;
+        for (const Triangle3& t : triangles) {
+            soup.mTriangleP0.push_back(t[0]);
+            soup.mTriangleP1.push_back(t[1]);
+            soup.mTriangleP2.push_back(t[2]);
+        }
+        soup.mSphereCenter = centers;
+        soup.mSphereRadius = radii;
+        return soup;
+    }
+    static Primitives Of(const Scene& aScene) {
+        Primitives p;
+        for (const Triangle& t : aScene.mTriangles) p.AddTriangle(t.mP0, t.mP1, t.mP2);
+        for (const Sphere& s : aScene.mSpheres) p.AddSphere(s.mCenter, s.mRadius);
+        return p;
+    }
+};
+
+// Nearest hit over every primitive by brute force, with the intersection routines called
+// directly; returns the primitive index or -1.
+int BruteForceNearest(const Primitives& aPrimitives, const Ray& aRay, float aTMin, float& ioTMax) {
+    int nearest = -1;
+    for (size_t i = 0; i < aPrimitives.triangles.size(); i++) {
+        float t;
+        if (HitTriangle(aPrimitives.triangles[i], aRay, aTMin, ioTMax, t)) {
+            ioTMax = t;
+            nearest = int(i);
+        }
+    }
+    for (size_t s = 0; s < aPrimitives.centers.size(); s++) {
+        float t;
+        if (IntersectSphere(aPrimitives.centers[s], aPrimitives.radii[s], aRay, aTMin, ioTMax, t)) {
+            ioTMax = t;
+            nearest = int(aPrimitives.triangles.size() + s);
+        }
+    }
+    return nearest;
+}
+
+bool BruteForceAny(const Primitives& aPrimitives, const Ray& aRay, float aTMin, float aTMax) {
+    float tMax = aTMax;
+    return BruteForceNearest(aPrimitives, aRay, aTMin, tMax) >= 0;
+}
+
+// Random rays through a BVH built over aPrimitives: it must find the same nearest hit as
+// brute force (the same primitive, or for an exact tie the same distance). Returns the
+// number of rays that hit something.
+int CompareBvhWithBruteForce(const Primitives& aPrimitives, const Bvh& aBvh, int aRays, float aBoxHalfSize, uint64_t aSeed) {
+    Rng rng(aSeed, 0);
+    int hits = 0;
+    for (int i = 0; i < aRays; i++) {
+        const Ray ray{(2.f * rng.GetVec3() - Vec3(1.f)) * aBoxHalfSize, SampleUniformSphereW(rng.GetVec2())};
+        float bruteT = kInfinity, bvhT = kInfinity;
+        const int brute = BruteForceNearest(aPrimitives, ray, 0.f, bruteT);
+        const int bvh = aBvh.Intersect(ray, 0.f, bvhT);
+        REQUIRE((bvh >= 0) == (brute >= 0));
+        if (brute < 0) continue;
+        hits++;
+        REQUIRE(bvhT == Approx(bruteT).epsilon(1e-6));
+        if (bvh != brute) REQUIRE(bvhT == Approx(bruteT).epsilon(1e-5));  // an exact tie
+    }
+    return hits;
+}
+
+} // namespace
+
+// ---------------------------------------------------------------------------------
+// Sphere
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("A ray along a sphere's axis hits it at distance d - r", "[geometry]") {
+    const Vec3 center(1.f, 2.f, 3.f);
+    float t = -1.f;
+    REQUIRE(IntersectSphere(center, 0.5f, Ray{center - Vec3(0.f, 0.f, 10.f), Vec3(0.f, 0.f, 1.f)}, 0.f, kInfinity, t));
+    REQUIRE(t == Approx(9.5f).epsilon(1e-6));
+    REQUIRE(IntersectSphere(center, 2.f, Ray{center + Vec3(7.f, 0.f, 0.f), Vec3(-1.f, 0.f, 0.f)}, 0.f, kInfinity, t));
+    REQUIRE(t == Approx(5.f).epsilon(1e-6));
+    // A sphere behind the origin is not hit, nor one beyond aTMax.
+    REQUIRE_FALSE(IntersectSphere(center, 0.5f, Ray{center - Vec3(0.f, 0.f, 10.f), Vec3(0.f, 0.f, -1.f)}, 0.f, kInfinity, t));
+    REQUIRE_FALSE(IntersectSphere(center, 0.5f, Ray{center - Vec3(0.f, 0.f, 10.f), Vec3(0.f, 0.f, 1.f)}, 0.f, 9.f, t));
+    // With aTMin past the near root, the far root is returned.
+    REQUIRE(IntersectSphere(center, 0.5f, Ray{center - Vec3(0.f, 0.f, 10.f), Vec3(0.f, 0.f, 1.f)}, 9.6f, kInfinity, t));
+    REQUIRE(t == Approx(10.5f).epsilon(1e-6));
+}
+
+TEST_CASE("A ray starting inside a sphere returns the far root", "[geometry]") {
+    const Vec3 center(-1.f, 0.5f, 2.f);
+    float t = -1.f;
+    REQUIRE(IntersectSphere(center, 1.f, Ray{center + Vec3(0.25f, 0.f, 0.f), Vec3(1.f, 0.f, 0.f)}, 0.f, kInfinity, t));
+    REQUIRE(t == Approx(0.75f).epsilon(1e-6));
+    REQUIRE(IntersectSphere(center, 1.f, Ray{center + Vec3(0.25f, 0.f, 0.f), Vec3(-1.f, 0.f, 0.f)}, 0.f, kInfinity, t));
+    REQUIRE(t == Approx(1.25f).epsilon(1e-6));
+    // From the centre, in any direction, the exit is at distance r.
+    Rng rng(101, 0);
+    for (int i = 0; i < 1000; i++) {
+        REQUIRE(IntersectSphere(center, 1.f, Ray{center, SampleUniformSphereW(rng.GetVec2())}, 0.f, kInfinity, t));
+        REQUIRE(t == Approx(1.f).epsilon(1e-6));
+    }
+}
+
+TEST_CASE("Nearly tangent rays hit a sphere just inside its radius and miss it just outside", "[geometry]") {
+    // Rays in random directions passing the centre at distance h = r (1 -+ 1e-4). Inside,
+    // the chord's half length is sqrt(r^2 - h^2) ~ 0.0141 r, and the expected distance
+    // (in double, from the same float ray) is s minus that, with s = 5 r the distance
+    // along the ray to the closest point. Tolerance 1e-4: the perpendicular f - (f.d) d
+    // comes out of a cancellation in float, with an absolute error of about one ulp of
+    // |f| = s (9.5e-7 for r = 1.5); the chord then errs by h dh / chord = 6.7e-5 per ulp.
+    Rng rng(102, 0);
+    const Vec3 center(0.3f, -0.2f, 0.1f);
+    const float radius = 1.5f;
+    for (int i = 0; i < 1000; i++) {
+        const Vec3 direction = SampleUniformSphereW(rng.GetVec2());
+        Vec3 a, b;
+        Perpendiculars(direction, a, b);
+        const float s = 5.f * radius;
+        for (const double offsetFactor : {1.0 - 1e-4, 1.0 + 1e-4}) {
+            const Vec3 closest = center + float(offsetFactor * radius) * a;
+            const Ray ray{closest - s * direction, direction};
+            // The expected answer from the float ray, in double.
+            const glm::dvec3 f = glm::dvec3(ray.mOrigin) - glm::dvec3(center);
+            const glm::dvec3 d = glm::dvec3(ray.mDirection);
+            const double along = -glm::dot(f, d) / glm::dot(d, d);
+            const glm::dvec3 perpendicular = f + along * d;
+            const double h2 = glm::dot(perpendicular, perpendicular);
+            float t = -1.f;
+            const bool hit = IntersectSphere(center, radius, ray, 0.f, kInfinity, t);
+            if (offsetFactor < 1.0) {
+                REQUIRE(hit);
+                const double expected = along - std::sqrt(double(radius) * radius - h2);
+                REQUIRE(std::abs(double(t) - expected) <= 1e-4);
+            } else {
+                REQUIRE_FALSE(hit);
+            }
+        }
+    }
+}
+
+TEST_CASE("A ray from 1e4 units away hits a sphere at a point that lies on the sphere", "[geometry]") {
+    // The hit point o + t d, in double from the float ray and t, must lie on the sphere
+    // within 1e-3 r. At 1e4 the float t has an ulp of 9.8e-4, and c = |f|^2 - r^2 ~ 1e8
+    // (from which the near root c/q comes) errs by a few ulps of 1e8, i.e. ~1e-3 in t:
+    // with r = 5 the bound allows about 5 ulps of t. A textbook quadratic, whose
+    // discriminant b^2 - c subtracts two numbers ~1e8 known to +-8, errs by ~0.4 here.
+    Rng rng(103, 0);
+    const Vec3 center(2.f, -1.f, 0.5f);
+    const float radius = 5.f;
+    double worst = 0.0;
+    for (int i = 0; i < 2000; i++) {
+        // Aim at a random point of the visible cap, from a random direction 1e4 away.
+        const Vec3 away = SampleUniformSphereW(rng.GetVec2());
+        const Vec3 origin = center + 1e4f * away;
+        Vec3 a, b;
+        Perpendiculars(away, a, b);
+        const Vec2 disc = SampleConcentricDisc(rng.GetVec2()) * 0.95f;
+        const Vec3 target = center + radius * (disc.x * a + disc.y * b);
+        const Ray ray{origin, glm::normalize(target - origin)};
+        float t = -1.f;
+        REQUIRE(IntersectSphere(center, radius, ray, 0.f, kInfinity, t));
+        const glm::dvec3 hit = glm::dvec3(ray.mOrigin) + double(t) * glm::dvec3(ray.mDirection);
+        const double error = std::abs(glm::length(hit - glm::dvec3(center)) - radius) / radius;
+        worst = std::max(worst, error);
+    }
+    INFO("worst relative distance error " << worst);
+    REQUIRE(worst <= 1e-3);
+}
+
+// ---------------------------------------------------------------------------------
+// Triangle
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("A ray hits a triangle at the known distance from either side", "[geometry]") {
+    const Triangle3 tri = {Vec3(0.f, 0.f, 0.f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f)};
+    float t = -1.f;
+    REQUIRE(HitTriangle(tri, Ray{Vec3(0.25f, 0.25f, 1.f), Vec3(0.f, 0.f, -1.f)}, 0.f, kInfinity, t));
+    REQUIRE(t == Approx(1.f).epsilon(1e-6));
+    // Back faces are hit too (the intersection is two-sided).
+    REQUIRE(HitTriangle(tri, Ray{Vec3(0.25f, 0.25f, -2.f), Vec3(0.f, 0.f, 1.f)}, 0.f, kInfinity, t));
+    REQUIRE(t == Approx(2.f).epsilon(1e-6));
+    // An oblique ray: from (0.2, 0.1, 3) along (0.05, 0.1, -1), normalised: it crosses the
+    // plane at (0.35, 0.4), at distance 3 |(0.05, 0.1, -1)|.
+    const Vec3 oblique = glm::normalize(Vec3(0.05f, 0.1f, -1.f));
+    REQUIRE(HitTriangle(tri, Ray{Vec3(0.2f, 0.1f, 3.f), oblique}, 0.f, kInfinity, t));
+    REQUIRE(t == Approx(3.0 * std::sqrt(1.0125)).epsilon(1e-6));
+    // Outside each of the three edges: miss.
+    for (const Vec3 origin : {Vec3(-0.1f, 0.5f, 1.f), Vec3(0.5f, -0.1f, 1.f), Vec3(0.6f, 0.6f, 1.f)})
+        REQUIRE_FALSE(HitTriangle(tri, Ray{origin, Vec3(0.f, 0.f, -1.f)}, 0.f, kInfinity, t));
+}
+
+TEST_CASE("A triangle behind the ray origin, or outside (tMin, tMax), is not hit", "[geometry]") {
+    const Triangle3 tri = {Vec3(0.f, 0.f, 0.f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f)};
+    float t = -1.f;
+    REQUIRE_FALSE(HitTriangle(tri, Ray{Vec3(0.25f, 0.25f, -1.f), Vec3(0.f, 0.f, -1.f)}, 0.f, kInfinity, t));
+    const Ray ray{Vec3(0.25f, 0.25f, 1.f), Vec3(0.f, 0.f, -1.f)};  // hit at t = 1
+    REQUIRE_FALSE(HitTriangle(tri, ray, 1.5f, kInfinity, t));
+    REQUIRE_FALSE(HitTriangle(tri, ray, 0.f, 0.5f, t));
+    REQUIRE_FALSE(HitTriangle(tri, ray, 1.f, kInfinity, t));  // the interval is open
+    REQUIRE(HitTriangle(tri, ray, 0.999f, 1.001f, t));
+    // An origin on the triangle itself (t = 0) is not a hit with tMin = 0.
+    REQUIRE_FALSE(HitTriangle(tri, Ray{Vec3(0.25f, 0.25f, 0.f), Vec3(0.f, 0.f, 1.f)}, 0.f, kInfinity, t));
+}
+
+TEST_CASE("Rays parallel to a triangle's plane miss it, even when they lie in the plane", "[geometry]") {
+    const Triangle3 tri = {Vec3(0.f, 0.f, 0.f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f)};
+    float t = -1.f;
+    for (const Vec3 direction : {Vec3(1.f, 0.f, 0.f), Vec3(0.f, -1.f, 0.f), glm::normalize(Vec3(1.f, 1.f, 0.f))}) {
+        REQUIRE_FALSE(HitTriangle(tri, Ray{Vec3(-1.f, 0.2f, 0.5f), direction}, 0.f, kInfinity, t));
+        REQUIRE_FALSE(HitTriangle(tri, Ray{Vec3(-1.f, 0.2f, 0.f), direction}, 0.f, kInfinity, t));
+        REQUIRE_FALSE(HitTriangle(tri, Ray{Vec3(0.2f, 0.2f, 0.f), direction}, 0.f, kInfinity, t));
+    }
+}
+
+TEST_CASE("Grazing rays nearly parallel to a triangle still hit it at the right distance", "[geometry]") {
+    // Unit right triangles in random planes; rays that travel 10 units while descending
+    // towards the plane with a slope of 1e-2 .. 1e-4 and cross it at an interior point.
+    // Every such ray must hit. The distance is compared with the exact intersection of the
+    // same float ray with the plane of the same float vertices, computed in double.
+    // Tolerance: rounding o - p0 (|o - p0| <= 11) moves the origin off the plane by up to
+    // ~2 ulps of 11 (2e-6), and along a ray of slope s that is 2e-6 / s of distance:
+    // tolerance 4e-6 / s (4e-2 at s = 1e-4, where the ray covers 10 units to drop 1e-3).
+    Rng rng(104, 0);
+    double worstInUnits = 0.0;  // worst error in units of 1e-6 / s
+    for (const float slope : {1e-2f, 1e-3f, 1e-4f}) {
+        for (int i = 0; i < 300; i++) {
+            const Vec3 normal = SampleUniformSphereW(rng.GetVec2());
+            Vec3 u, v;
+            Perpendiculars(normal, u, v);
+            const Vec3 corner = 2.f * rng.GetVec3() - Vec3(1.f);
+            const Triangle3 tri = {corner, corner + u, corner + v};
+            const Vec3 target = corner + (0.1f + 0.3f * rng.GetFloat()) * u + (0.1f + 0.3f * rng.GetFloat()) * v;
+            const float phi = 2.f * kPi * rng.GetFloat();
+            const Vec3 direction = glm::normalize(std::cos(phi) * u + std::sin(phi) * v - slope * normal);
+            const Vec3 origin = target - 10.f * direction;
+            float t = -1.f;
+            INFO("slope " << slope);
+            REQUIRE(HitTriangle(tri, Ray{origin, direction}, 0.f, kInfinity, t));
+            const glm::dvec3 p0(tri[0]), planeNormal = glm::cross(glm::dvec3(tri[1]) - p0, glm::dvec3(tri[2]) - p0);
+            const double exact = glm::dot(p0 - glm::dvec3(origin), planeNormal) / glm::dot(glm::dvec3(direction), planeNormal);
+            const double error = std::abs(double(t) - exact);
+            REQUIRE(error <= 4e-6 / slope);
+            worstInUnits = std::max(worstInUnits, error * slope / 1e-6);
+        }
+    }
+    INFO("worst error " << worstInUnits << " x 1e-6 / slope");
+    REQUIRE(worstInUnits <= 4.0);
+}
+
+TEST_CASE("A ray through the edge shared by the two triangles of a quad hits at least one of them", "[geometry]") {
+    // Random planar quads p0 p1 p2 p3 in random orientations, split along the diagonal
+    // p0-p2, in the two vertex orders meshes use: fan (p0 p1 p2)(p0 p2 p3) and strip
+    // (p0 p1 p2)(p2 p3 p0). Each quad is a scene of its own, queried through
+    // Scene::Intersect, so the check covers whatever the scene stores per triangle. Rays
+    // from random points on either side aim at random points of the diagonal: rounded to
+    // float, each crosses the plane within ~1e-7 of the edge, on one side or the other,
+    // and must not slip between the two triangles.
+    Rng rng(105, 0);
+    int misses[2] = {0, 0}, rays = 0;
+    for (int q = 0; q < 100; q++) {
+        const Vec3 origin = 4.f * rng.GetVec3() - Vec3(2.f);
+        const Vec3 u = SampleUniformSphereW(rng.GetVec2());
+        Vec3 v, normal;
+        Perpendiculars(u, v, normal);
+        const float a = 0.2f + 2.f * rng.GetFloat(), b = 0.2f + 2.f * rng.GetFloat();
+        const Vec3 p0 = origin, p1 = origin + a * u, p2 = origin + a * u + b * v, p3 = origin + b * v;
+        Scene quads[2];
+        for (int order = 0; order < 2; order++) {
+            Scene& scene = quads[order];
+            const int material = scene.AddMaterial(Material{});
+            scene.AddTriangle(p0, p1, p2, material);
+            if (order == 0) scene.AddTriangle(p0, p2, p3, material);
+            else            scene.AddTriangle(p2, p3, p0, material);
+            scene.AddPointLight(origin + normal, Vec3(1.f));
+            scene.mCamera.Setup(origin + 3.f * normal, -normal, u, 45.f);
+            scene.Finalize();
+        }
+        for (int i = 0; i < 1000; i++) {
+            const Vec3 onEdge = p0 + (0.01f + 0.98f * rng.GetFloat()) * (p2 - p0);
+            const float side = rng.GetFloat() < 0.5f ? -1.f : 1.f;
+            const Vec3 start = onEdge + side * (0.3f + 2.f * rng.GetFloat()) * normal + (rng.GetVec3() - Vec3(0.5f));
+            const Ray ray{start, glm::normalize(onEdge - start)};
+            rays++;
+            for (int order = 0; order < 2; order++) {
+                Hit hit;
+                if (!quads[order].Intersect(ray, hit)) misses[order]++;
+            }
+        }
+    }
+    INFO(misses[0] << " (fan order) and " << misses[1] << " (strip order) of " << rays
+                   << " rays through a shared edge missed both triangles");
+    CHECK(misses[0] == 0);
+    CHECK(misses[1] == 0);
+}
+
+// ---------------------------------------------------------------------------------
+// BVH
+// ---------------------------------------------------------------------------------
+
+namespace {
+
+// 2000 small random triangles and 50 spheres in [-1, 1]^3, one Lambert material, a point
+// light and a camera: a complete scene, finalized.
+Scene MakeRandomScene() {
+    Scene scene;
+    scene.mName = "random BVH scene";
+    Material grey;
+    grey.mDiffuseReflectance = Vec3(0.5f);
+    const int material = scene.AddMaterial(grey);
+    Rng rng(201, 0);
+    while (scene.mTriangles.size() < 2000) {
+        const Vec3 center = 2.f * rng.GetVec3() - Vec3(1.f);
+        const float size = 0.02f + 0.2f * rng.GetFloat();
+        const Vec3 p0 = center + size * (rng.GetVec3() - Vec3(0.5f));
+        const Vec3 p1 = center + size * (rng.GetVec3() - Vec3(0.5f));
+        const Vec3 p2 = center + size * (rng.GetVec3() - Vec3(0.5f));
+        if (glm::length(glm::cross(p1 - p0, p2 - p0)) < 1e-5f) continue;
+        scene.AddTriangle(p0, p1, p2, material);
+    }
+    for (int i = 0; i < 50; i++) scene.AddSphere(2.f * rng.GetVec3() - Vec3(1.f), 0.02f + 0.1f * rng.GetFloat(), material);
+    scene.AddPointLight(Vec3(0.f, 0.f, 3.f), Vec3(10.f));
+    scene.mCamera.Setup(Vec3(0.f, -4.f, 0.f), Vec3(0.f, 1.f, 0.f), Vec3(0.f, 0.f, 1.f), 45.f);
+    scene.mCamera.SetResolution(64, 64);
+    scene.Finalize();
+    return scene;
+}
+
+} // namespace
+
+TEST_CASE("Scene::Intersect finds the same nearest hit as brute force for 100,000 random rays", "[geometry]") {
+    const Scene scene = MakeRandomScene();
+    const Primitives primitives = Primitives::Of(scene);
+    REQUIRE(primitives.triangles.size() == 2000);
+    REQUIRE(primitives.centers.size() == 50);
+    REQUIRE(scene.GetBvh().Soup().Count() == 2050);
+    REQUIRE(scene.GetBvh().Depth() <= 64);
+    Rng rng(202, 0);
+    int hits = 0, sphereHits = 0, ties = 0;
+    for (int i = 0; i < 100000; i++) {
+        // Origins in a box a little larger than the scene's, directions uniform.
+        const Ray ray{3.f * rng.GetVec3() - Vec3(1.5f), SampleUniformSphereW(rng.GetVec2())};
+        float bruteT = kInfinity;
+        const int brute = BruteForceNearest(primitives, ray, 0.f, bruteT);
+        Hit hit;
+        const bool found = scene.Intersect(ray, hit);
+        REQUIRE(found == (brute >= 0));
+        if (!found) continue;
+        hits++;
+        REQUIRE(hit.mDist == Approx(bruteT).epsilon(1e-6));
+        if (hit.mPrimitiveId != brute) {
+            ties++;
+            REQUIRE(hit.mDist == Approx(bruteT).epsilon(1e-5));
+        }
+        // The hit record describes the primitive that was hit.
+        REQUIRE(hit.mMaterialId == 0);
+        REQUIRE(hit.mLightId == -1);
+        if (hit.mPrimitiveId < 2000) {
+            REQUIRE(hit.mNormal == scene.mTriangles[size_t(hit.mPrimitiveId)].mNormal);
+        } else {
+            sphereHits++;
+            const Sphere& sphere = scene.mSpheres[size_t(hit.mPrimitiveId - 2000)];
+            const Vec3 outward = glm::normalize(ray.mOrigin + hit.mDist * ray.mDirection - sphere.mCenter);
+            REQUIRE(glm::length(hit.mNormal) == Approx(1.f).epsilon(1e-5));
+            REQUIRE(glm::dot(hit.mNormal, outward) > 0.9999f);
+        }
+    }
+    INFO(hits << " hits, " << sphereHits << " on spheres, " << ties << " exact ties");
+    // The scene is dense enough that the comparison is not vacuous.
+    REQUIRE(hits > 10000);
+    REQUIRE(sphereHits > 2000);
+}
+
+TEST_CASE("Scene::Occluded agrees with brute force for 10,000 segments", "[geometry]") {
+    const Scene scene = MakeRandomScene();
+    const Primitives primitives = Primitives::Of(scene);
+    const float epsilon = scene.RayEpsilon();
+    REQUIRE(epsilon > 0.f);
+    Rng rng(203, 0);
+    int occluded = 0;
+    for (int i = 0; i < 10000; i++) {
+        const Vec3 from = 3.f * rng.GetVec3() - Vec3(1.5f);
+        Vec3 to;
+        if (i % 2 == 0) {
+            to = 3.f * rng.GetVec3() - Vec3(1.5f);
+        } else {
+            // Shadow rays as integrators cast them: to a point on a triangle.
+            const Triangle& tri = scene.mTriangles[size_t(rng.NextUint() % 2000u)];
+            const Vec2 b = SampleUniformTriangle(rng.GetVec2());
+            to = b.x * tri.mP0 + b.y * tri.mP1 + (1.f - b.x - b.y) * tri.mP2;
+        }
+        const float distance = glm::length(to - from);
+        const Vec3 direction = (to - from) / distance;
+        // Scene::Occluded's contract: the segment shrunk by the ray epsilon at both ends.
+        const Ray ray{from + direction * epsilon, direction};
+        const bool expected = BruteForceAny(primitives, ray, 0.f, distance - 2.f * epsilon);
+        REQUIRE(scene.Occluded(from, direction, distance) == expected);
+        if (expected) occluded++;
+    }
+    INFO(occluded << " of 10000 segments occluded");
+    REQUIRE(occluded > 2000);
+    REQUIRE(occluded < 8000);
+}
+
+TEST_CASE("The BVH handles primitives that all share one centroid", "[geometry]") {
+    // Triangles whose bounding boxes are all centred on the origin (vertex offsets
+    // (-a,-b,-d), (a, y1, z1), (x2, b, d) with |x2| <= a etc.): no split can separate them.
+    Primitives primitives;
+    Rng rng(204, 0);
+    for (int i = 0; i < 300; i++) {
+        const float a = 0.1f + rng.GetFloat(), b = 0.1f + rng.GetFloat(), d = 0.1f + rng.GetFloat();
+        const auto within = [&](float aLimit) { return (2.f * rng.GetFloat() - 1.f) * aLimit; };
+        primitives.AddTriangle(Vec3(-a, -b, -d), Vec3(a, within(b), within(d)), Vec3(within(a), b, d));
+    }
+    const PrimitiveSoup soup = primitives.Soup();
+    for (int i = 0; i < soup.Count(); i++) REQUIRE(soup.Bounds(i).Centroid() == Vec3(0.f));
+    Bvh bvh;
+    bvh.Build(soup);
+    REQUIRE(bvh.NodeCount() >= 1);
+    REQUIRE(bvh.Depth() <= 64);
+    REQUIRE(CompareBvhWithBruteForce(primitives, bvh, 5000, 2.f, 205) > 300);
+}
+
+TEST_CASE("The BVH stays within its depth bound when centroids form geometric progressions", "[geometry]") {
+    // Along each axis, triangles whose centroids lie at 2^-k on that axis and at 0 on the
+    // other two (k < 120; a triangle spans [0.75, 1.25] 2^-k along its axis and [-h, h]
+    // across, so every centroid is exact). In a node, the few largest centroids of the
+    // longest axis fall into the upper bins and all the others share the first bin, so
+    // each SAH split peels off a handful of primitives: about 25 levels per axis, 75 in
+    // all, more than the 64-entry traversal stacks hold without the builder's depth cap.
+    Primitives primitives;
+    const float h = 0.5f;
+    for (int axis = 0; axis < 3; axis++)
+        for (int k = 0; k < 120; k++) {
+            const float x = std::ldexp(1.f, -k);
+            auto place = [axis](float aAlong, float aAcross1, float aAcross2) {
+                Vec3 p;
+                p[axis] = aAlong;
+                p[(axis + 1) % 3] = aAcross1;
+                p[(axis + 2) % 3] = aAcross2;
+                return p;
+            };
+            primitives.AddTriangle(place(0.75f * x, -h, -h), place(1.25f * x, h, -h), place(x, 0.f, h));
+        }
+    Bvh bvh;
+    bvh.Build(primitives.Soup());
+    INFO("depth " << bvh.Depth() << ", " << bvh.NodeCount() << " nodes");
+    REQUIRE(bvh.Depth() >= 50);  // the distribution really is pathological
+    REQUIRE(bvh.Depth() <= 64);  // and the traversal stacks (64 entries) are safe
+    REQUIRE(CompareBvhWithBruteForce(primitives, bvh, 3000, 1.5f, 206) > 100);
+}
+
+TEST_CASE("A BVH over a single triangle or a single sphere is one leaf and finds it", "[geometry]") {
+    Primitives oneTriangle;
+    oneTriangle.AddTriangle(Vec3(0.f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f));
+    Bvh triangleBvh;
+    triangleBvh.Build(oneTriangle.Soup());
+    REQUIRE(triangleBvh.NodeCount() == 1);
+    REQUIRE(triangleBvh.Depth() == 1);
+    float t = kInfinity;
+    REQUIRE(triangleBvh.Intersect(Ray{Vec3(0.2f, 0.2f, 1.f), Vec3(0.f, 0.f, -1.f)}, 0.f, t) == 0);
+    REQUIRE(t == Approx(1.f).epsilon(1e-6));
+    REQUIRE(triangleBvh.Occluded(Ray{Vec3(0.2f, 0.2f, 1.f), Vec3(0.f, 0.f, -1.f)}, 0.f, 2.f));
+    REQUIRE_FALSE(triangleBvh.Occluded(Ray{Vec3(0.2f, 0.2f, 1.f), Vec3(0.f, 0.f, -1.f)}, 0.f, 0.5f));
+    REQUIRE(CompareBvhWithBruteForce(oneTriangle, triangleBvh, 2000, 1.5f, 207) > 0);
+
+    Primitives oneSphere;
+    oneSphere.AddSphere(Vec3(0.5f, 0.f, 0.f), 0.7f);
+    Bvh sphereBvh;
+    sphereBvh.Build(oneSphere.Soup());
+    REQUIRE(sphereBvh.NodeCount() == 1);
+    REQUIRE(sphereBvh.Depth() == 1);
+    t = kInfinity;
+    REQUIRE(sphereBvh.Intersect(Ray{Vec3(0.5f, 0.f, -5.f), Vec3(0.f, 0.f, 1.f)}, 0.f, t) == 0);
+    REQUIRE(t == Approx(4.3f).epsilon(1e-6));
+    REQUIRE(CompareBvhWithBruteForce(oneSphere, sphereBvh, 2000, 1.5f, 208) > 100);
+
+    // And an empty BVH finds nothing.
+    Bvh empty;
+    empty.Build(PrimitiveSoup{});
+    t = kInfinity;
+    REQUIRE(empty.Intersect(Ray{}, 0.f, t) == -1);
+    REQUIRE_FALSE(empty.Occluded(Ray{}, 0.f, kInfinity));
+}
+
+TEST_CASE("An axis-parallel ray lying in the plane of a bounding-box face still finds the triangle it hits", "[geometry]") {
+    // A triangle with one edge in the plane {axis} = 0 and its third vertex at
+    // {axis} = +1 or -1, so that this plane is the min or the max face of its bounding
+    // box. A ray inside that plane with a direction component of exactly +0 or -0 along
+    // {axis} hits the edge; the slab test then sees 0 * inf = NaN for that face, which
+    // must count as "inside the slab", not as a miss.
+    int failures = 0, cases = 0;
+    std::string missed;
+    for (const float side : {1.f, -1.f})
+        for (const float zeroSign : {1.f, -1.f})
+            for (int axis = 0; axis < 3; axis++) {
+                auto place = [axis](const Vec3& aP) {
+                    Vec3 q;
+                    q[axis] = aP.x;
+                    q[(axis + 1) % 3] = aP.y;
+                    q[(axis + 2) % 3] = aP.z;
+                    return q;
+                };
+                Primitives primitives;
+                primitives.AddTriangle(place(Vec3(0.f, -1.f, -1.f)), place(Vec3(0.f, 1.f, -1.f)), place(Vec3(side, 0.f, 1.f)));
+                Bvh bvh;
+                bvh.Build(primitives.Soup());
+                const Ray ray{place(Vec3(0.f, 0.3f, -5.f)), place(Vec3(zeroSign * 0.f, 0.f, 1.f))};
+                float bruteT = kInfinity, bvhT = kInfinity;
+                REQUIRE(BruteForceNearest(primitives, ray, 0.f, bruteT) == 0);  // the edge is inclusive
+                REQUIRE(bruteT == Approx(4.f).epsilon(1e-6));
+                const bool found = bvh.Intersect(ray, 0.f, bvhT) == 0;
+                const bool occluded = bvh.Occluded(ray, 0.f, kInfinity);
+                cases++;
+                if (!found || !occluded) {
+                    failures++;
+                    missed += "\n  axis " + std::to_string(axis) + ", " + (side > 0.f ? "min" : "max") + " face, direction component " +
+                              (zeroSign > 0.f ? "+0" : "-0");
+                }
+            }
+    INFO(failures << " of " << cases << " configurations missed:" << missed);
+    CHECK(failures == 0);
+}

@@ -1,0 +1,474 @@
+// [sampling] Random numbers and sampling: every sampling routine against the pdf it
+// claims. Three kinds of check, all with fixed seeds so that a run is reproducible:
+//   * units: the pdf a sampler returns equals the standalone pdf at the sampled point,
+//     samples land in the routine's domain, measure conversions invert each other;
+//   * Monte Carlo normalisation: each pdf integrates to 1 over its domain; the tolerance
+//     is a multiple of the standard error measured from the same samples;
+//   * chi-square goodness of fit: sampled directions (or points) binned into cells whose
+//     expected counts come from integrating the pdf numerically over each cell.
+#include "test_util.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <functional>
+#include <vector>
+
+using namespace smallvcm;
+
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586;
+
+// Upper quantile of the chi-square distribution with aDof degrees of freedom at
+// significance 1e-3, by the Wilson-Hilferty approximation: (X / k)^(1/3) is nearly
+// normal with mean 1 - 2/(9k) and variance 2/(9k), so the quantile is
+// k (1 - 2/(9k) + z sqrt(2/(9k)))^3 with z = 3.0902, the standard normal quantile at
+// 1 - 1e-3. It errs on the safe side in the tail: k = 3 gives 16.55 (exact 16.27),
+// k = 100 gives 149.5 (exact 149.4).
+double ChiSquareThreshold(int aDof) {
+    const double z = 3.090232306167813;
+    const double k = double(aDof);
+    const double a = 2.0 / (9.0 * k);
+    return k * std::pow(1.0 - a + z * std::sqrt(a), 3.0);
+}
+
+struct ChiSquare {
+    double statistic = 0.0;
+    int dof = 0;
+    double threshold = 0.0;
+};
+
+// Pearson's statistic over the cells. Cells expecting fewer than 5 samples are pooled
+// into one (the usual validity condition of the chi-square approximation); if the pool
+// itself still expects fewer than 5 it is merged into the smallest remaining cell.
+ChiSquare ComputeChiSquare(const std::vector<double>& aObserved, const std::vector<double>& aExpected) {
+    std::vector<double> observed, expected;
+    double pooledObserved = 0.0, pooledExpected = 0.0;
+    for (size_t i = 0; i < aExpected.size(); i++) {
+        if (aExpected[i] < 5.0) {
+            pooledObserved += aObserved[i];
+            pooledExpected += aExpected[i];
+        } else {
+            observed.push_back(aObserved[i]);
+            expected.push_back(aExpected[i]);
+        }
+    }
+    if (pooledExpected >= 5.0 || expected.empty()) {
+        observed.push_back(pooledObserved);
+        expected.push_back(pooledExpected);
+    } else if (pooledObserved > 0.0 || pooledExpected > 0.0) {
+        size_t smallest = 0;
+        for (size_t i = 1; i < expected.size(); i++)
+            if (expected[i] < expected[smallest]) smallest = i;
+        observed[smallest] += pooledObserved;
+        expected[smallest] += pooledExpected;
+    }
+    ChiSquare result;
+    for (size_t i = 0; i < expected.size(); i++) {
+        const double d = observed[i] - expected[i];
+        // A cell that expects nothing but receives samples is an outright failure.
+        result.statistic += expected[i] > 0.0 ? d * d / expected[i] : (observed[i] > 0.0 ? 1e30 : 0.0);
+    }
+    result.dof = std::max(1, int(expected.size()) - 1);
+    result.threshold = ChiSquareThreshold(result.dof);
+    return result;
+}
+
+// Cells on the sphere of directions: bands between consecutive cos(theta) edges times
+// equal phi sectors, plus one last cell for every direction below the first edge.
+struct DirectionGrid {
+    std::vector<double> cosEdges;  // ascending, the last one 1
+    int phiBins = 1;
+
+    int CellCount() const { return int(cosEdges.size() - 1) * phiBins + 1; }
+    int CellOf(const Vec3& aDirection) const {
+        const double z = aDirection.z;
+        if (z < cosEdges.front()) return CellCount() - 1;
+        int band = int(std::upper_bound(cosEdges.begin(), cosEdges.end(), z) - cosEdges.begin()) - 1;
+        band = std::min(band, int(cosEdges.size()) - 2);
+        double phi = std::atan2(double(aDirection.y), double(aDirection.x));
+        if (phi < 0.0) phi += kTwoPi;
+        const int sector = std::min(phiBins - 1, int(phi / kTwoPi * phiBins));
+        return band * phiBins + sector;
+    }
+    // Integral of aPdf over each cell by the midpoint rule on aSub x aSub sub-cells
+    // (dw = dcos(theta) dphi); the last cell integrates [-1, cosEdges[0]] on a grid
+    // of 64 bands.
+    std::vector<double> Integrate(const std::function<double(const Vec3&)>& aPdf, int aSub) const {
+        std::vector<double> integral(size_t(CellCount()), 0.0);
+        auto integrateBand = [&](double aCos0, double aCos1, int aBands, int aCellOfSector0, bool aOneCell) {
+            const double dCos = (aCos1 - aCos0) / aBands;
+            const int phiSteps = phiBins * aSub;
+            const double dPhi = kTwoPi / phiSteps;
+            for (int i = 0; i < aBands; i++) {
+                const double c = aCos0 + (i + 0.5) * dCos;
+                const double s = std::sqrt(std::max(0.0, 1.0 - c * c));
+                for (int j = 0; j < phiSteps; j++) {
+                    const double phi = (j + 0.5) * dPhi;
+                    const Vec3 w(float(s * std::cos(phi)), float(s * std::sin(phi)), float(c));
+                    const int cell = aOneCell ? aCellOfSector0 : aCellOfSector0 + j / aSub;
+                    integral[size_t(cell)] += aPdf(w) * dCos * dPhi;
+                }
+            }
+        };
+        for (size_t b = 0; b + 1 < cosEdges.size(); b++)
+            integrateBand(cosEdges[b], cosEdges[b + 1], aSub, int(b) * phiBins, false);
+        if (cosEdges.front() > -1.0) integrateBand(-1.0, cosEdges.front(), 64, CellCount() - 1, true);
+        return integral;
+    }
+};
+
+std::vector<double> UniformEdges(double aFrom, double aTo, int aCount) {
+    std::vector<double> edges;
+    for (int i = 0; i <= aCount; i++) edges.push_back(aFrom + (aTo - aFrom) * i / aCount);
+    return edges;
+}
+
+// Mean of a sample and the standard error of that mean (from the sample variance).
+struct Estimate {
+    double mean = 0.0, standardError = 0.0;
+};
+Estimate MeanOf(const std::vector<double>& aValues) {
+    double sum = 0.0, sumSqr = 0.0;
+    for (double v : aValues) { sum += v; sumSqr += v * v; }
+    const double n = double(aValues.size());
+    Estimate e;
+    e.mean = sum / n;
+    e.standardError = std::sqrt(std::max(0.0, sumSqr / n - e.mean * e.mean) / (n - 1.0));
+    return e;
+}
+
+// The Phong exponents the tests use: 0 (uniform hemisphere), 1, 10 and 90 (SmallVCM's floor).
+const float kPowers[] = {0.f, 1.f, 10.f, 90.f};
+
+} // namespace
+
+// ---------------------------------------------------------------------------------
+// Units: returned pdfs and domains
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("The cosine hemisphere sampler returns unit directions in the upper hemisphere with the pdf CosHemispherePdfW gives", "[sampling]") {
+    Rng rng(11, 0);
+    for (int i = 0; i < 10000; i++) {
+        float pdf = -1.f;
+        const Vec3 w = SampleCosHemisphereW(rng.GetVec2(), &pdf);
+        REQUIRE(glm::length(w) == Approx(1.f).epsilon(1e-5));
+        REQUIRE(w.z >= 0.f);
+        REQUIRE(pdf == Approx(CosHemispherePdfW(w)).epsilon(1e-5));
+    }
+    // Known values: straight up has pdf 1/pi, below the horizon 0.
+    REQUIRE(CosHemispherePdfW(Vec3(0.f, 0.f, 1.f)) == Approx(1.0 / kPi).epsilon(1e-6));
+    REQUIRE(CosHemispherePdfW(Vec3(0.f, 0.6f, -0.8f)) == 0.f);
+}
+
+TEST_CASE("The power-cosine sampler returns the pdf PowerCosHemispherePdfW gives, for exponents 0, 1, 10 and 90", "[sampling]") {
+    Rng rng(12, 0);
+    for (float power : kPowers) {
+        INFO("exponent " << power);
+        for (int i = 0; i < 10000; i++) {
+            float pdf = -1.f;
+            const Vec3 w = SamplePowerCosHemisphereW(rng.GetVec2(), power, &pdf);
+            REQUIRE(glm::length(w) == Approx(1.f).epsilon(1e-5));
+            REQUIRE(w.z >= 0.f);
+            REQUIRE(pdf == Approx(PowerCosHemispherePdfW(w, power)).epsilon(1e-5));
+        }
+        // At the pole the pdf is (n+1)/(2 pi); below the horizon the lobe has no mass.
+        REQUIRE(PowerCosHemispherePdfW(Vec3(0.f, 0.f, 1.f), power) == Approx((power + 1.0) / kTwoPi).epsilon(1e-6));
+        CHECK(PowerCosHemispherePdfW(Vec3(0.f, 0.6f, -0.8f), power) == 0.f);
+    }
+    // Exponent 0 is the uniform hemisphere; exponent 1 is the cosine lobe.
+    REQUIRE(PowerCosHemispherePdfW(Vec3(0.6f, 0.f, 0.8f), 0.f) == Approx(1.0 / kTwoPi).epsilon(1e-6));
+    REQUIRE(PowerCosHemispherePdfW(Vec3(0.6f, 0.f, 0.8f), 1.f) == Approx(0.8 / kPi).epsilon(1e-6));
+}
+
+TEST_CASE("The uniform sphere sampler returns unit directions with pdf 1/(4 pi)", "[sampling]") {
+    Rng rng(13, 0);
+    for (int i = 0; i < 10000; i++) {
+        float pdf = -1.f;
+        const Vec3 w = SampleUniformSphereW(rng.GetVec2(), &pdf);
+        REQUIRE(glm::length(w) == Approx(1.f).epsilon(1e-5));
+        REQUIRE(pdf == Approx(UniformSpherePdfW()).epsilon(1e-5));
+    }
+    REQUIRE(UniformSpherePdfW() == Approx(1.0 / (2.0 * kTwoPi)).epsilon(1e-6));
+}
+
+TEST_CASE("The uniform cone sampler stays inside the cone and returns the pdf UniformConePdfW gives", "[sampling]") {
+    Rng rng(14, 0);
+    for (float cosMax : {-0.5f, 0.f, 0.3f, 0.95f, 0.9999f}) {
+        INFO("cos max " << cosMax);
+        for (int i = 0; i < 10000; i++) {
+            float pdf = -1.f;
+            const Vec3 w = SampleUniformConeW(rng.GetVec2(), cosMax, &pdf);
+            REQUIRE(glm::length(w) == Approx(1.f).epsilon(1e-5));
+            REQUIRE(w.z >= cosMax - 1e-6f);
+            REQUIRE(pdf == Approx(UniformConePdfW(cosMax)).epsilon(1e-5));
+        }
+        REQUIRE(UniformConePdfW(cosMax) == Approx(1.0 / (kTwoPi * (1.0 - cosMax))).epsilon(1e-5));
+    }
+}
+
+TEST_CASE("Triangle samples are valid barycentrics; u1 = 0 gives vertex 0 and u1 = 1 the opposite edge", "[sampling]") {
+    Rng rng(15, 0);
+    for (int i = 0; i < 10000; i++) {
+        const Vec2 b = SampleUniformTriangle(rng.GetVec2());
+        REQUIRE(b.x >= 0.f);
+        REQUIRE(b.y >= 0.f);
+        REQUIRE(b.x + b.y <= 1.f + 1e-6f);
+    }
+    // u1 = 0 collapses onto vertex 0 (b0 = 1); u1 = 1 gives the opposite edge (b0 = 0).
+    REQUIRE(SampleUniformTriangle(Vec2(0.f, 0.7f)).x == 1.f);
+    REQUIRE(SampleUniformTriangle(Vec2(0.f, 0.7f)).y == 0.f);
+    REQUIRE(SampleUniformTriangle(Vec2(1.f, 0.25f)).x == 0.f);
+    REQUIRE(SampleUniformTriangle(Vec2(1.f, 0.25f)).y == 0.25f);
+}
+
+TEST_CASE("Concentric disc samples lie in the unit disc and the square's edge maps to the circle", "[sampling]") {
+    Rng rng(16, 0);
+    for (int i = 0; i < 10000; i++) {
+        const Vec2 p = SampleConcentricDisc(rng.GetVec2());
+        REQUIRE(glm::length(p) <= 1.f + 1e-6f);
+    }
+    REQUIRE(glm::length(SampleConcentricDisc(Vec2(0.5f, 0.5f))) == 0.f);
+    for (const Vec2 u : {Vec2(1.f, 0.5f), Vec2(0.f, 0.2f), Vec2(0.3f, 1.f), Vec2(0.f, 0.f), Vec2(1.f, 1.f)})
+        REQUIRE(glm::length(SampleConcentricDisc(u)) == Approx(1.f).epsilon(1e-6));
+    REQUIRE(ConcentricDiscPdfA() == Approx(1.0 / kPi).epsilon(1e-6));
+}
+
+TEST_CASE("PdfWtoA and PdfAtoW are inverses of each other and use |cos| / d^2", "[sampling]") {
+    REQUIRE(PdfWtoA(2.f, 3.f, 0.5f) == Approx(2.0 * 0.5 / 9.0).epsilon(1e-6));
+    REQUIRE(PdfAtoW(2.f, 3.f, -0.5f) == Approx(2.0 * 9.0 / 0.5).epsilon(1e-6));
+    Rng rng(17, 0);
+    for (int i = 0; i < 1000; i++) {
+        const float pdf = 0.01f + 100.f * rng.GetFloat();
+        const float dist = 0.001f + 50.f * rng.GetFloat();
+        const float cosine = (rng.GetFloat() < 0.5f ? -1.f : 1.f) * (0.001f + 0.999f * rng.GetFloat());
+        REQUIRE(PdfAtoW(PdfWtoA(pdf, dist, cosine), dist, cosine) == Approx(pdf).epsilon(1e-5));
+        REQUIRE(PdfWtoA(PdfAtoW(pdf, dist, cosine), dist, cosine) == Approx(pdf).epsilon(1e-5));
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Monte Carlo normalisation
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("Every direction pdf integrates to 1 over the sphere (Monte Carlo with uniform sphere samples)", "[sampling]") {
+    // Estimate of the integral of p over the sphere: the mean of p(w) / (1/(4 pi)) over
+    // uniform directions w. Its standard error is measured from the same samples, and the
+    // tolerance is 5 standard errors (a correct pdf fails with probability ~6e-7).
+    const int n = 1000000;
+    Rng rng(21, 0);
+    std::vector<Vec3> directions(n);
+    for (Vec3& w : directions) w = SampleUniformSphereW(rng.GetVec2());
+
+    auto check = [&](const char* aName, const std::function<double(const Vec3&)>& aPdf) {
+        std::vector<double> values(directions.size());
+        for (size_t i = 0; i < directions.size(); i++) values[i] = aPdf(directions[i]) / double(UniformSpherePdfW());
+        const Estimate e = MeanOf(values);
+        INFO(aName << ": integral " << e.mean << " +- " << e.standardError);
+        CHECK(std::abs(e.mean - 1.0) <= 5.0 * e.standardError);
+    };
+    check("cosine hemisphere", [](const Vec3& w) { return CosHemispherePdfW(w); });
+    for (float power : kPowers) {
+        INFO("exponent " << power);
+        check("power cosine", [power](const Vec3& w) { return PowerCosHemispherePdfW(w, power); });
+    }
+    // The uniform sphere pdf is constant: its estimate has no variance, so the check is exact.
+    REQUIRE(double(UniformSpherePdfW()) * 4.0 * kPi == Approx(1.0).epsilon(1e-6));
+    for (float cosMax : {0.3f, 0.9f})
+        check("uniform cone", [cosMax](const Vec3& w) { return w.z >= cosMax ? double(UniformConePdfW(cosMax)) : 0.0; });
+}
+
+TEST_CASE("The concentric disc pdf integrates to 1 over the disc (Monte Carlo over the enclosing square)", "[sampling]") {
+    // Points uniform in [-1,1]^2 (area 4): the estimate is the mean of 4 p(x) [x in disc].
+    // Tolerance: 5 standard errors measured from the samples.
+    Rng rng(22, 0);
+    std::vector<double> values(400000);
+    for (double& v : values) {
+        const Vec2 x = 2.f * rng.GetVec2() - Vec2(1.f);
+        v = glm::dot(x, x) <= 1.f ? 4.0 * double(ConcentricDiscPdfA()) : 0.0;
+    }
+    const Estimate e = MeanOf(values);
+    INFO("integral " << e.mean << " +- " << e.standardError);
+    REQUIRE(std::abs(e.mean - 1.0) <= 5.0 * e.standardError);
+}
+
+// ---------------------------------------------------------------------------------
+// Chi-square goodness of fit
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("Cosine hemisphere samples pass a chi-square test against the cosine pdf", "[sampling]") {
+    const int n = 1000000;  // enough to notice a 5% error in the lobe's exponent
+    DirectionGrid grid;
+    grid.cosEdges = UniformEdges(0.0, 1.0, 16);
+    grid.phiBins = 24;
+    const std::vector<double> integral = grid.Integrate([](const Vec3& w) { return CosHemispherePdfW(w); }, 8);
+    std::vector<double> observed(integral.size(), 0.0), expected(integral.size());
+    for (size_t i = 0; i < integral.size(); i++) expected[i] = n * integral[i];
+    Rng rng(31, 0);
+    for (int i = 0; i < n; i++) observed[size_t(grid.CellOf(SampleCosHemisphereW(rng.GetVec2())))] += 1.0;
+    // Threshold: the chi-square quantile at significance 1e-3 (Wilson-Hilferty).
+    const ChiSquare chi = ComputeChiSquare(observed, expected);
+    INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+    REQUIRE(chi.dof >= 300);
+    REQUIRE(chi.statistic < chi.threshold);
+}
+
+TEST_CASE("Power-cosine samples pass a chi-square test against the Phong lobe pdf for exponents 0, 1, 10 and 90", "[sampling]") {
+    const int n = 1000000;  // enough to notice a 5% error in the lobe's exponent
+    for (float power : kPowers) DYNAMIC_SECTION("exponent " << power) {
+        // Bands uniform in cos(theta) over [1 - 10/(n+1), 1], where all but ~e^-10 of the
+        // lobe lies (cos^(n+1) ~ exp(-(n+1)(1 - cos))), so a narrow lobe still spreads
+        // over many cells; the rest of the sphere is the last cell.
+        DirectionGrid grid;
+        grid.cosEdges = UniformEdges(std::max(0.0, 1.0 - 10.0 / (power + 1.0)), 1.0, 16);
+        grid.phiBins = 24;
+        const std::vector<double> integral =
+            grid.Integrate([power](const Vec3& w) { return PowerCosHemispherePdfW(w, power); }, 8);
+        double total = 0.0;
+        for (double v : integral) total += v;
+        // The numerical integral itself must be 1, or the expected counts are meaningless.
+        REQUIRE(total == Approx(1.0).epsilon(1e-3));
+        std::vector<double> observed(integral.size(), 0.0), expected(integral.size());
+        for (size_t i = 0; i < integral.size(); i++) expected[i] = n * integral[i];
+        Rng rng(32, uint64_t(power));
+        for (int i = 0; i < n; i++) observed[size_t(grid.CellOf(SamplePowerCosHemisphereW(rng.GetVec2(), power)))] += 1.0;
+        // Threshold: the chi-square quantile at significance 1e-3 (Wilson-Hilferty).
+        const ChiSquare chi = ComputeChiSquare(observed, expected);
+        INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+        REQUIRE(chi.dof >= 200);  // most of the 385 cells expect enough samples to count
+        REQUIRE(chi.statistic < chi.threshold);
+    }
+}
+
+TEST_CASE("Uniform cone samples pass a chi-square test against the constant cone pdf", "[sampling]") {
+    const int n = 200000;
+    const float cosMax = 0.725f;  // on the integration sub-grid, away from the band edges
+    DirectionGrid grid;
+    grid.cosEdges = UniformEdges(0.0, 1.0, 20);  // bands below cosMax expect nothing
+    grid.phiBins = 16;
+    const std::vector<double> integral =
+        grid.Integrate([cosMax](const Vec3& w) { return w.z >= cosMax ? double(UniformConePdfW(cosMax)) : 0.0; }, 8);
+    std::vector<double> observed(integral.size(), 0.0), expected(integral.size());
+    for (size_t i = 0; i < integral.size(); i++) expected[i] = n * integral[i];
+    Rng rng(33, 0);
+    for (int i = 0; i < n; i++) observed[size_t(grid.CellOf(SampleUniformConeW(rng.GetVec2(), cosMax)))] += 1.0;
+    // Threshold: the chi-square quantile at significance 1e-3 (Wilson-Hilferty).
+    const ChiSquare chi = ComputeChiSquare(observed, expected);
+    INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+    REQUIRE(chi.statistic < chi.threshold);
+}
+
+TEST_CASE("Triangle samples fall into the four sub-triangles of a midpoint subdivision equally often", "[sampling]") {
+    // With barycentrics (b0, b1, b2): the corner sub-triangle of vertex k is b_k > 1/2,
+    // the middle one is everything else. Each has a quarter of the area.
+    const int n = 400000;
+    std::vector<double> observed(4, 0.0), expected(4, n / 4.0);
+    Rng rng(34, 0);
+    for (int i = 0; i < n; i++) {
+        const Vec2 b = SampleUniformTriangle(rng.GetVec2());
+        const float b2 = 1.f - b.x - b.y;
+        const int cell = b.x > 0.5f ? 0 : (b.y > 0.5f ? 1 : (b2 > 0.5f ? 2 : 3));
+        observed[size_t(cell)] += 1.0;
+    }
+    // Threshold: the chi-square quantile at significance 1e-3 (Wilson-Hilferty), 3 dof.
+    const ChiSquare chi = ComputeChiSquare(observed, expected);
+    INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+    REQUIRE(chi.dof == 3);
+    REQUIRE(chi.statistic < chi.threshold);
+}
+
+TEST_CASE("Concentric disc samples fall into equal-area rings and sectors equally often", "[sampling]") {
+    // Ring k lies between radii sqrt(k/8) and sqrt((k+1)/8); 8 rings x 16 sectors of
+    // equal area pi/128 each.
+    const int n = 256000, rings = 8, sectors = 16;
+    std::vector<double> observed(size_t(rings * sectors), 0.0), expected(observed.size(), double(n) / (rings * sectors));
+    Rng rng(35, 0);
+    for (int i = 0; i < n; i++) {
+        const Vec2 p = SampleConcentricDisc(rng.GetVec2());
+        const int ring = std::min(rings - 1, int(double(glm::dot(p, p)) * rings));
+        double phi = std::atan2(double(p.y), double(p.x));
+        if (phi < 0.0) phi += kTwoPi;
+        const int sector = std::min(sectors - 1, int(phi / kTwoPi * sectors));
+        observed[size_t(ring * sectors + sector)] += 1.0;
+    }
+    // Threshold: the chi-square quantile at significance 1e-3 (Wilson-Hilferty).
+    const ChiSquare chi = ComputeChiSquare(observed, expected);
+    INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+    REQUIRE(chi.statistic < chi.threshold);
+}
+
+// ---------------------------------------------------------------------------------
+// Rng
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("Rng is PCG32: seed 42, stream 54 gives the reference generator's first outputs", "[sampling]") {
+    // The first six outputs of O'Neill's pcg32 demo program (pcg32_srandom(42, 54)).
+    Rng rng(42, 54);
+    const uint32_t expected[] = {0xa15c02b7u, 0x7b47f409u, 0xba1d3330u, 0x83d2f293u, 0xbfa4784bu, 0xcbed606eu};
+    for (uint32_t e : expected) REQUIRE(rng.NextUint() == e);
+}
+
+TEST_CASE("Rng::GetFloat lies in [0, 1) and has mean 1/2", "[sampling]") {
+    const int n = 1000000;
+    Rng rng(41, 3);
+    double sum = 0.0;
+    float smallest = 1.f, largest = 0.f;
+    for (int i = 0; i < n; i++) {
+        const float x = rng.GetFloat();
+        smallest = std::min(smallest, x);
+        largest = std::max(largest, x);
+        sum += x;
+    }
+    REQUIRE(smallest >= 0.f);
+    REQUIRE(largest < 1.f);
+    // U[0,1) has variance 1/12: the mean's standard error is sqrt(1/(12 n)); tolerance 5 of them.
+    const double standardError = std::sqrt(1.0 / (12.0 * n));
+    REQUIRE(std::abs(sum / n - 0.5) <= 5.0 * standardError);
+}
+
+TEST_CASE("Rng::GetFloat passes a chi-square test on 256 equal bins", "[sampling]") {
+    const int n = 512000, bins = 256;
+    std::vector<double> observed(bins, 0.0), expected(bins, double(n) / bins);
+    Rng rng(42, 7);
+    for (int i = 0; i < n; i++) observed[size_t(rng.GetFloat() * bins)] += 1.0;
+    // Threshold: the chi-square quantile at significance 1e-3 (Wilson-Hilferty), 255 dof.
+    const ChiSquare chi = ComputeChiSquare(observed, expected);
+    INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+    REQUIRE(chi.dof == 255);
+    REQUIRE(chi.statistic < chi.threshold);
+}
+
+TEST_CASE("Rng is reproducible for the same seed and stream, and different streams or seeds differ", "[sampling]") {
+    Rng a(1234, 5), b(1234, 5), otherStream(1234, 6), otherSeed(1235, 5);
+    int sameStream = 0, sameSeed = 0;
+    for (int i = 0; i < 1000; i++) {
+        const uint32_t x = a.NextUint();
+        REQUIRE(b.NextUint() == x);
+        if (otherStream.NextUint() == x) sameStream++;
+        if (otherSeed.NextUint() == x) sameSeed++;
+    }
+    // Independent 32-bit streams agree at one position with probability 2^-32: over 1000
+    // positions, even one agreement would be suspicious.
+    REQUIRE(sameStream == 0);
+    REQUIRE(sameSeed == 0);
+    // Reproducible through the float interface as well.
+    Rng c(99, 1), d(99, 1);
+    for (int i = 0; i < 100; i++) REQUIRE(c.GetFloat() == d.GetFloat());
+}
+
+TEST_CASE("Consecutive Rng floats are uncorrelated", "[sampling]") {
+    // Lag-1 sample correlation of n uniform values: under independence it is ~N(0, 1/n);
+    // tolerance 5/sqrt(n).
+    const int n = 500000;
+    Rng rng(43, 0);
+    double prev = rng.GetFloat() - 0.5, sumProduct = 0.0, sumSqr = 0.0;
+    for (int i = 0; i < n; i++) {
+        const double x = rng.GetFloat() - 0.5;
+        sumProduct += x * prev;
+        sumSqr += x * x;
+        prev = x;
+    }
+    const double correlation = sumProduct / sumSqr;
+    REQUIRE(std::abs(correlation) <= 5.0 / std::sqrt(double(n)));
+}
