@@ -40,11 +40,14 @@ $(BUILD) $(BUILD)/tests:
 $(IMPL_OBJ): examples/smallvcm_impl.cpp $(HEADER) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
-$(BUILD)/smallvcm.o: examples/smallvcm.cpp $(HEADER) | $(BUILD)
+# Every examples/NAME.cpp is a program build/NAME linked with the implementation unit.
+$(BUILD)/%.o: examples/%.cpp $(HEADER) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
-$(BUILD)/smallvcm: $(BUILD)/smallvcm.o $(IMPL_OBJ)
+$(BUILD)/%: $(BUILD)/%.o $(IMPL_OBJ)
 	$(CXX) $^ -o $@ $(LDFLAGS)
+
+.PRECIOUS: $(BUILD)/%.o
 
 $(BUILD)/tests/catch_main.o: tests/catch_main.cpp | $(BUILD)/tests
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
