@@ -2423,6 +2423,7 @@ public:
                         vertex.mPathLength = light.mPathLength;
                         vertex.mMis = light.mMis;
                         vertex.mBsdf = bsdf;
+                        vertex.mDirFix = -ray.mDirection;
                         mLightVertices.push_back(vertex);
                     }
                     // Light tracing: connect to the camera (t = 1).
@@ -2517,6 +2518,7 @@ private:
         int mPathLength = 0;
         SubpathMis mMis;
         Bsdf mBsdf;
+        Vec3 mDirFix{0.f};  // the exact direction it arrived from
     };
 
     void GenerateLightSample(Rng& aRng, SubPathState& oState) {
@@ -2729,7 +2731,7 @@ private:
             if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
             // The camera's BSDF, evaluated towards where the light vertex came from.
             float cosCamera, cameraBsdfDirPdfW, cameraBsdfRevPdfW;
-            const Vec3 cameraFactor = aBsdf.Evaluate(vertex.mBsdf.WorldDirFix(), cosCamera, &cameraBsdfDirPdfW, &cameraBsdfRevPdfW);
+            const Vec3 cameraFactor = aBsdf.Evaluate(vertex.mDirFix, cosCamera, &cameraBsdfDirPdfW, &cameraBsdfRevPdfW);
             if (IsBlack(cameraFactor)) return;
             cameraBsdfDirPdfW *= aBsdf.ContinuationProb();
             cameraBsdfRevPdfW *= aBsdf.ContinuationProb();
