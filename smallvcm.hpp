@@ -337,14 +337,29 @@ inline bool IntersectSphere(const Vec3& aCenter, float aRadius, const Ray& aRay,
 // inclusion. Two triangles sharing an edge evaluate its function on the same two vertices
 // in opposite order, getting exactly opposite signs, so a ray through a shared edge hits
 // at least one of them (edges are inclusive). Rays parallel to the plane miss.
+// The per-ray part of that test: the axis the ray mostly runs along (kz), the two others
+// (kx, ky, swapped when the ray runs along -kz so the winding keeps its sign), and the
+// shear that makes the ray run along +z. Computed once per ray, not per triangle.
+struct WatertightRay {
+    int mKx = 0, mKy = 1, mKz = 2;
+    float mSx = 0.f, mSy = 0.f, mSz = 1.f;
+
+    explicit WatertightRay(const Vec3& aDirection) {
+        const Vec3 absD = glm::abs(aDirection);
+        mKz = absD.x > absD.y ? (absD.x > absD.z ? 0 : 2) : (absD.y > absD.z ? 1 : 2);
+        mKx = (mKz + 1) % 3;
+        mKy = (mKx + 1) % 3;
+        if (aDirection[mKz] < 0.f) std::swap(mKx, mKy);
+        mSx = aDirection[mKx] / aDirection[mKz];
+        mSy = aDirection[mKy] / aDirection[mKz];
+        mSz = 1.f / aDirection[mKz];
+    }
+};
+
 inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Ray& aRay,
-                              float aTMin, float aTMax, float& oT) {
-    const Vec3& d = aRay.mDirection;
-    const Vec3 absD = glm::abs(d);
-    const int kz = absD.x > absD.y ? (absD.x > absD.z ? 0 : 2) : (absD.y > absD.z ? 1 : 2);
-    int kx = (kz + 1) % 3, ky = (kx + 1) % 3;
-    if (d[kz] < 0.f) std::swap(kx, ky);  // keeps the winding, so U, V, W keep their signs
-    const float sx = d[kx] / d[kz], sy = d[ky] / d[kz], sz = 1.f / d[kz];
+                              const WatertightRay& aShear, float aTMin, float aTMax, float& oT) {
+    const int kx = aShear.mKx, ky = aShear.mKy, kz = aShear.mKz;
+    const float sx = aShear.mSx, sy = aShear.mSy, sz = aShear.mSz;
     const Vec3 a = aP0 - aRay.mOrigin, b = aP1 - aRay.mOrigin, c = aP2 - aRay.mOrigin;
     const float ax = a[kx] - sx * a[kz], ay = a[ky] - sy * a[kz];
     const float bx = b[kx] - sx * b[kz], by = b[ky] - sy * b[kz];
@@ -364,6 +379,11 @@ inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2,
     return true;
 }
 
+inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Ray& aRay,
+                              float aTMin, float aTMax, float& oT) {
+    return IntersectTriangle(aP0, aP1, aP2, aRay, WatertightRay(aRay.mDirection), aTMin, aTMax, oT);
+}
+
 struct Aabb {
     Vec3 mMin{std::numeric_limits<float>::infinity()};
     Vec3 mMax{-std::numeric_limits<float>::infinity()};
@@ -381,7 +401,7 @@ struct Aabb {
 
 // Slab test against a box; aInvDir = 1 / direction. Infinities are fine (IEEE); the NaN
 // of 0 * inf (a ray lying in the plane of a face) is skipped explicitly below.
-inline bool IntersectAabb(const Vec3& aMin, const Vec3& aMax, const Vec3& aOrigin,
+inline bool IntersectAabb(const float aMin[3], const float aMax[3], const Vec3& aOrigin,
                           const Vec3& aInvDir, float aTMax, float& oTNear) {
     float tNear = 0.f, tFar = aTMax;
     for (int k = 0; k < 3; k++) {
@@ -419,10 +439,10 @@ struct PrimitiveSoup {
         }
         return box;
     }
-    bool Intersect(int aPrimitive, const Ray& aRay, float aTMin, float aTMax, float& oT) const {
+    bool Intersect(int aPrimitive, const Ray& aRay, const WatertightRay& aShear, float aTMin, float aTMax, float& oT) const {
         if (aPrimitive < TriangleCount())
             return IntersectTriangle(mTriangleP0[aPrimitive], mTriangleP1[aPrimitive],
-                                     mTriangleP2[aPrimitive], aRay, aTMin, aTMax, oT);
+                                     mTriangleP2[aPrimitive], aRay, aShear, aTMin, aTMax, oT);
         const int s = aPrimitive - TriangleCount();
         return IntersectSphere(mSphereCenter[s], mSphereRadius[s], aRay, aTMin, aTMax, oT);
     }
@@ -463,6 +483,7 @@ public:
     int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
         if (mNodes.empty()) return -1;
         const Vec3 invDir = 1.f / aRay.mDirection;
+        const WatertightRay shear(aRay.mDirection);
         int hitPrimitive = -1;
         uint32_t stack[64];
         int stackSize = 0;
@@ -475,7 +496,7 @@ public:
                 for (uint32_t i = 0; i < node.mCount; i++) {
                     const int primitive = int(mPrimitiveOrder[node.mOffset + i]);
                     float t;
-                    if (mSoup.Intersect(primitive, aRay, aTMin, ioTMax, t)) {
+                    if (mSoup.Intersect(primitive, aRay, shear, aTMin, ioTMax, t)) {
                         ioTMax = t;
                         hitPrimitive = primitive;
                     }
@@ -508,20 +529,18 @@ public:
     bool Occluded(const Ray& aRay, float aTMin, float aTMax) const {
         if (mNodes.empty()) return false;
         const Vec3 invDir = 1.f / aRay.mDirection;
+        const WatertightRay shear(aRay.mDirection);
         uint32_t stack[64];
         int stackSize = 0;
         stack[stackSize++] = 0;
         while (stackSize > 0) {
             const Node& node = mNodes[stack[--stackSize]];
             float tNear;
-            if (!IntersectAabb(Vec3(node.mMin[0], node.mMin[1], node.mMin[2]),
-                               Vec3(node.mMax[0], node.mMax[1], node.mMax[2]),
-                               aRay.mOrigin, invDir, aTMax, tNear))
-                continue;
+            if (!IntersectAabb(node.mMin, node.mMax, aRay.mOrigin, invDir, aTMax, tNear)) continue;
             if (node.mCount > 0) {
                 for (uint32_t i = 0; i < node.mCount; i++) {
                     float t;
-                    if (mSoup.Intersect(int(mPrimitiveOrder[node.mOffset + i]), aRay, aTMin, aTMax, t))
+                    if (mSoup.Intersect(int(mPrimitiveOrder[node.mOffset + i]), aRay, shear, aTMin, aTMax, t))
                         return true;
                 }
             } else {
@@ -545,8 +564,7 @@ private:
 
     bool NodeHit(uint32_t aNode, const Vec3& aOrigin, const Vec3& aInvDir, float aTMax, float& oTNear) const {
         const Node& n = mNodes[aNode];
-        return IntersectAabb(Vec3(n.mMin[0], n.mMin[1], n.mMin[2]), Vec3(n.mMax[0], n.mMax[1], n.mMax[2]),
-                             aOrigin, aInvDir, aTMax, oTNear);
+        return IntersectAabb(n.mMin, n.mMax, aOrigin, aInvDir, aTMax, oTNear);
     }
 
     int DepthOf(uint32_t aNode) const {
@@ -2292,7 +2310,9 @@ inline float WeightMerge(const VcmMisConstants& c, const SubpathMis& aLight, con
 // Range search over points: a uniform grid of cells of size 2r hashed into a table as
 // large as the point count (SmallVCM's scheme). A query visits the cells overlapping the
 // query's bounding box -- at most 2 x 2 x 2 -- skipping buckets already visited (two
-// cells can hash to one bucket; visiting it twice would count its points twice).
+// cells can hash to one bucket; visiting it twice would count its points twice). The
+// grid keeps its own copy of the positions in bucket order, so the distance tests of a
+// query read consecutive memory; only the points that pass touch the caller's records.
 class HashGrid {
 public:
     template <class PositionOf>
@@ -2303,20 +2323,25 @@ public:
         const size_t buckets = std::max<size_t>(aCount, 1);
         mBucketEnds.assign(buckets, 0);
         mIndices.resize(aCount);
-        std::vector<uint32_t> bucketOf(aCount);
+        mPositions.resize(aCount);
+        mBucketOf.resize(aCount);
         for (size_t i = 0; i < aCount; i++) {
-            bucketOf[i] = BucketOf(CellOf(aPositionOf(i)));
-            mBucketEnds[bucketOf[i]]++;
+            mBucketOf[i] = BucketOf(CellOf(aPositionOf(i)));
+            mBucketEnds[mBucketOf[i]]++;
         }
         uint32_t sum = 0;  // counting sort: ends of the buckets, then fill from the back
         for (uint32_t& end : mBucketEnds) { sum += end; end = sum; }
-        std::vector<uint32_t> cursor = mBucketEnds;
-        for (size_t i = aCount; i-- > 0;) mIndices[--cursor[bucketOf[i]]] = uint32_t(i);
+        mCursor = mBucketEnds;
+        for (size_t i = aCount; i-- > 0;) {
+            const uint32_t slot = --mCursor[mBucketOf[i]];
+            mIndices[slot] = uint32_t(i);
+            mPositions[slot] = aPositionOf(i);
+        }
     }
 
     // Calls aVisit(index) for every point within the radius of aQuery (distance <= r).
-    template <class PositionOf, class Visit>
-    void Process(const Vec3& aQuery, PositionOf&& aPositionOf, Visit&& aVisit) const {
+    template <class Visit>
+    void Process(const Vec3& aQuery, Visit&& aVisit) const {
         if (mIndices.empty()) return;
         const glm::ivec3 low = CellOf(aQuery - Vec3(mRadius));
         const glm::ivec3 high = CellOf(aQuery + Vec3(mRadius));
@@ -2330,9 +2355,8 @@ public:
                     if (visitedCount < 8) visited[visitedCount++] = bucket;
                     const uint32_t begin = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
                     for (uint32_t k = begin; k < mBucketEnds[bucket]; k++) {
-                        const uint32_t index = mIndices[k];
-                        const Vec3 d = aPositionOf(index) - aQuery;
-                        if (glm::dot(d, d) <= mRadiusSqr) aVisit(index);
+                        const Vec3 d = mPositions[k] - aQuery;
+                        if (glm::dot(d, d) <= mRadiusSqr) aVisit(mIndices[k]);
                     }
                 }
     }
@@ -2346,7 +2370,9 @@ private:
 
     float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
     std::vector<uint32_t> mBucketEnds;
-    std::vector<uint32_t> mIndices;
+    std::vector<uint32_t> mIndices;    // point indices in bucket order
+    std::vector<Vec3> mPositions;      // their positions, in the same order
+    std::vector<uint32_t> mBucketOf, mCursor;  // build scratch, kept to avoid reallocating
 };
 
 class VertexCM : public AbstractRenderer {
@@ -2417,13 +2443,14 @@ public:
                 if (!bsdf.IsDelta()) {
                     // Store the vertex for connections and merging.
                     if (mUseVC || mUseVM) {
-                        PathVertex vertex;
+                        LightVertex vertex;
                         vertex.mHitPoint = hitPoint;
-                        vertex.mThroughput = light.mThroughput;
                         vertex.mPathLength = light.mPathLength;
-                        vertex.mMis = light.mMis;
-                        vertex.mBsdf = bsdf;
+                        vertex.mThroughput = light.mThroughput;
+                        vertex.mMaterialId = hit.mMaterialId;
                         vertex.mDirFix = -ray.mDirection;
+                        vertex.mNormal = hit.mNormal;
+                        vertex.mMis = light.mMis;
                         mLightVertices.push_back(vertex);
                     }
                     // Light tracing: connect to the camera (t = 1).
@@ -2511,15 +2538,22 @@ private:
         SubpathMis mMis;
     };
 
-    // A stored light vertex.
-    struct PathVertex {
+public:
+    // A stored light vertex: what a connection or a merge needs, in 68 bytes. The BSDF
+    // is not stored (it would double the size): a connection rebuilds it from the
+    // incoming direction, normal and material -- exactly the inputs it was made from --
+    // and a merge needs only the incoming direction.
+    struct LightVertex {
         Vec3 mHitPoint{0.f};
-        Vec3 mThroughput{0.f};
         int mPathLength = 0;
+        Vec3 mThroughput{0.f};
+        int mMaterialId = 0;
+        Vec3 mDirFix{0.f};  // the exact direction it arrived from (minus the ray direction)
+        Vec3 mNormal{0.f};  // geometric normal of the hit
         SubpathMis mMis;
-        Bsdf mBsdf;
-        Vec3 mDirFix{0.f};  // the exact direction it arrived from
     };
+
+private:
 
     void GenerateLightSample(Rng& aRng, SubPathState& oState) {
         const int lightCount = mScene.LightCount();
@@ -2688,7 +2722,7 @@ private:
         const size_t begin = aPixel == 0 ? 0 : mPathEnds[size_t(aPixel) - 1];
         const size_t end = mPathEnds[size_t(aPixel)];
         for (size_t i = begin; i < end; i++) {
-            const PathVertex& vertex = mLightVertices[i];
+            const LightVertex& vertex = mLightVertices[i];
             const int pathLength = vertex.mPathLength + aCamera.mPathLength + 1;
             if (pathLength > mOptions.mMaxPathLength) break;  // the sub-path's vertices only get longer
             if (pathLength < mOptions.mMinPathLength) continue;
@@ -2704,11 +2738,13 @@ private:
             if (IsBlack(cameraFactor)) continue;
             cameraBsdfDirPdfW *= aBsdf.ContinuationProb();
             cameraBsdfRevPdfW *= aBsdf.ContinuationProb();
+            Bsdf lightBsdf;
+            lightBsdf.Setup(vertex.mDirFix, vertex.mNormal, mScene.GetMaterial(vertex.mMaterialId), true);
             float cosLight, lightBsdfDirPdfW, lightBsdfRevPdfW;
-            const Vec3 lightFactor = vertex.mBsdf.Evaluate(-direction, cosLight, &lightBsdfDirPdfW, &lightBsdfRevPdfW);
+            const Vec3 lightFactor = lightBsdf.Evaluate(-direction, cosLight, &lightBsdfDirPdfW, &lightBsdfRevPdfW);
             if (IsBlack(lightFactor)) continue;
-            lightBsdfDirPdfW *= vertex.mBsdf.ContinuationProb();
-            lightBsdfRevPdfW *= vertex.mBsdf.ContinuationProb();
+            lightBsdfDirPdfW *= lightBsdf.ContinuationProb();
+            lightBsdfRevPdfW *= lightBsdf.ContinuationProb();
 
             const float geometryTerm = cosCamera * cosLight / distanceSqr;
             const float weight = VcmMis::WeightConnection(mMis, vertex.mMis, aCamera.mMis,
@@ -2725,8 +2761,8 @@ private:
     // constant kernel 1 / (pi r^2) over N_L light sub-paths [tech. rep. (11)].
     void MergeWithLightVertices(int aPixel, const SubPathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
         Vec3 sum(0.f);
-        mGrid.Process(aHitPoint, [&](size_t i) { return mLightVertices[i].mHitPoint; }, [&](uint32_t i) {
-            const PathVertex& vertex = mLightVertices[i];
+        mGrid.Process(aHitPoint, [&](uint32_t i) {
+            const LightVertex& vertex = mLightVertices[i];
             const int pathLength = vertex.mPathLength + aCamera.mPathLength;
             if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
             // The camera's BSDF, evaluated towards where the light vertex came from.
@@ -2762,7 +2798,7 @@ private:
     bool mUseVC = false, mUseVM = false, mPpm = false, mLightTraceOnly = false;
     float mBaseRadius = 0.f;
     VcmMisConstants mMis;
-    std::vector<PathVertex> mLightVertices;
+    std::vector<LightVertex> mLightVertices;
     std::vector<size_t> mPathEnds;  // mPathEnds[p]: one past the last vertex of light sub-path p
     HashGrid mGrid;
     int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1};
