@@ -439,47 +439,59 @@ struct PrimitiveSoup {
         }
         return box;
     }
-    bool Intersect(int aPrimitive, const Ray& aRay, const WatertightRay& aShear, float aTMin, float aTMax, float& oT) const {
-        if (aPrimitive < TriangleCount())
-            return IntersectTriangle(mTriangleP0[aPrimitive], mTriangleP1[aPrimitive],
-                                     mTriangleP2[aPrimitive], aRay, aShear, aTMin, aTMax, oT);
-        const int s = aPrimitive - TriangleCount();
-        return IntersectSphere(mSphereCenter[s], mSphereRadius[s], aRay, aTMin, aTMax, oT);
-    }
 };
 
 // Bounding-volume hierarchy. Build: top-down, splitting each node at the best of 16
-// binned surface-area-heuristic candidates along its longest centroid axis (Wald 2007);
-// leaves hold at most 4 primitives. Nodes are 32 bytes, stored depth-first so a left child
-// directly follows its parent. Traversal: a stack, visiting the nearer child first.
+// binned surface-area-heuristic candidates along its longest centroid axis (Wald 2007),
+// and stopping where the SAH says a leaf is cheaper (leaves of at most 8 primitives).
+// Nodes are 32 bytes, stored depth-first so a left child directly follows its parent; the
+// primitives are copied into leaf order, so a leaf reads consecutive records. Traversal:
+// a stack, visiting the nearer child first.
 class Bvh {
 public:
     struct Node {
         float mMin[3];
-        uint32_t mOffset;  // leaf: first entry of mPrimitiveOrder; inner: right child index
+        uint32_t mOffset;  // leaf: first record; inner: right child index
         float mMax[3];
         uint32_t mCount;   // leaf: number of primitives (>0); inner: 0
     };
 
-    void Build(PrimitiveSoup aSoup) {
-        mSoup = std::move(aSoup);
-        const PrimitiveSoup& soup = mSoup;
+    void Build(const PrimitiveSoup& aSoup) {
         mNodes.clear();
-        const int count = soup.Count();
-        mPrimitiveOrder.resize(count);
+        mRecords.clear();
+        const int count = aSoup.Count();
+        mPrimitiveCount = count;
+        std::vector<uint32_t> order(count);
         std::vector<Aabb> bounds(count);
         std::vector<Vec3> centroids(count);
         for (int i = 0; i < count; i++) {
-            mPrimitiveOrder[i] = uint32_t(i);
-            bounds[i] = soup.Bounds(i);
+            order[i] = uint32_t(i);
+            bounds[i] = aSoup.Bounds(i);
             centroids[i] = bounds[i].Centroid();
         }
         if (count == 0) return;
-        mNodes.reserve(2 * count / kMaxLeafSize + 1);
-        BuildRange(bounds, centroids, 0, uint32_t(count));
+        mNodes.reserve(size_t(count));
+        BuildRange(bounds, centroids, order, 0, uint32_t(count));
+        // The primitives in leaf order, triangles as vertices, spheres as centre and radius.
+        mRecords.resize(size_t(count));
+        for (int k = 0; k < count; k++) {
+            const int primitive = int(order[size_t(k)]);
+            Record& r = mRecords[size_t(k)];
+            if (primitive < aSoup.TriangleCount()) {
+                r.mA = aSoup.mTriangleP0[size_t(primitive)];
+                r.mB = aSoup.mTriangleP1[size_t(primitive)];
+                r.mC = aSoup.mTriangleP2[size_t(primitive)];
+                r.mId = uint32_t(primitive);
+            } else {
+                const size_t sphere = size_t(primitive - aSoup.TriangleCount());
+                r.mA = aSoup.mSphereCenter[sphere];
+                r.mB = Vec3(aSoup.mSphereRadius[sphere], 0.f, 0.f);
+                r.mId = uint32_t(primitive) | kSphereBit;
+            }
+        }
     }
 
-    // Nearest hit in (aTMin, aTMax); returns the primitive index or -1.
+    // Nearest hit in (aTMin, ioTMax); returns the primitive index or -1.
     int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
         if (mNodes.empty()) return -1;
         const Vec3 invDir = 1.f / aRay.mDirection;
@@ -494,11 +506,11 @@ public:
             const Node& node = mNodes[nodeIndex];
             if (node.mCount > 0) {
                 for (uint32_t i = 0; i < node.mCount; i++) {
-                    const int primitive = int(mPrimitiveOrder[node.mOffset + i]);
+                    const Record& record = mRecords[node.mOffset + i];
                     float t;
-                    if (mSoup.Intersect(primitive, aRay, shear, aTMin, ioTMax, t)) {
+                    if (IntersectRecord(record, aRay, shear, aTMin, ioTMax, t)) {
                         ioTMax = t;
-                        hitPrimitive = primitive;
+                        hitPrimitive = int(record.mId & ~kSphereBit);
                     }
                 }
             } else {
@@ -534,33 +546,49 @@ public:
         int stackSize = 0;
         stack[stackSize++] = 0;
         while (stackSize > 0) {
-            const Node& node = mNodes[stack[--stackSize]];
+            const uint32_t nodeIndex = stack[--stackSize];
+            const Node& node = mNodes[nodeIndex];
             float tNear;
-            if (!IntersectAabb(node.mMin, node.mMax, aRay.mOrigin, invDir, aTMax, tNear)) continue;
+            if (!NodeHit(nodeIndex, aRay.mOrigin, invDir, aTMax, tNear)) continue;
             if (node.mCount > 0) {
                 for (uint32_t i = 0; i < node.mCount; i++) {
                     float t;
-                    if (mSoup.Intersect(int(mPrimitiveOrder[node.mOffset + i]), aRay, shear, aTMin, aTMax, t))
-                        return true;
+                    if (IntersectRecord(mRecords[node.mOffset + i], aRay, shear, aTMin, aTMax, t)) return true;
                 }
             } else {
                 stack[stackSize++] = node.mOffset;
-                stack[stackSize++] = uint32_t(&node - mNodes.data()) + 1;
+                stack[stackSize++] = nodeIndex + 1;
             }
         }
         return false;
     }
 
     size_t NodeCount() const { return mNodes.size(); }
-    const PrimitiveSoup& Soup() const { return mSoup; }
+    int PrimitiveCount() const { return mPrimitiveCount; }
     int Depth() const { return mNodes.empty() ? 0 : DepthOf(0); }
 
 private:
-    static constexpr uint32_t kMaxLeafSize = 4;
+    // A primitive as the traversal reads it (40 bytes): a triangle's three vertices, or a
+    // sphere's centre (mA) and radius (mB.x); mId is the scene's primitive index, with
+    // kSphereBit set for spheres.
+    struct Record {
+        Vec3 mA{0.f}, mB{0.f}, mC{0.f};
+        uint32_t mId = 0;
+    };
+    static constexpr uint32_t kSphereBit = 0x80000000u;
+    static constexpr uint32_t kMaxLeafSize = 8;
     static constexpr int kBinCount = 16;
+    // SAH costs in units of one primitive test: visiting a node tests two boxes.
+    static constexpr float kTraversalCost = 1.f;
     // The stack of 64 entries holds any tree of depth <= 64; BuildRange guarantees it by
     // splitting by the median when the SAH split fails and by capping the depth.
     static constexpr int kMaxDepth = 60;
+
+    static bool IntersectRecord(const Record& aRecord, const Ray& aRay, const WatertightRay& aShear,
+                                float aTMin, float aTMax, float& oT) {
+        if (aRecord.mId & kSphereBit) return IntersectSphere(aRecord.mA, aRecord.mB.x, aRay, aTMin, aTMax, oT);
+        return IntersectTriangle(aRecord.mA, aRecord.mB, aRecord.mC, aRay, aShear, aTMin, aTMax, oT);
+    }
 
     bool NodeHit(uint32_t aNode, const Vec3& aOrigin, const Vec3& aInvDir, float aTMax, float& oTNear) const {
         const Node& n = mNodes[aNode];
@@ -574,27 +602,28 @@ private:
     }
 
     uint32_t BuildRange(const std::vector<Aabb>& aBounds, const std::vector<Vec3>& aCentroids,
-                        uint32_t aBegin, uint32_t aEnd, int aDepth = 0) {
+                        std::vector<uint32_t>& ioOrder, uint32_t aBegin, uint32_t aEnd, int aDepth = 0) {
         const uint32_t nodeIndex = uint32_t(mNodes.size());
         mNodes.push_back(Node{});
         Aabb box, centroidBox;
         for (uint32_t i = aBegin; i < aEnd; i++) {
-            box.Extend(aBounds[mPrimitiveOrder[i]]);
-            centroidBox.Extend(aCentroids[mPrimitiveOrder[i]]);
+            box.Extend(aBounds[ioOrder[i]]);
+            centroidBox.Extend(aCentroids[ioOrder[i]]);
         }
         for (int k = 0; k < 3; k++) { mNodes[nodeIndex].mMin[k] = box.mMin[k]; mNodes[nodeIndex].mMax[k] = box.mMax[k]; }
+        auto makeLeaf = [&] {
+            mNodes[nodeIndex].mOffset = aBegin;
+            mNodes[nodeIndex].mCount = aEnd - aBegin;
+            return nodeIndex;
+        };
 
         const uint32_t count = aEnd - aBegin;
         const Vec3 extent = centroidBox.mMax - centroidBox.mMin;
         const int axis = (extent.x >= extent.y && extent.x >= extent.z) ? 0 : (extent.y >= extent.z ? 1 : 2);
-        if (count <= kMaxLeafSize || extent[axis] <= 0.f || aDepth >= kMaxDepth) {
-            mNodes[nodeIndex].mOffset = aBegin;
-            mNodes[nodeIndex].mCount = count;
-            return nodeIndex;
-        }
+        if (count == 1 || extent[axis] <= 0.f || aDepth >= kMaxDepth) return makeLeaf();
 
-        // Binned SAH: cost of a split = A_left N_left + A_right N_right (the constant
-        // traversal cost and the division by the parent's area do not change the argmin).
+        // Binned SAH: cost of a split = A_left N_left + A_right N_right (relative to the
+        // parent's area A: split cost = kTraversalCost + that / A, leaf cost = N).
         struct Bin { Aabb box; uint32_t count = 0; };
         Bin bins[kBinCount];
         const float binScale = kBinCount / extent[axis];
@@ -603,8 +632,8 @@ private:
             return std::min(std::max(b, 0), kBinCount - 1);
         };
         for (uint32_t i = aBegin; i < aEnd; i++) {
-            Bin& bin = bins[binOf(mPrimitiveOrder[i])];
-            bin.box.Extend(aBounds[mPrimitiveOrder[i]]);
+            Bin& bin = bins[binOf(ioOrder[i])];
+            bin.box.Extend(aBounds[ioOrder[i]]);
             bin.count++;
         }
         float rightCost[kBinCount];
@@ -628,32 +657,31 @@ private:
                 bestSplit = b;
             }
         }
+        const float area = box.SurfaceArea();
+        const bool splitPays = bestSplit >= 0 && area > 0.f && kTraversalCost + bestCost / area < float(count);
+        if (count <= kMaxLeafSize && !splitPays) return makeLeaf();
 
         uint32_t middle;
         if (bestSplit >= 0) {
-            uint32_t* first = mPrimitiveOrder.data() + aBegin;
-            uint32_t* last = mPrimitiveOrder.data() + aEnd;
-            middle = uint32_t(std::partition(first, last, [&](uint32_t p) { return binOf(p) <= bestSplit; })
-                              - mPrimitiveOrder.data());
+            uint32_t* first = ioOrder.data() + aBegin;
+            uint32_t* last = ioOrder.data() + aEnd;
+            middle = uint32_t(std::partition(first, last, [&](uint32_t p) { return binOf(p) <= bestSplit; }) - ioOrder.data());
         } else {
             middle = aBegin + count / 2;
-            std::nth_element(mPrimitiveOrder.begin() + aBegin, mPrimitiveOrder.begin() + middle,
-                             mPrimitiveOrder.begin() + aEnd, [&](uint32_t a, uint32_t b) {
-                                 return aCentroids[a][axis] < aCentroids[b][axis];
-                             });
+            std::nth_element(ioOrder.begin() + aBegin, ioOrder.begin() + middle, ioOrder.begin() + aEnd,
+                             [&](uint32_t a, uint32_t b) { return aCentroids[a][axis] < aCentroids[b][axis]; });
         }
-        BuildRange(aBounds, aCentroids, aBegin, middle, aDepth + 1);
-        const uint32_t right = BuildRange(aBounds, aCentroids, middle, aEnd, aDepth + 1);
+        BuildRange(aBounds, aCentroids, ioOrder, aBegin, middle, aDepth + 1);
+        const uint32_t right = BuildRange(aBounds, aCentroids, ioOrder, middle, aEnd, aDepth + 1);
         mNodes[nodeIndex].mOffset = right;
         mNodes[nodeIndex].mCount = 0;
         return nodeIndex;
     }
 
-    PrimitiveSoup mSoup;
     std::vector<Node> mNodes;
-    std::vector<uint32_t> mPrimitiveOrder;
+    std::vector<Record> mRecords;
+    int mPrimitiveCount = 0;
 };
-
 
 // =====================================================================================
 // [SECTION] Scene: materials, lights, camera
@@ -1149,7 +1177,7 @@ public:
             soup.mSphereCenter.push_back(sphere.mCenter);
             soup.mSphereRadius.push_back(sphere.mRadius);
         }
-        mBvh.Build(std::move(soup));
+        mBvh.Build(soup);
         mFinalized = true;
     }
 

@@ -371,7 +371,7 @@ TEST_CASE("Scene::Intersect finds the same nearest hit as brute force for 100,00
     const Primitives primitives = Primitives::Of(scene);
     REQUIRE(primitives.triangles.size() == 2000);
     REQUIRE(primitives.centers.size() == 50);
-    REQUIRE(scene.GetBvh().Soup().Count() == 2050);
+    REQUIRE(scene.GetBvh().PrimitiveCount() == 2050);
     REQUIRE(scene.GetBvh().Depth() <= 64);
     Rng rng(202, 0);
     int hits = 0, sphereHits = 0, ties = 0;
