@@ -402,18 +402,29 @@ struct Aabb {
 // Slab test against a box; aInvDir = 1 / direction. Infinities are fine (IEEE); the NaN
 // of 0 * inf (a ray lying in the plane of a face) is skipped explicitly below.
 inline bool IntersectAabb(const float aMin[3], const float aMax[3], const Vec3& aOrigin,
-                          const Vec3& aInvDir, float aTMax, float& oTNear) {
-    float tNear = 0.f, tFar = aTMax;
+                          const Vec3& aInvDir, float aTMax, float& oTNear, bool aRayHasZeroComponent) {
+    // Fast path: the three slabs without branches.
+    const float tx0 = (aMin[0] - aOrigin.x) * aInvDir.x, tx1 = (aMax[0] - aOrigin.x) * aInvDir.x;
+    const float ty0 = (aMin[1] - aOrigin.y) * aInvDir.y, ty1 = (aMax[1] - aOrigin.y) * aInvDir.y;
+    const float tz0 = (aMin[2] - aOrigin.z) * aInvDir.z, tz1 = (aMax[2] - aOrigin.z) * aInvDir.z;
+    float tNear = std::max(std::max(std::min(tx0, tx1), std::min(ty0, ty1)), std::max(std::min(tz0, tz1), 0.f));
+    float tFar = std::min(std::min(std::max(tx0, tx1), std::max(ty0, ty1)), std::min(std::max(tz0, tz1), aTMax));
+    oTNear = tNear;
+    if (tNear <= tFar * 1.00000024f) return true;  // 1 + 2 ulp: rounding must not drop a hit on a face
+    if (!aRayHasZeroComponent) return false;
+    // A direction component of zero: 0 * inf = NaN when the ray runs in the plane of a
+    // face. Such a ray is inside that slab, so the careful path skips the axis.
+    tNear = 0.f;
+    tFar = aTMax;
     for (int k = 0; k < 3; k++) {
         const float t0 = (aMin[k] - aOrigin[k]) * aInvDir[k];
         const float t1 = (aMax[k] - aOrigin[k]) * aInvDir[k];
-        // 0 * inf = NaN: the ray runs in the plane of this face, so it is inside the slab.
         if (std::isnan(t0) || std::isnan(t1)) continue;
         tNear = std::max(tNear, std::min(t0, t1));
         tFar = std::min(tFar, std::max(t0, t1));
     }
     oTNear = tNear;
-    return tNear <= tFar * 1.00000024f;  // 1 + 2 ulp: rounding must not drop a hit on a face
+    return tNear <= tFar * 1.00000024f;
 }
 
 // The primitives the BVH is built over, in the layout the traversal reads: triangles as
@@ -496,12 +507,13 @@ public:
         if (mNodes.empty()) return -1;
         const Vec3 invDir = 1.f / aRay.mDirection;
         const WatertightRay shear(aRay.mDirection);
+        const bool zero = HasZeroComponent(aRay.mDirection);
         int hitPrimitive = -1;
         uint32_t stack[64];
         int stackSize = 0;
         uint32_t nodeIndex = 0;
         float tNear;
-        if (!NodeHit(0, aRay.mOrigin, invDir, ioTMax, tNear)) return -1;
+        if (!NodeHit(0, aRay.mOrigin, invDir, ioTMax, tNear, zero)) return -1;
         for (;;) {
             const Node& node = mNodes[nodeIndex];
             if (node.mCount > 0) {
@@ -516,8 +528,8 @@ public:
             } else {
                 uint32_t near = nodeIndex + 1, far = node.mOffset;
                 float tNearA, tNearB;
-                const bool hitA = NodeHit(near, aRay.mOrigin, invDir, ioTMax, tNearA);
-                const bool hitB = NodeHit(far, aRay.mOrigin, invDir, ioTMax, tNearB);
+                const bool hitA = NodeHit(near, aRay.mOrigin, invDir, ioTMax, tNearA, zero);
+                const bool hitB = NodeHit(far, aRay.mOrigin, invDir, ioTMax, tNearB, zero);
                 if (hitA && hitB) {
                     if (tNearB < tNearA) std::swap(near, far);
                     stack[stackSize++] = far;
@@ -531,7 +543,7 @@ public:
             bool found = false;
             while (stackSize > 0) {
                 nodeIndex = stack[--stackSize];
-                if (NodeHit(nodeIndex, aRay.mOrigin, invDir, ioTMax, tNear)) { found = true; break; }
+                if (NodeHit(nodeIndex, aRay.mOrigin, invDir, ioTMax, tNear, zero)) { found = true; break; }
             }
             if (!found) return hitPrimitive;
         }
@@ -542,6 +554,7 @@ public:
         if (mNodes.empty()) return false;
         const Vec3 invDir = 1.f / aRay.mDirection;
         const WatertightRay shear(aRay.mDirection);
+        const bool zero = HasZeroComponent(aRay.mDirection);
         uint32_t stack[64];
         int stackSize = 0;
         stack[stackSize++] = 0;
@@ -549,7 +562,7 @@ public:
             const uint32_t nodeIndex = stack[--stackSize];
             const Node& node = mNodes[nodeIndex];
             float tNear;
-            if (!NodeHit(nodeIndex, aRay.mOrigin, invDir, aTMax, tNear)) continue;
+            if (!NodeHit(nodeIndex, aRay.mOrigin, invDir, aTMax, tNear, zero)) continue;
             if (node.mCount > 0) {
                 for (uint32_t i = 0; i < node.mCount; i++) {
                     float t;
@@ -590,9 +603,12 @@ private:
         return IntersectTriangle(aRecord.mA, aRecord.mB, aRecord.mC, aRay, aShear, aTMin, aTMax, oT);
     }
 
-    bool NodeHit(uint32_t aNode, const Vec3& aOrigin, const Vec3& aInvDir, float aTMax, float& oTNear) const {
+    bool NodeHit(uint32_t aNode, const Vec3& aOrigin, const Vec3& aInvDir, float aTMax, float& oTNear, bool aZero) const {
         const Node& n = mNodes[aNode];
-        return IntersectAabb(n.mMin, n.mMax, aOrigin, aInvDir, aTMax, oTNear);
+        return IntersectAabb(n.mMin, n.mMax, aOrigin, aInvDir, aTMax, oTNear, aZero);
+    }
+    static bool HasZeroComponent(const Vec3& aDirection) {
+        return aDirection.x == 0.f || aDirection.y == 0.f || aDirection.z == 0.f;
     }
 
     int DepthOf(uint32_t aNode) const {
