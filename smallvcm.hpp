@@ -52,6 +52,10 @@
 //  CONFIGURATION MACROS (define before including)
 // =====================================================================================
 //    SMALLVCM_IMPLEMENTATION  compile the glTF loader and image writers here (one TU).
+//    SMALLVCM_CHECKS          check numerical invariants while rendering (every film
+//                             contribution and MIS quantity finite and non-negative);
+//                             a violation aborts with the place and values. Slower;
+//                             `make check` builds with it.
 //
 // =====================================================================================
 //  CONVENTIONS (shared with SmallVCM, so images can be compared)
@@ -124,6 +128,19 @@ class Error : public std::runtime_error {
 public:
     explicit Error(const std::string& aMessage) : std::runtime_error(aMessage) {}
 };
+
+// Numerical invariant checks, compiled in with SMALLVCM_CHECKS (see the manual above).
+#ifdef SMALLVCM_CHECKS
+#define SMALLVCM_CHECK(aCondition, aWhat)                                                        \
+    do {                                                                                         \
+        if (!(aCondition)) {                                                                     \
+            std::fprintf(stderr, "smallvcm: check failed at %s:%d: %s\n", __FILE__, __LINE__, aWhat); \
+            std::abort();                                                                        \
+        }                                                                                        \
+    } while (false)
+#else
+#define SMALLVCM_CHECK(aCondition, aWhat) ((void)0)
+#endif
 
 // A hit whose direction makes |cos| below this with the normal is treated as grazing
 // and dropped: its contribution would be divided by that cosine (SmallVCM: EPS_COSINE).
@@ -1511,7 +1528,12 @@ public:
     int Width() const { return mWidth; }
     int Height() const { return mHeight; }
 
-    void AddColor(int aPixelIndex, const Vec3& aColor) { mPixels[size_t(aPixelIndex)] += glm::dvec3(aColor); }
+    void AddColor(int aPixelIndex, const Vec3& aColor) {
+        SMALLVCM_CHECK(IsFinite(aColor) && aColor.x >= 0.f && aColor.y >= 0.f && aColor.z >= 0.f,
+                       "a film contribution is NaN, infinite or negative");
+        SMALLVCM_CHECK(aPixelIndex >= 0 && size_t(aPixelIndex) < mPixels.size(), "a film write outside the image");
+        mPixels[size_t(aPixelIndex)] += glm::dvec3(aColor);
+    }
 
     // Layers: created before rendering; AddLayer returns the index to write with.
     int AddLayer(const std::string& aName) {
@@ -1528,6 +1550,8 @@ public:
     int LayerCount() const { return int(mLayers.size()); }
     const std::string& LayerName(int aLayer) const { return mLayerNames[size_t(aLayer)]; }
     void AddToLayer(int aLayer, int aPixelIndex, const Vec3& aColor) {
+        SMALLVCM_CHECK(IsFinite(aColor) && aColor.x >= 0.f && aColor.y >= 0.f && aColor.z >= 0.f,
+                       "a layer contribution is NaN, infinite or negative");
         mLayers[size_t(aLayer)][size_t(aPixelIndex)] += glm::dvec3(aColor);
     }
 
@@ -1611,6 +1635,9 @@ struct RenderOptions {
     MisHeuristic mMis = MisHeuristic::kBalance;
     bool mTechniqueLayers = false;// write per-technique layers into the film
     bool mProgress = true;        // progress line on stderr (only on a terminal, after 2 s)
+    // When set (e.g. by a Ctrl-C handler), threads finish the iteration they are in and
+    // Render returns what was accumulated so far (RenderResult::mStopped tells).
+    const std::atomic<bool>* mStopRequested = nullptr;
     // Classic photon mapping (pm, pmfg): photons emitted per iteration, photons per
     // estimate, and the largest search radius as a fraction of the scene radius.
     int mPhotonCount = 200000;
@@ -2268,6 +2295,8 @@ inline void AfterSegment(const VcmMisConstants& c, SubpathMis& m, float aDistanc
     m.dVCM *= invCos;
     m.dVC *= invCos;
     m.dVM *= invCos;
+    SMALLVCM_CHECK(std::isfinite(m.dVCM) && std::isfinite(m.dVC) && std::isfinite(m.dVM) && m.dVCM >= 0.f &&
+                   m.dVC >= 0.f && m.dVM >= 0.f, "an MIS quantity is not finite after a segment");
 }
 
 // After sampling a BSDF at a vertex: aCosOut is |cos| of the sampled direction, the pdfs
@@ -2291,6 +2320,8 @@ inline void AfterScatter(const VcmMisConstants& c, SubpathMis& m, float aCosOut,
     m.dVC = newDVC;
     m.dVM = newDVM;
     m.dVCM = c.Mis(1.f / aDirPdfW);                                                             // (34)
+    SMALLVCM_CHECK(std::isfinite(m.dVCM) && std::isfinite(m.dVC) && std::isfinite(m.dVM),
+                   "an MIS quantity is not finite after a scatter");
 }
 
 // Camera sub-path hits a light (s = 0) [tech. rep. (42), (43)]. Pdfs include the pick
@@ -2867,6 +2898,7 @@ struct RenderResult {
     int mIterations = 0;
     double mSeconds = 0.0;
     uint64_t mRays = 0;  // nearest-hit and shadow rays traced, all threads
+    bool mStopped = false;  // stopped early by RenderOptions::mStopRequested
 };
 
 inline std::unique_ptr<AbstractRenderer> CreateRenderer(const Scene& aScene, const RenderOptions& aOptions) {
@@ -2942,7 +2974,7 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
                     iteration = aThread + k * threadCount;
                 }
                 if (aOptions.mIterations > 0 && iteration >= aOptions.mIterations) break;
-                if (failed) break;
+                if (failed || (aOptions.mStopRequested && aOptions.mStopRequested->load())) break;
                 Rng rng = IterationRng(aOptions.mSeed, iteration);
                 renderers[size_t(aThread)]->RunIteration(iteration, rng);
                 completed++;
@@ -2985,6 +3017,7 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
     result.mIterations = completed.load();
     result.mSeconds = elapsed();
     result.mRays = rays.load();
+    result.mStopped = aOptions.mStopRequested && aOptions.mStopRequested->load();
     Film& film = renderers[0]->GetFilm();
     for (size_t t = 1; t < renderers.size(); t++) film.Accumulate(renderers[t]->GetFilm());
     const double scale = result.mIterations > 0 ? 1.0 / result.mIterations : 0.0;

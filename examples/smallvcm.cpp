@@ -5,12 +5,15 @@
 //
 // Every bad value gives one line "smallvcm: <option>: <problem>" on stderr and exit code 2;
 // a problem with the scene or the output file gives "smallvcm: <file>: <problem>" and
-// exit code 1. No output file is written unless the render succeeded.
+// exit code 1. No output file is written unless the render succeeded. Ctrl-C stops the
+// render after the iterations in flight, writes what was accumulated and exits with 130.
 // Build: make build/smallvcm. Run with --help for the options.
 
 #include "smallvcm.hpp"
 
+#include <atomic>
 #include <charconv>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -20,6 +23,15 @@
 namespace {
 
 using smallvcm::Error;
+
+// Ctrl-C asks the render to stop after the iterations in flight; a second Ctrl-C kills
+// the program at once (the default handler is back by then). A lock-free atomic store is
+// what a signal handler may do.
+std::atomic<bool> gStopRequested{false};
+extern "C" void OnInterrupt(int) {
+    gStopRequested.store(true);
+    std::signal(SIGINT, SIG_DFL);
+}
 
 const char* const kCornellScenes[] = {
     "cornell_0_sun.gltf",            // -s 0: glossy floor, small spheres, sun
@@ -68,16 +80,19 @@ T ParseNumber(const std::string& aOption, const std::string& aText, T aMin, T aM
     return value;
 }
 
-// Folder of this executable's parent (build/ -> the repository), to find scenes/.
+// The repository's scenes/ folder: $SMALLVCM_SCENES if set, else found by walking up
+// from this executable (build/smallvcm, build/check/smallvcm), else ./scenes.
 std::string ScenesFolder() {
     if (const char* fromEnvironment = std::getenv("SMALLVCM_SCENES")) return fromEnvironment;
     char buffer[4096];
     const ssize_t length = readlink("/proc/self/exe", buffer, sizeof(buffer) - 1);
     if (length > 0) {
-        std::string exe(buffer, size_t(length));
-        const size_t slash = exe.find_last_of('/');
-        if (slash != std::string::npos) {
-            const std::string candidate = exe.substr(0, slash) + "/../scenes";
+        std::string folder(buffer, size_t(length));
+        for (int up = 0; up < 3; up++) {
+            const size_t slash = folder.find_last_of('/');
+            if (slash == std::string::npos) break;
+            folder.resize(slash);
+            const std::string candidate = folder + "/scenes";
             char resolved[4096];
             if (access((candidate + "/" + kCornellScenes[0]).c_str(), R_OK) == 0 && realpath(candidate.c_str(), resolved))
                 return resolved;
@@ -202,7 +217,16 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "smallvcm: %s: note: skipped %d degenerate (zero-area) triangles\n", scenePath.c_str(),
                          report.mSkippedDegenerateTriangles);
         scene.mCamera.SetResolution(cl.mWidth, cl.mHeight);
+        cl.mOptions.mStopRequested = &gStopRequested;
+        std::signal(SIGINT, OnInterrupt);
         const smallvcm::RenderResult result = smallvcm::Render(scene, cl.mOptions);
+        std::signal(SIGINT, SIG_DFL);
+        if (result.mStopped && result.mIterations == 0) {
+            std::fprintf(stderr, "smallvcm: interrupted before the first iteration finished; nothing written\n");
+            return 130;
+        }
+        if (result.mStopped)
+            std::fprintf(stderr, "smallvcm: interrupted: writing the %d iterations accumulated so far\n", result.mIterations);
         smallvcm::WriteImage(cl.mOutput, result.mImage);
         for (const auto& layer : result.mLayers) smallvcm::WriteImage(WithLayerName(cl.mOutput, layer.first), layer.second);
         if (!cl.mQuiet)
@@ -210,6 +234,7 @@ int main(int argc, char** argv) {
                         smallvcm::AlgorithmShortName(cl.mOptions.mAlgorithm), cl.mWidth, cl.mHeight, result.mIterations,
                         result.mSeconds, result.mSeconds / std::max(1, result.mIterations),
                         smallvcm::MeanValue(result.mImage), cl.mOutput.c_str());
+        if (result.mStopped) return 130;  // the conventional status of a program ended by SIGINT
     } catch (const Error& e) {
         std::fprintf(stderr, "smallvcm: %s\n", e.what());
         return 1;

@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# Runs the test stages of `make test` / `make check` and ends with the one line CI reads:
+#   tests: N passed, N failed
+# Usage: tests/run_suite.sh [--catch BINARY [CATCH ARGS...] --] [--smoke SMALLVCM_BINARY]
+#   --catch   a Catch2 test binary, run from tests/; its summary counts test cases
+#   --smoke   a smallvcm binary (the sanitized build): every algorithm on every Cornell
+#             scene (16x16, 2 iterations) and every rejected file of tests/data/bad run
+#             through it; each run counts as one test: renders must exit 0 and write their
+#             image, bad files must exit 1 with one "smallvcm: FILE: ..." line, and no run may
+#             print a sanitizer report (AddressSanitizer / UndefinedBehaviorSanitizer) or
+#             fail a SMALLVCM_CHECKS invariant.
+set -u
+cd "$(dirname "$0")"
+passed=0
+failed=0
+status=0
+
+if [ "${1:-}" = "--catch" ]; then
+  shift
+  binary=$1; shift
+  args=()
+  while [ $# -gt 0 ] && [ "$1" != "--" ]; do args+=("$1"); shift; done
+  [ "${1:-}" = "--" ] && shift
+  log=$(mktemp)
+  "$binary" "${args[@]}" 2>&1 | tee "$log"
+  code=${PIPESTATUS[0]}
+  summary=$(grep -E "^(All tests passed|test cases:)" "$log" | tail -n 1)
+  total=$(echo "$summary" | sed -nE 's/.*in ([0-9]+) test cases?.*/\1/p; s/^test cases: *([0-9]+).*/\1/p' | head -n 1)
+  bad=$(echo "$summary" | sed -nE 's/.*\| *([0-9]+) failed.*/\1/p')
+  total=${total:-0}; bad=${bad:-0}
+  if [ "$code" != 0 ] && [ "$bad" = 0 ]; then bad=1; total=$((total + 1)); fi
+  passed=$((passed + total - bad)); failed=$((failed + bad))
+  [ "$code" != 0 ] && status=1
+  rm -f "$log"
+fi
+
+if [ "${1:-}" = "--smoke" ]; then
+  binary=$2
+  out=$(mktemp -d)
+  run_one() {  # name expected_code command...
+    local name=$1 expected=$2; shift 2
+    local err="$out/stderr.txt"
+    "$@" > /dev/null 2> "$err"
+    local code=$?
+    if [ "$code" = "$expected" ] && ! grep -qE "Sanitizer|runtime error|check failed" "$err"; then
+      passed=$((passed + 1))
+    else
+      failed=$((failed + 1)); status=1
+      echo "smoke FAILED: $name (exit $code, expected $expected)"; head -n 20 "$err"
+    fi
+  }
+  for scene in 0 1 2 3 4; do
+    for algorithm in el pt lt ppm bpm bpt vcm pm pmfg; do
+      layers="--layers"; [ "$algorithm" = el ] && layers=""  # the eye light has no techniques
+      run_one "render -s $scene -a $algorithm" 0 "$binary" -q -s "$scene" -a "$algorithm" -r 16x16 -i 2 \
+        --photons 5000 $layers -o "$out/s${scene}_${algorithm}.pfm"
+    done
+  done
+  for file in data/bad/*.gltf data/bad/*.glb data/fuzz/*.gltf data/fuzz/*.glb; do
+    [ -e "$file" ] || continue
+    case "$(basename "$file")" in
+      degenerate_*) expected=0 ;;  # these load, with the zero-area triangles skipped
+      *) expected=1 ;;
+    esac
+    run_one "load $file" "$expected" "$binary" -q -s "$file" -a el -r 8x8 -o "$out/bad.pfm"
+  done
+  echo "smoke stage with $binary: $((passed)) passed so far, $failed failed so far"
+  rm -rf "$out"
+fi
+
+echo "tests: $passed passed, $failed failed"
+exit $status
