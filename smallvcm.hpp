@@ -1321,6 +1321,8 @@ public:
         Setup(-aRay.mDirection, aHit.mNormal, aScene.GetMaterial(aHit.mMaterialId), aFixIsLight);
     }
     // The same from explicit data (what tests use): aWorldDirFix points away from the surface.
+    // The Bsdf keeps a pointer to aMaterial, which must outlive it (a temporary is refused).
+    void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material&& aMaterial, bool aFixIsLight) = delete;
     void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material& aMaterial, bool aFixIsLight) {
         mMaterial = &aMaterial;
         mFixIsLight = aFixIsLight;

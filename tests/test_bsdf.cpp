@@ -618,7 +618,8 @@ TEST_CASE("Glass splits importance into F reflected and 1 - F refracted, and rad
 TEST_CASE("A mirror reflects about the normal with weight 1 from either side and evaluates to zero elsewhere", "[bsdf]") {
     for (const float side : {1.f, -1.f}) {
         const Vec3 fix = side * DirectionAt(0.4f, 2.f);
-        const Bsdf bsdf = Make(fix, Mirror());
+        const Material mirror = Mirror();  // a Bsdf points to its material: keep it alive
+        const Bsdf bsdf = Make(fix, mirror);
         REQUIRE(bsdf.IsValid());
         REQUIRE(bsdf.IsDelta());
         Rng rng(341, 0);
