@@ -21,7 +21,7 @@ TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
 .PHONY: all deps demo test check clean
 
-all: $(BUILD)/smallvcm $(BUILD)/tests/run_tests
+all: $(BUILD)/smallvcm $(BUILD)/convergence $(BUILD)/tests/run_tests
 
 # Installs what is missing, with sudo when not root; does nothing when all is there.
 deps:

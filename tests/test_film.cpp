@@ -76,13 +76,13 @@ TEST_CASE("Film adds colours per pixel and Resolve scales them", "[film]") {
     REQUIRE(film.Height() == 3);
     film.AddColor(0, Vec3(1.f, 2.f, 3.f));
     film.AddColor(0, Vec3(0.5f, 0.5f, 0.5f));
-    film.AddColor(2 * 4 + 3, Vec3(4.f, 0.f, -1.f));  // pixel (3, 2), the last one
+    film.AddColor(2 * 4 + 3, Vec3(4.f, 0.f, 1.f));  // pixel (3, 2), the last one
     const Image image = film.Resolve(0.5);
     REQUIRE(image.mWidth == 4);
     REQUIRE(image.mHeight == 3);
     REQUIRE(image.mPixels.size() == 12);
     REQUIRE(image.At(0, 0) == Vec3(0.75f, 1.25f, 1.75f));
-    REQUIRE(image.At(3, 2) == Vec3(2.f, 0.f, -0.5f));
+    REQUIRE(image.At(3, 2) == Vec3(2.f, 0.f, 0.5f));
     for (int y = 0; y < 3; y++)
         for (int x = 0; x < 4; x++)
             if ((x | y) != 0 && !(x == 3 && y == 2)) REQUIRE(image.At(x, y) == Vec3(0.f));
