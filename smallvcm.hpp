@@ -408,7 +408,7 @@ struct Aabb {
     void Extend(const Vec3& aPoint) { mMin = glm::min(mMin, aPoint); mMax = glm::max(mMax, aPoint); }
     void Extend(const Aabb& aBox) { mMin = glm::min(mMin, aBox.mMin); mMax = glm::max(mMax, aBox.mMax); }
     bool IsEmpty() const { return mMin.x > mMax.x; }
-    Vec3 Centroid() const { return 0.5f * (mMin + mMax); }
+    Vec3 Centroid() const { return 0.5f * mMin + 0.5f * mMax; }  // mMin + mMax may overflow
     float SurfaceArea() const {
         if (IsEmpty()) return 0.f;
         const Vec3 d = mMax - mMin;
@@ -653,7 +653,10 @@ private:
         const uint32_t count = aEnd - aBegin;
         const Vec3 extent = centroidBox.mMax - centroidBox.mMin;
         const int axis = (extent.x >= extent.y && extent.x >= extent.z) ? 0 : (extent.y >= extent.z ? 1 : 2);
-        if (count == 1 || extent[axis] <= 0.f || aDepth >= kMaxDepth) return makeLeaf();
+        // An extent so small (a denormal: centroids 1e-43 apart) that kBinCount / extent
+        // overflows would bin by NaN (0 * inf): such primitives are one leaf, as equal ones are.
+        if (count == 1 || !(extent[axis] > 0.f) || !std::isfinite(kBinCount / extent[axis]) || aDepth >= kMaxDepth)
+            return makeLeaf();
 
         // Binned SAH: cost of a split = A_left N_left + A_right N_right (relative to the
         // parent's area A: split cost = kTraversalCost + that / A, leaf cost = N).
@@ -3272,6 +3275,19 @@ private:
             std::memcpy(&length, bytes.data() + 12, 4);
             jsonBegin = 20;
             jsonEnd = std::min(bytes.size(), size_t(20) + length);
+            // tinygltf 2.7 checks a BIN chunk's length against the file without the
+            // chunk's own 8-byte header, then copies up to 8 bytes past the end of the
+            // file into the buffer: check the layout here (header length <= file size,
+            // and the BIN chunk, header included, inside that length).
+            uint32_t total;
+            std::memcpy(&total, bytes.data() + 8, 4);
+            const uint64_t binStart = uint64_t(20) + length;
+            if (total <= bytes.size() && binStart + 8 <= total) {
+                uint32_t binLength;
+                std::memcpy(&binLength, bytes.data() + binStart, 4);
+                if (binStart + 8 + binLength > total)
+                    Fail("glTF parse error: the BIN chunk of the .glb is longer than the file (invalid glTF binary)");
+            }
         }
         int depth = 0, deepest = 0;
         bool inString = false, escaped = false;
@@ -3291,6 +3307,26 @@ private:
         // uses one is rejected by CheckModelFeatures with a clear message.
         gltf.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
                                const unsigned char*, int, void*) { return true; }, nullptr);
+        // Buffer URIs name files: read regular files only. tinygltf's own callbacks open
+        // whatever the URI names: a directory reports a size of 2^63 - 1 bytes (the
+        // allocation fails), and a FIFO or a terminal blocks the load forever.
+        tinygltf::FsCallbacks files;
+        files.FileExists = [](const std::string& aFile, void*) {
+            std::error_code ignore;
+            return std::filesystem::exists(aFile, ignore);  // without opening it
+        };
+        files.ExpandFilePath = &tinygltf::ExpandFilePath;
+        files.ReadWholeFile = [](std::vector<unsigned char>* oBytes, std::string* oError, const std::string& aFile, void*) {
+            std::error_code ignore;
+            if (!std::filesystem::is_regular_file(aFile, ignore)) {
+                if (oError) *oError += "not a regular file";
+                return false;
+            }
+            return tinygltf::ReadWholeFile(oBytes, oError, aFile, nullptr);
+        };
+        files.WriteWholeFile = &tinygltf::WriteWholeFile;
+        files.user_data = nullptr;
+        gltf.SetFsCallbacks(files);
         std::string error, warning;
         const bool binary = EndsWith(mPath, ".glb");
         const bool ok = binary ? gltf.LoadBinaryFromFile(&mModel, &error, &warning, mPath)
@@ -3439,9 +3475,27 @@ private:
     }
 
     int MaterialIndex(int aIndex, const std::string& aWhat) {
-        if (aIndex < 0) return DefaultMaterial();
+        if (aIndex == -1) return DefaultMaterial();  // tinygltf's "absent"; other negatives are no index
+        if (aIndex < 0) Fail(aWhat + " refers to material " + std::to_string(aIndex) + ", which does not exist");
         if (aIndex >= int(mModel.materials.size())) Fail(aWhat + " refers to material " + std::to_string(aIndex) + ", which does not exist");
         return aIndex;
+    }
+
+    // --- float32 ---------------------------------------------------------------------------
+    // Transforms are combined in double, the scene stores float32: a value can be finite
+    // in double (1e300) and infinite in float, and |v| of such a vector overflows even in
+    // double (then normalize gives 0, or NaN).
+    Vec3 ToFloat(const glm::dvec3& aValue, const std::string& aWhat) const {
+        const Vec3 value(aValue);
+        if (!IsFinite(value)) Fail(aWhat + " is not finite in float32 (a coordinate beyond 3.4e38)");
+        return value;
+    }
+    // aValue / |aValue| without overflow or underflow; false when there is no direction.
+    static bool Direction(const glm::dvec3& aValue, glm::dvec3& oDirection) {
+        const double largest = std::max(std::abs(aValue.x), std::max(std::abs(aValue.y), std::abs(aValue.z)));
+        if (!(largest > 0.0) || !std::isfinite(largest)) return false;
+        oDirection = glm::normalize(aValue / largest);
+        return true;
     }
 
     // --- nodes ---------------------------------------------------------------------------
@@ -3452,13 +3506,23 @@ private:
             return m;
         }
         if (!aNode.matrix.empty()) Fail(aWhat + ": 'matrix' must have 16 numbers");
+        // tinygltf keeps a number array of any length; anything but 3, 4, 3 was ignored.
+        if (!aNode.translation.empty() && aNode.translation.size() != 3) Fail(aWhat + ": 'translation' must have 3 numbers");
+        if (!aNode.rotation.empty() && aNode.rotation.size() != 4) Fail(aWhat + ": 'rotation' must have 4 numbers");
+        if (!aNode.scale.empty() && aNode.scale.size() != 3) Fail(aWhat + ": 'scale' must have 3 numbers");
         Mat4 translation(1.0), rotation(1.0), scale(1.0);
         if (aNode.translation.size() == 3)
             translation[3] = glm::dvec4(aNode.translation[0], aNode.translation[1], aNode.translation[2], 1.0);
         if (aNode.rotation.size() == 4) {
-            const double x = aNode.rotation[0], y = aNode.rotation[1], z = aNode.rotation[2], w = aNode.rotation[3];
+            // Scaled by the largest component first: the squares of (1e300, ...) overflow
+            // to infinity (n = inf, q = 0: no rotation), those of (1e-300, ...) underflow.
+            const double largest = std::max(std::max(std::abs(aNode.rotation[0]), std::abs(aNode.rotation[1])),
+                                            std::max(std::abs(aNode.rotation[2]), std::abs(aNode.rotation[3])));
+            if (!std::isfinite(largest)) Fail(aWhat + ": the rotation quaternion is not finite");
+            if (!(largest > 0.0)) Fail(aWhat + ": the rotation quaternion is zero");
+            const double x = aNode.rotation[0] / largest, y = aNode.rotation[1] / largest, z = aNode.rotation[2] / largest,
+                         w = aNode.rotation[3] / largest;
             const double n = std::sqrt(x * x + y * y + z * z + w * w);
-            if (!(n > 0.0)) Fail(aWhat + ": the rotation quaternion is zero");
             const double qx = x / n, qy = y / n, qz = z / n, qw = w / n;
             rotation[0] = glm::dvec4(1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy + qz * qw), 2 * (qx * qz - qy * qw), 0);
             rotation[1] = glm::dvec4(2 * (qx * qy - qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz + qx * qw), 0);
@@ -3480,9 +3544,10 @@ private:
         const Mat4 world = aParent * LocalMatrix(node, what);
         for (int c = 0; c < 4; c++) for (int r = 0; r < 4; r++)
             if (!std::isfinite(world[c][r])) Fail(what + ": its transform is not finite");
-        if (node.skin >= 0) Fail(what + ": skins are not supported");
-        if (node.mesh >= 0) AddMesh(node.mesh, world, what);
-        if (node.camera >= 0) AddCamera(node.camera, world, what);
+        // tinygltf stores an absent index as -1 and a written one as it is: -5 is no index.
+        if (node.skin != -1) Fail(what + ": skins are not supported");
+        if (node.mesh != -1) AddMesh(node.mesh, world, what);
+        if (node.camera != -1) AddCamera(node.camera, world, what);
         auto sphere = node.extensions.find("SMALLVCM_sphere");
         if (sphere != node.extensions.end()) AddSphere(sphere->second, world, what);
         auto light = node.extensions.find("KHR_lights_punctual");
@@ -3544,7 +3609,7 @@ private:
     }
 
     void AddMesh(int aMeshIndex, const Mat4& aWorld, const std::string& aWhat) {
-        if (aMeshIndex >= int(mModel.meshes.size())) Fail(aWhat + " refers to mesh " + std::to_string(aMeshIndex) + ", which does not exist");
+        if (aMeshIndex < 0 || aMeshIndex >= int(mModel.meshes.size())) Fail(aWhat + " refers to mesh " + std::to_string(aMeshIndex) + ", which does not exist");
         const tinygltf::Mesh& mesh = mModel.meshes[size_t(aMeshIndex)];
         // A transform that mirrors (negative determinant) reverses the winding (glTF spec).
         const bool flip = glm::determinant(glm::dmat3(aWorld)) < 0.0;
@@ -3559,7 +3624,7 @@ private:
             const std::vector<double> positions = ReadAccessor(position->second, TINYGLTF_TYPE_VEC3, false, what + " POSITION");
             const size_t vertexCount = positions.size() / 3;
             std::vector<double> indices;
-            if (primitive.indices >= 0) {
+            if (primitive.indices != -1) {
                 indices = ReadAccessor(primitive.indices, TINYGLTF_TYPE_SCALAR, true, what + " indices");
             } else {
                 indices.resize(vertexCount);
@@ -3570,8 +3635,8 @@ private:
             for (size_t v = 0; v < vertexCount; v++) {
                 const glm::dvec4 local(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2], 1.0);
                 const glm::dvec3 w = glm::dvec3(aWorld * local);
-                if (!std::isfinite(w.x) || !std::isfinite(w.y) || !std::isfinite(w.z))
-                    Fail(what + ": vertex " + std::to_string(v) + " is not finite (NaN or infinity)");
+                if (!std::isfinite(w.x) || !std::isfinite(w.y) || !std::isfinite(w.z) || !IsFinite(Vec3(w)))
+                    Fail(what + ": vertex " + std::to_string(v) + " is not finite (NaN or infinity, in float32)");
                 world[v] = Vec3(w);
             }
             const int material = MaterialIndex(primitive.material, what);
@@ -3620,15 +3685,16 @@ private:
         const std::string what = "light " + std::to_string(index) + (light.name.empty() ? "" : " '" + light.name + "'");
         if (light.range > 0.0) Fail(what + ": 'range' is not supported (lights here have no cut-off)");
         Vec3 color(1.f);
+        if (!light.color.empty() && light.color.size() != 3) Fail(what + ": 'color' must have 3 numbers");
         if (light.color.size() == 3) color = Vec3(float(light.color[0]), float(light.color[1]), float(light.color[2]));
         const Vec3 emission = color * float(light.intensity);
         CheckColor(emission, what + ": color * intensity", false);
         if (light.type == "point") {
-            mScene.AddPointLight(Vec3(glm::dvec3(aWorld[3])), emission);
+            mScene.AddPointLight(ToFloat(glm::dvec3(aWorld[3]), aWhat + ": the point light position"), emission);
         } else if (light.type == "directional") {
-            const glm::dvec3 direction = -glm::dvec3(aWorld[2]);
-            if (!(glm::length(direction) > 0.0)) Fail(aWhat + ": the directional light's node has a degenerate transform");
-            mScene.AddDirectionalLight(Vec3(glm::normalize(direction)), emission);
+            glm::dvec3 direction;
+            if (!Direction(-glm::dvec3(aWorld[2]), direction)) Fail(aWhat + ": the directional light's node has a degenerate transform");
+            mScene.AddDirectionalLight(Vec3(direction), emission);
         } else {
             Fail(what + ": light type '" + light.type + "' is not supported (point and directional are)");
         }
@@ -3636,7 +3702,7 @@ private:
 
     void AddCamera(int aCameraIndex, const Mat4& aWorld, const std::string& aWhat) {
         if (mHasCamera) return;  // the first camera in depth-first order is used
-        if (aCameraIndex >= int(mModel.cameras.size())) Fail(aWhat + " refers to camera " + std::to_string(aCameraIndex) + ", which does not exist");
+        if (aCameraIndex < 0 || aCameraIndex >= int(mModel.cameras.size())) Fail(aWhat + " refers to camera " + std::to_string(aCameraIndex) + ", which does not exist");
         const tinygltf::Camera& camera = mModel.cameras[size_t(aCameraIndex)];
         if (camera.type != "perspective") Fail("camera " + std::to_string(aCameraIndex) + ": type '" + camera.type + "' is not supported (only perspective)");
         const double yfov = camera.perspective.yfov;
@@ -3645,11 +3711,16 @@ private:
             Fail("camera " + std::to_string(aCameraIndex) + ": yfov must be in (0, 3.1) radians");
         // The horizontal field of view is what stays fixed when the image size changes.
         const double horizontalFov = 2.0 * std::atan(std::tan(0.5 * yfov) * aspect);
+        // Narrower, and the image plane (width / (2 tan(fov / 2)) pixels away) is so far
+        // that float32 ray directions overflow, or the angle rounds to 0: NaN rays.
+        if (!(horizontalFov >= 1e-6))
+            Fail("camera " + std::to_string(aCameraIndex) + ": the horizontal field of view is below 1e-6 radians (yfov or aspectRatio too small)");
         if (!(horizontalFov < 3.1)) Fail("camera " + std::to_string(aCameraIndex) + ": the horizontal field of view is 180 degrees or more");
-        const glm::dvec3 up(aWorld[1]), back(aWorld[2]);
-        if (!(glm::length(up) > 0.0) || !(glm::length(back) > 0.0) || glm::length(glm::cross(up, back)) < 1e-9)
+        glm::dvec3 up, back;  // unit vectors
+        if (!Direction(glm::dvec3(aWorld[1]), up) || !Direction(glm::dvec3(aWorld[2]), back) || glm::length(glm::cross(up, back)) < 1e-6)
             Fail(aWhat + ": the camera's transform is degenerate");
-        mScene.mCamera.Setup(Vec3(glm::dvec3(aWorld[3])), Vec3(-back), Vec3(up), float(horizontalFov * 180.0 / 3.14159265358979323846));
+        mScene.mCamera.Setup(ToFloat(glm::dvec3(aWorld[3]), aWhat + ": the camera position"), Vec3(-back), Vec3(up),
+                             float(horizontalFov * 180.0 / 3.14159265358979323846));
         mHasCamera = true;
     }
 

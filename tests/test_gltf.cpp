@@ -517,3 +517,81 @@ TEST_CASE("A mirroring node transform keeps the front face where glTF puts it", 
         CHECK_VEC3(scene.mTriangles.at(1).mNormal, Vec3(0, 0, -1), 1e-6f);
     }
 }
+
+// --- fuzz regressions (tests/data/fuzz, table in its README.md) ---------------------------
+// Inputs found by fuzzing the loader (tests/fuzz/fuzz_gltf.cpp, docs/testing.md) or made
+// by hand for the same classes of problem: each must be rejected with an Error naming the
+// file and the problem, or load as a scene that renders what the file says (finite camera
+// and lights). Several fail until the fixes proposed with them are in smallvcm.hpp.
+
+namespace {
+
+bool FiniteVec(const Vec3& aV) { return std::isfinite(aV.x) && std::isfinite(aV.y) && std::isfinite(aV.z); }
+bool UnitVec(const Vec3& aV) { return FiniteVec(aV) && std::abs(glm::length(aV) - 1.f) < 1e-4f; }
+
+// What the fuzz target (CheckScene) requires of a scene that loads.
+void CheckSaneScene(const Scene& aScene) {
+    const Camera& camera = aScene.mCamera;
+    CHECK(FiniteVec(camera.Position()));
+    CHECK(UnitVec(camera.Forward()));
+    CHECK(UnitVec(camera.Right()));
+    CHECK(UnitVec(camera.Up()));
+    CHECK(camera.HorizontalFovDegrees() > 0.f);
+    CHECK(camera.HorizontalFovDegrees() < 180.f);
+    for (const Light& light : aScene.mLights) {
+        CHECK(FiniteVec(light.mEmission));
+        if (light.mType == LightType::kPoint) CHECK(FiniteVec(light.mPosition));
+        if (light.mType == LightType::kDirectional) CHECK(UnitVec(light.mDirection));
+    }
+    for (const Triangle& triangle : aScene.mTriangles) {
+        CHECK(FiniteVec(triangle.mP0));
+        CHECK(FiniteVec(triangle.mP1));
+        CHECK(FiniteVec(triangle.mP2));
+        CHECK(UnitVec(triangle.mNormal));
+    }
+}
+
+} // namespace
+
+TEST_CASE("The fuzz regression table lists every file of tests/data/fuzz", "[gltf][fuzz]") {
+    std::set<std::string> listed;
+    for (const CorpusRow& row : ReadCorpusTable("data/fuzz/README.md")) {
+        INFO(row.mFile);
+        CHECK(listed.insert(row.mFile).second);
+    }
+    CHECK(listed == SceneFilesIn("data/fuzz"));
+    CHECK(listed.size() >= 1);
+}
+
+TEST_CASE("Every fuzz regression input is rejected with an Error naming the file, or loads sanely", "[gltf][fuzz]") {
+    for (const CorpusRow& row : ReadCorpusTable("data/fuzz/README.md")) {
+        const std::string path = "data/fuzz/" + row.mFile;
+        if (row.mFragment.empty()) {
+            INFO(path << " (" << row.mWhat << ")\n  expected: loads, skipped " << row.mSkipped << ", kept " << row.mKept);
+            GltfLoadReport report;
+            Scene scene;
+            REQUIRE_NOTHROW(scene = LoadGltfScene(path, &report));
+            CHECK(report.mSkippedDegenerateTriangles == row.mSkipped);
+            CHECK(int(scene.mTriangles.size()) == row.mKept);
+            CheckSaneScene(scene);
+            continue;
+        }
+        const LoadOutcome outcome = TryLoad(path);
+        INFO(path << " (" << row.mWhat << ")\n  expected: Error containing '" << row.mFragment << "'\n  got: "
+                  << outcome.mKind << (outcome.mMessage.empty() ? "" : ": " + outcome.mMessage));
+        CHECK(outcome.mKind == "Error");
+        CHECK(StartsWith(outcome.mMessage, path + ": "));
+        const std::string problem = outcome.mMessage.substr(std::min(outcome.mMessage.size(), path.size() + 2));
+        CHECK(problem.find(row.mFragment) != std::string::npos);
+        CHECK(outcome.mMessage.find('\n') == std::string::npos);
+    }
+}
+
+TEST_CASE("A rotation quaternion with huge components turns a node like its normalised self", "[gltf][fuzz]") {
+    // (1e300, 1e300, 1e300, 1e300) is (0.5, 0.5, 0.5, 0.5): 120 degrees about (1, 1, 1),
+    // which takes +z to +x. Its squared norm overflows; the floor must not stay unrotated.
+    const Scene scene = LoadGltfScene("data/fuzz/rotation_huge_quaternion.gltf");
+    REQUIRE(scene.mTriangles.size() == 4);
+    CHECK_VEC3(scene.mTriangles[0].mNormal, Vec3(1, 0, 0), 1e-5f);
+    CHECK_VEC3(scene.mTriangles[0].mP0, Vec3(0, -1, -1), 1e-5f);  // local (-1, -1, 0)
+}

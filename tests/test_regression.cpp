@@ -1,6 +1,7 @@
 // [regression] The renderer's output is pinned bit for bit by golden images (made by
-// tests/data/golden/make_golden.sh before the speed work): restructuring for speed must
-// not change a single result. A change of what is sampled regenerates them on purpose.
+// tests/data/golden/make_golden.sh; its header says when and why they were last made):
+// restructuring for speed must not change a single result. A change of what is sampled
+// regenerates them on purpose, in its own commit.
 #include "test_util.hpp"
 
 #include <catch2/catch.hpp>
