@@ -19,7 +19,7 @@ IMPL_OBJ := $(BUILD)/smallvcm_impl.o
 TEST_SRC := $(filter-out tests/catch_main.cpp,$(wildcard tests/*.cpp))
 TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
-.PHONY: all deps demo test check clean
+.PHONY: all deps demo test check fuzz convergence bench clean
 
 all: $(BUILD)/smallvcm $(BUILD)/convergence $(BUILD)/tests/run_tests
 
@@ -96,6 +96,21 @@ test: deps
 check: deps
 	$(MAKE) --no-print-directory all $(BUILD)/check/smallvcm $(BUILD)/check/tests/run_tests
 	@tests/run_suite.sh --catch ../$(BUILD)/check/tests/run_tests $(TEST_ARGS) -- --smoke ../$(BUILD)/check/smallvcm
+
+# make fuzz [FUZZ_SECONDS=600]: libFuzzer over the glTF loader (installs clang if missing).
+FUZZ_SECONDS ?= 300
+fuzz:
+	tests/fuzz/run_fuzzer.sh $(FUZZ_SECONDS)
+
+# make convergence: the convergence study and its charts (docs/performance.md says how
+# long; references are made if missing). Needs python3-matplotlib (installed if missing).
+convergence: deps $(BUILD)/convergence
+	@dpkg-query -W -f='$${Status}' python3-matplotlib 2>/dev/null | grep -q "install ok installed" || \
+	  { if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
+	    $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q python3-matplotlib; }
+	$(BUILD)/convergence --make-references --reference-iterations 2048 --max-iterations 4096 \
+	    --max-seconds 10 --clock cpu --out docs/performance/convergence.csv
+	/usr/bin/python3 docs/plot_convergence.py docs/performance/convergence.csv
 
 clean:
 	rm -rf $(BUILD)
