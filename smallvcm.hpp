@@ -3631,6 +3631,11 @@ private:
                 for (size_t i = 0; i < vertexCount; i++) indices[i] = double(i);
             }
             if (indices.size() % 3 != 0) Fail(what + ": the index count " + std::to_string(indices.size()) + " is not a multiple of 3");
+            // Nodes, primitives and accessors may all share data: a 64 KB file can ask for
+            // billions of triangles. Count them before any work (degenerate ones too).
+            mTriangleCount += indices.size() / 3;
+            if (mTriangleCount > kMaxTriangles)
+                Fail(what + ": the scene has more than " + std::to_string(kMaxTriangles) + " triangles (the loader's limit)");
             std::vector<Vec3> world(vertexCount);
             for (size_t v = 0; v < vertexCount; v++) {
                 const glm::dvec4 local(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2], 1.0);
@@ -3740,6 +3745,8 @@ private:
     int mDefaultMaterial = -1;
     bool mHasCamera = false;
     int mSkippedTriangles = 0;
+    static constexpr size_t kMaxTriangles = size_t(1) << 22;  // ~1 GB of scene and BVH; raise for big meshes
+    size_t mTriangleCount = 0;  // triangles read so far, degenerate ones included
     std::set<int> mVisitedNodes;
 };
 
