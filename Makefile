@@ -21,7 +21,7 @@ TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
 .PHONY: all deps demo test check fuzz convergence bench clean
 
-all: $(BUILD)/smallvcm $(BUILD)/convergence $(BUILD)/tests/run_tests
+all: $(BUILD)/smallvcm $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
 # Installs what is missing, with sudo when not root; does nothing when all is there.
 deps:
@@ -96,6 +96,12 @@ test: deps
 check: deps
 	$(MAKE) --no-print-directory all $(BUILD)/check/smallvcm $(BUILD)/check/tests/run_tests
 	@tests/run_suite.sh --catch ../$(BUILD)/check/tests/run_tests $(TEST_ARGS) -- --smoke ../$(BUILD)/check/smallvcm
+
+# make bench: seconds per iteration of every estimator on every Cornell scene (512x512,
+# 1 and 2 threads), rays per second, peak memory, BVH build and tracing as the triangle
+# count grows from 1e2 to 1e6 (about 10 minutes); the report goes to docs/performance/bench.md.
+bench: deps $(BUILD)/bench
+	$(BUILD)/bench --markdown docs/performance/bench.md
 
 # make fuzz [FUZZ_SECONDS=600]: libFuzzer over the glTF loader (installs clang if missing).
 FUZZ_SECONDS ?= 300
