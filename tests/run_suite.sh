@@ -6,7 +6,8 @@
 #   --smoke   a smallvcm binary (the sanitized build): every algorithm on every Cornell
 #             scene (16x16, 2 iterations) and every rejected file of tests/data/bad run
 #             through it; each run counts as one test: renders must exit 0 and write their
-#             image, bad files must exit 1 (fuzz regression inputs 0 or 1: some load after
+#             image, bad command lines must exit 2 and write nothing,
+#             bad files must exit 1 (fuzz regression inputs 0 or 1: some load after
 #             their fix, tests/test_gltf.cpp checks which), and no run may
 #             print a sanitizer report (AddressSanitizer / UndefinedBehaviorSanitizer) or
 #             fail a SMALLVCM_CHECKS invariant.
@@ -67,6 +68,30 @@ if [ "${1:-}" = "--smoke" ]; then
     esac
     run_one "load $file" "$expected" "$binary" -q -s "$file" -a el -r 8x8 -o "$out/bad.pfm"
   done
+  # Bad command lines: exit code 2 and no output file, under the sanitizers too.
+  while IFS= read -r options; do
+    # shellcheck disable=SC2086
+    run_one "options $options" 2 "$binary" -q $options -o "$out/never.pfm"
+    if [ -e "$out/never.pfm" ]; then failed=$((failed + 1)); status=1; echo "smoke FAILED: $options wrote an output"; fi
+  done <<'OPTIONS'
+-a nosuch
+-i -3
+-i 0
+-i 12abc
+-r 0x10
+-r 100
+-j 0
+--radius-alpha 0
+--radius-factor -1
+--mis foo
+--min-path-length 5 --max-path-length 3
+--photons 0
+--knn -2
+--max-radius nan
+-s 9
+--no-such-option
+-i
+OPTIONS
   echo "smoke stage with $binary: $((passed)) passed so far, $failed failed so far"
   rm -rf "$out"
 fi
