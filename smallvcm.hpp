@@ -1508,6 +1508,29 @@ private:
     bool mValid = false;
 };
 
+// One step of a random walk, shared by every integrator that walks paths: sample the
+// BSDF, then Russian roulette with the material's continuation probability (which is
+// part of how the direction was sampled, so it multiplies the pdf).
+struct ScatterSample {
+    Vec3 mDirection{0.f};
+    Vec3 mWeight{0.f};      // f cos / pdf: what the path throughput is multiplied by
+    float mPdfW = 0.f;      // solid-angle pdf of mDirection, continuation probability included
+    float mCosThetaOut = 0.f;
+    uint32_t mEvent = kEventNone;
+    bool IsSpecular() const { return (mEvent & kEventSpecular) != 0; }
+};
+
+// False when the walk ends here (a black sample, or Russian roulette).
+inline bool SampleScatteringWithRoulette(const Bsdf& aBsdf, Rng& aRng, ScatterSample& oSample) {
+    const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), oSample.mDirection, oSample.mPdfW, oSample.mCosThetaOut, &oSample.mEvent);
+    if (IsBlack(factor)) return false;
+    const float continuationProb = aBsdf.ContinuationProb();
+    if (aRng.GetFloat() >= continuationProb) return false;
+    oSample.mPdfW *= continuationProb;
+    oSample.mWeight = factor * (oSample.mCosThetaOut / oSample.mPdfW);
+    return true;
+}
+
 // =====================================================================================
 // [SECTION] Film
 // =====================================================================================
@@ -1804,19 +1827,13 @@ public:
                 }
 
                 // Continue the path by sampling the BSDF, then Russian roulette.
-                Vec3 direction;
-                float pdfW, cosThetaOut;
-                uint32_t event;
-                const Vec3 factor = bsdf.Sample(aRng.GetVec3(), direction, pdfW, cosThetaOut, &event);
-                if (IsBlack(factor)) break;
-                const float continuationProb = bsdf.ContinuationProb();
-                if (aRng.GetFloat() >= continuationProb) break;
-                pdfW *= continuationProb;
-                throughput *= factor * (cosThetaOut / pdfW);
-                lastPdfW = pdfW;
-                lastSpecular = (event & kEventSpecular) != 0;
+                ScatterSample scatter;
+                if (!SampleScatteringWithRoulette(bsdf, aRng, scatter)) break;
+                throughput *= scatter.mWeight;
+                lastPdfW = scatter.mPdfW;
+                lastSpecular = scatter.IsSpecular();
                 if (pathLength == 1) firstSpecular = lastSpecular;
-                ray = mScene.SpawnRay(hitPoint, direction);
+                ray = mScene.SpawnRay(hitPoint, scatter.mDirection);
             }
         }
     }
@@ -2033,16 +2050,11 @@ inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLeng
                 global.push_back(photon);
                 if (onlySpecular && pathLength > 1) caustic.push_back(photon);
             }
-            Vec3 direction;
-            float pdfW, cosThetaOut;
-            uint32_t event;
-            const Vec3 factor = bsdf.Sample(aRng.GetVec3(), direction, pdfW, cosThetaOut, &event);
-            if (IsBlack(factor)) break;
-            const float continuationProb = bsdf.ContinuationProb();
-            if (aRng.GetFloat() >= continuationProb) break;
-            power *= factor * (cosThetaOut / (pdfW * continuationProb));
-            onlySpecular = onlySpecular && (event & kEventSpecular) != 0;
-            ray = aScene.SpawnRay(hitPoint, direction);
+            ScatterSample scatter;
+            if (!SampleScatteringWithRoulette(bsdf, aRng, scatter)) break;
+            power *= scatter.mWeight;
+            onlySpecular = onlySpecular && scatter.IsSpecular();
+            ray = aScene.SpawnRay(hitPoint, scatter.mDirection);
         }
     }
     oGlobal.Build(std::move(global));
@@ -2678,25 +2690,19 @@ private:
     // updates its throughput and MIS quantities. False when the sub-path ends.
     bool SampleScattering(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, SubPathState& ioState,
                           uint32_t* oEvent) const {
-        Vec3 direction;
-        float dirPdfW, cosThetaOut;
-        uint32_t event;
-        const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), direction, dirPdfW, cosThetaOut, &event);
-        if (IsBlack(factor)) return false;
-        const float continuationProb = aBsdf.ContinuationProb();
-        if (aRng.GetFloat() >= continuationProb) return false;
-        const bool specular = (event & kEventSpecular) != 0;
+        ScatterSample scatter;
+        if (!SampleScatteringWithRoulette(aBsdf, aRng, scatter)) return false;
+        const bool specular = scatter.IsSpecular();
         // For a specular event both pdfs are the component's selection probability (the
         // Fresnel term is the same for both directions of a reflection or refraction).
-        const float revPdfW = (specular ? dirPdfW : aBsdf.Pdf(direction, true)) * continuationProb;
-        dirPdfW *= continuationProb;
-        VcmMis::AfterScatter(mMis, ioState.mMis, cosThetaOut, dirPdfW, revPdfW, specular);
+        const float revPdfW = specular ? scatter.mPdfW : aBsdf.Pdf(scatter.mDirection, true) * aBsdf.ContinuationProb();
+        VcmMis::AfterScatter(mMis, ioState.mMis, scatter.mCosThetaOut, scatter.mPdfW, revPdfW, specular);
         ioState.mOrigin = aHitPoint;
-        ioState.mDirection = direction;
-        ioState.mThroughput *= factor * (cosThetaOut / dirPdfW);
+        ioState.mDirection = scatter.mDirection;
+        ioState.mThroughput *= scatter.mWeight;
         ioState.mSpecularPath = ioState.mSpecularPath && specular;
         ioState.mPathLength++;
-        if (oEvent) *oEvent = event;
+        if (oEvent) *oEvent = scatter.mEvent;
         return true;
     }
 
