@@ -8,6 +8,8 @@
 #include "gltf_corpus.hpp"
 #include "smallvcm.hpp"
 
+#include "test_util.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <sys/wait.h>
@@ -25,35 +27,9 @@ using corpus::StartsWith;
 
 const char* const kProgram = "../build/smallvcm";
 
-// A fresh folder under the system's temporary folder, removed with everything in it.
-struct TemporaryFolder {
-    fs::path mPath;
-    TemporaryFolder() {
-        static int counter = 0;
-        mPath = fs::temp_directory_path() /
-                ("smallvcm_cli_" + std::to_string(getpid()) + "_" + std::to_string(counter++));
-        fs::remove_all(mPath);
-        fs::create_directories(mPath);
-    }
-    ~TemporaryFolder() {
-        std::error_code ignored;
-        fs::remove_all(mPath, ignored);
-    }
-    std::string operator/(const std::string& aName) const { return (mPath / aName).string(); }
-};
-
-std::string Quote(const std::string& aText) {
-    std::string quoted = "'";
-    for (char c : aText) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return quoted + "'";
-}
-
-std::string ReadText(const std::string& aPath) {
-    std::ifstream file(aPath, std::ios::binary);
-    std::stringstream text;
-    text << file.rdbuf();
-    return text.str();
-}
+using testutil::Quote;
+using testutil::ReadText;
+using testutil::TemporaryFolder;
 
 struct Run {
     int mExitCode = -1;      // the program's exit code; 124 when it ran out of time

@@ -28,6 +28,8 @@
 // consistent estimators was at most 0.78 in those 40 runs (bpm on the sun scene, whose
 // error at 16x16 is dominated by rare bright paths); the check is ratio < 1.
 // Tests run from tests/, so the program is ../build/convergence (built by `make all`).
+#include "test_util.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <sys/wait.h>
@@ -51,34 +53,9 @@ const char* const kProgram = "../build/convergence";
 const std::vector<std::string> kEstimators = {"pt", "lt", "ppm", "bpm", "bpt", "vcm", "pm", "pmfg"};
 const std::vector<int> kCheckpoints = {1, 2, 4, 8, 16, 32, 64, 128};  // --quick's
 
-struct Folder {
-    fs::path mPath;
-    Folder() {
-        static int counter = 0;
-        mPath = fs::temp_directory_path() /
-                ("smallvcm_convergence_" + std::to_string(getpid()) + "_" + std::to_string(counter++));
-        fs::remove_all(mPath);
-        fs::create_directories(mPath);
-    }
-    ~Folder() {
-        std::error_code ignored;
-        fs::remove_all(mPath, ignored);
-    }
-    std::string operator/(const std::string& aName) const { return (mPath / aName).string(); }
-};
-
-std::string Quote(const std::string& aText) {
-    std::string quoted = "'";
-    for (char c : aText) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return quoted + "'";
-}
-
-std::string ReadText(const std::string& aPath) {
-    std::ifstream file(aPath, std::ios::binary);
-    std::stringstream text;
-    text << file.rdbuf();
-    return text.str();
-}
+using testutil::Quote;
+using testutil::ReadText;
+using testutil::TemporaryFolder;
 
 int ExitCode(int aStatus) { return WIFEXITED(aStatus) ? WEXITSTATUS(aStatus) : 128 + (WIFSIGNALED(aStatus) ? WTERMSIG(aStatus) : 0); }
 
@@ -121,7 +98,7 @@ std::string SettingsValue(const std::string& aText, const std::string& aKey) {
 TEST_CASE("convergence --quick: one row per checkpoint, errors that fall, unbiased slopes near -1/2", "[convergence]") {
     REQUIRE(fs::exists(kProgram));
 
-    Folder folder;
+    TemporaryFolder folder;
     const std::string csvPath = folder / "quick.csv";
     const std::string command = "ulimit -c 0; timeout 120 " + std::string(kProgram) + " --quick -q --out " + Quote(csvPath) +
                                 " > " + Quote(folder / "stdout") + " 2> " + Quote(folder / "stderr");
@@ -218,7 +195,7 @@ TEST_CASE("convergence --quick: one row per checkpoint, errors that fall, unbias
 
 TEST_CASE("convergence: bad options exit with code 2 and one line naming the option", "[convergence]") {
     REQUIRE(fs::exists(kProgram));
-    Folder folder;
+    TemporaryFolder folder;
     const std::vector<std::pair<std::string, std::string>> cases = {
         {"--scenes 7", "--scenes"}, {"--algorithms xyz", "--algorithms"}, {"--algorithms el", "--algorithms"},
         {"--resolution 0x4", "--resolution"}, {"--threads 2 --clock cpu", "--clock"},

@@ -4,8 +4,13 @@
 #include "smallvcm.hpp"
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
+
+#include <unistd.h>
 
 namespace testutil {
 
@@ -115,6 +120,39 @@ inline MeanAndError PixelStatistics(const Image& aImage) {
     const double variance = std::max(0.0, sumSqr / n - r.mean * r.mean) * n / (n - 1.0);
     r.standardError = std::sqrt(variance / n);
     return r;
+}
+
+// For tests that run programs: a fresh folder under the system's temporary folder,
+// removed with everything in it; shell quoting; a whole file as text.
+struct TemporaryFolder {
+    std::filesystem::path mPath;
+    TemporaryFolder() {
+        static int counter = 0;
+        mPath = std::filesystem::temp_directory_path() /
+                ("smallvcm_test_" + std::to_string(getpid()) + "_" + std::to_string(counter++));
+        std::filesystem::remove_all(mPath);
+        std::filesystem::create_directories(mPath);
+    }
+    ~TemporaryFolder() {
+        std::error_code ignored;
+        std::filesystem::remove_all(mPath, ignored);
+    }
+    TemporaryFolder(const TemporaryFolder&) = delete;
+    TemporaryFolder& operator=(const TemporaryFolder&) = delete;
+    std::string operator/(const std::string& aName) const { return (mPath / aName).string(); }
+};
+
+inline std::string Quote(const std::string& aText) {
+    std::string quoted = "'";
+    for (char c : aText) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return quoted + "'";
+}
+
+inline std::string ReadText(const std::string& aPath) {
+    std::ifstream file(aPath, std::ios::binary);
+    std::stringstream text;
+    text << file.rdbuf();
+    return text.str();
 }
 
 } // namespace testutil
