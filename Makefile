@@ -41,7 +41,7 @@ $(IMPL_OBJ): examples/smallvcm_impl.cpp $(HEADER) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
 # Every examples/NAME.cpp is a program build/NAME linked with the implementation unit.
-$(BUILD)/%.o: examples/%.cpp $(HEADER) | $(BUILD)
+$(BUILD)/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
 $(BUILD)/%: $(BUILD)/%.o $(IMPL_OBJ)
@@ -72,7 +72,7 @@ SAN_TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/check/tests/%.o,$(TEST_SRC))
 
 $(BUILD)/check/tests:
 	mkdir -p $@
-$(BUILD)/check/%.o: examples/%.cpp $(HEADER) | $(BUILD)/check/tests
+$(BUILD)/check/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)/check/tests
 	$(CXX) $(CPPFLAGS) $(SAN_FLAGS) -c $< -o $@
 $(BUILD)/check/smallvcm: $(BUILD)/check/smallvcm.o $(BUILD)/check/smallvcm_impl.o
 	$(CXX) $(SAN_FLAGS) $^ -o $@ $(LDFLAGS)

@@ -66,6 +66,7 @@
 // Build: make build/convergence. Run with --help for the options.
 
 #include "smallvcm.hpp"
+#include "command_line.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -119,17 +120,6 @@ void PrintHelp() {
         "  --quick                   tiny run with on-the-fly references, for the test (a few seconds)\n"
         "  -q                        no progress lines on stderr\n"
         "  --help                    this text\n");
-}
-
-template <class T>
-T ParseNumber(const std::string& aOption, const std::string& aText, T aMin, T aMax, const char* aRange) {
-    T value{};
-    const char* begin = aText.c_str();
-    const char* end = begin + aText.size();
-    const auto result = std::from_chars(begin, end, value);
-    if (aText.empty() || result.ec != std::errc() || result.ptr != end || !(value >= aMin && value <= aMax))
-        throw Error(aOption + ": '" + aText + "' is not " + aRange);
-    return value;
 }
 
 std::vector<std::string> SplitList(const std::string& aOption, const std::string& aText) {

@@ -10,6 +10,7 @@
 // Build: make build/smallvcm. Run with --help for the options.
 
 #include "smallvcm.hpp"
+#include "command_line.hpp"
 
 #include <atomic>
 #include <charconv>
@@ -66,18 +67,6 @@ void PrintHelp() {
         "  --layers            also write per-technique layers as FILE-stem.LAYER.ext\n"
         "  -q                  quiet: no summary line, no progress\n"
         "  --help              this text\n");
-}
-
-// Strict number parsing: the whole text must be the number.
-template <class T>
-T ParseNumber(const std::string& aOption, const std::string& aText, T aMin, T aMax, const char* aRange) {
-    T value{};
-    const char* begin = aText.c_str();
-    const char* end = begin + aText.size();
-    const auto result = std::from_chars(begin, end, value);
-    if (aText.empty() || result.ec != std::errc() || result.ptr != end || !(value >= aMin && value <= aMax))
-        throw Error(aOption + ": '" + aText + "' is not " + aRange);
-    return value;
 }
 
 // The repository's scenes/ folder: $SMALLVCM_SCENES if set, else found by walking up

@@ -1,0 +1,19 @@
+// Shared by the example programs: strict parsing of a command-line number. The whole text
+// must be the number, inside [aMin, aMax]; otherwise smallvcm::Error says
+// "<option>: '<text>' is not <range>".
+#pragma once
+#include "smallvcm.hpp"
+
+#include <charconv>
+#include <string>
+
+template <class T>
+T ParseNumber(const std::string& aOption, const std::string& aText, T aMin, T aMax, const char* aRange) {
+    T value{};
+    const char* begin = aText.c_str();
+    const char* end = begin + aText.size();
+    const auto result = std::from_chars(begin, end, value);
+    if (aText.empty() || result.ec != std::errc() || result.ptr != end || !(value >= aMin && value <= aMax))
+        throw smallvcm::Error(aOption + ": '" + aText + "' is not " + aRange);
+    return value;
+}
