@@ -300,10 +300,13 @@ def pbr_approximation(m, emissive):
         # ks = 0.04 (1-m) + m b for u = 1 - m (the root in [0, 1]):
         # 0.0384 u^2 - (0.96 s + d) u + d = 0.
         d, s = m["diffuse"][0], m["phong"][0]
-        bq = 0.96 * s + d
-        u = (bq - math.sqrt(bq * bq - 4.0 * 0.0384 * d)) / (2.0 * 0.0384)
-        metallic = 1.0 - u
-        base = (d / (0.96 * u),) * 3
+        if d == 0.0:            # pure Phong: a rough metal, ks = b
+            metallic, base = 1.0, (s,) * 3
+        else:
+            bq = 0.96 * s + d
+            u = (bq - math.sqrt(bq * bq - 4.0 * 0.0384 * d)) / (2.0 * 0.0384)
+            metallic = 1.0 - u
+            base = (d / (0.96 * u),) * 3
         roughness = (2.0 / (m["exponent"] + 2.0)) ** 0.25   # n = 2/r^4 - 2
     else:                       # Lambert
         base = tuple(c / 0.96 for c in m["diffuse"])
@@ -341,17 +344,19 @@ def to_gltf(scene):
     material_index = {}       # SmallVCM id -> glTF material index
 
     # Only the materials the scene uses, in SmallVCM id order.
+    palette = scene.get("materials", MATERIALS)   # figure scenes bring their own
     used_ids = {mid for _, prims in scene["walls"] + scene["light_box"] for mid, _ in prims}
     used_ids |= {mid for _, _, _, mid in scene["spheres"]}
     for mid in sorted(used_ids):
-        m = MATERIALS[mid]
+        m = palette[mid]
         emissive = mid in scene["emission"]
         pbr, ext = pbr_approximation(m, emissive)
         ext["SMALLVCM_material"] = {
             "diffuse": f32_vec(m["diffuse"]), "phong": f32_vec(m["phong"]),
             "phongExponent": f32_json(m["exponent"]), "mirror": f32_vec(m["mirror"]),
             "ior": f32_json(m["ior"])}
-        gm = {"name": "SmallVCM material %d: %s" % (mid, m["name"]),
+        gm = {"name": ("SmallVCM material %d: %s" % (mid, m["name"])) if palette is MATERIALS
+              else m["name"],
               "pbrMetallicRoughness": pbr}
         if emissive:
             gm["emissiveFactor"] = [1.0, 1.0, 1.0]
@@ -439,7 +444,9 @@ def to_gltf(scene):
                                "See docs/scene_format.md."}},
         "scene": 0,
         "scenes": [{"name": scene["name"], "nodes": list(range(len(nodes))),
-                    "extras": {"smallvcm": {"mask": scene["mask"], "name": scene["name"]}}}],
+                    "extras": {"smallvcm": {"mask": scene["mask"], "name": scene["name"]}
+                               if scene.get("mask") is not None else
+                               {"name": scene["name"], "figures": scene["figures"]}}}],
         "nodes": nodes,
         "cameras": cameras,
         "meshes": meshes,
@@ -471,6 +478,116 @@ def to_gltf(scene):
 
 
 # ---------------------------------------------------------------------------
+# The figure scenes (docs/figures.md): each models no more than its figure needs
+# ---------------------------------------------------------------------------
+
+def quad(corner, edge_u, edge_v):
+    """Two triangles of the parallelogram corner + [0,1] edge_u + [0,1] edge_v; the
+    front side (counter-clockwise) faces cross(edge_u, edge_v)."""
+    p = [corner, tuple(corner[i] + edge_u[i] for i in range(3)),
+         tuple(corner[i] + edge_u[i] + edge_v[i] for i in range(3)),
+         tuple(corner[i] + edge_v[i] for i in range(3))]
+    p = [f32_point(q) for q in p]
+    return [(p[0], p[1], p[2]), (p[2], p[3], p[0])]
+
+
+def cornell_variant(mask, name, figures):
+    """A SmallVCM Cornell box from its mask, renamed for the figures that use it."""
+    scene = build_cornell_box(mask)
+    scene["mask"] = None
+    scene["name"] = name
+    scene["figures"] = figures
+    return scene
+
+
+def build_indirect_room():
+    """F06: the white-floored Cornell box lit almost only indirectly. The light-box
+    bottom is replaced by a 0.5 x 0.5 emitter at z = 0.9 that faces the CEILING, with a
+    white shade just under it facing down: no light reaches the floor or the walls
+    without bouncing off the ceiling first, so next-event estimation from a floor point
+    always finds the emitter's back. Same radiance and area as the Cornell light."""
+    scene = cornell_variant(LIGHT_CEILING, "indirect room: light facing the ceiling", ["F06"])
+    half = 0.25
+    scene["light_box"] = [
+        ("lamp (emitter, facing the ceiling)",
+         [(EMITTER_0, quad((-half, -half, 0.9), (2 * half, 0.0, 0.0), (0.0, 2 * half, 0.0)))]),
+        ("lamp shade (facing the floor)",
+         [(WHITE, quad((-half, -half, 0.89), (0.0, 2 * half, 0.0), (2 * half, 0.0, 0.0)))]),
+    ]
+    scene["emission"] = {EMITTER_0: LIGHT_BOX_RADIANCE}
+    return scene
+
+
+# Veach's glossy plates (Veach 1997, fig. 9.2): four plates of four Phong exponents,
+# four sphere lights of four radii whose radiance scales as 1/r^2 (equal power).
+PLATE_EXPONENTS = [20.0, 150.0, 1200.0, 10000.0]     # nearest (roughest) to farthest
+PLATE_LIGHT_RADII = [0.03, 0.1, 0.3, 0.9]
+PLATE_LIGHT_COLOURS = [(1.0, 0.85, 0.5), (0.6, 1.0, 0.6), (0.55, 0.75, 1.0), (1.0, 0.6, 0.9)]
+
+
+def build_veach_plates():
+    """F04. +y up. The plates are 8 wide and 1 deep, stepped away from the camera and
+    each tilted so that it mirrors the middle of the light row towards the camera: each
+    plate shows all four lights as highlights, whose size depends on both the light
+    and the plate's exponent. The radiance of light k is 1.23 (0.9 / r_k)^2 (Veach's
+    values are 1.23, 11.1, 100, 901.8)."""
+    camera = (0.0, 2.0, 15.0)
+    target = (0.0, -2.0, 2.5)
+    light_row = [(x, 0.0, 0.0) for x in (-3.75, -1.25, 1.25, 3.75)]
+    row_centre = (0.0, 0.0, 0.0)
+
+    materials = [material("plate light %d (emitter)" % k) for k in range(4)]
+    for k, n in enumerate(PLATE_EXPONENTS):
+        materials.append(material("plate %d, Phong exponent %g" % (k, n),
+                                  phong=(0.75, 0.75, 0.75), exponent=n))
+    materials.append(material("backdrop", diffuse=(0.05, 0.05, 0.05)))
+
+    def sub(a, b):
+        return tuple(a[i] - b[i] for i in range(3))
+
+    walls = []
+    centres = [(0.0, -3.4, 3.9), (0.0, -2.7, 2.6), (0.0, -2.0, 1.3), (0.0, -1.3, 0.0)]
+    for k, c in enumerate(centres):
+        n = normalize(tuple(a + b for a, b in zip(normalize(sub(camera, c)), normalize(sub(row_centre, c)))))
+        width = (8.0, 0.0, 0.0)
+        depth = normalize(cross(n, (1.0, 0.0, 0.0)))        # in the plate, across its width
+        depth = tuple(1.2 * d for d in depth)
+        corner = tuple(c[i] - 0.5 * width[i] - 0.5 * depth[i] for i in range(3))
+        tris = quad(corner, width, depth)                     # front = cross(width, depth) = n
+        walls.append(("plate %d (exponent %g)" % (k, PLATE_EXPONENTS[k]), [(4 + k, tris)]))
+    # A dark backdrop behind the lights and under the plates, so the picture has a ground.
+    walls.append(("backdrop", [(8, quad((-12.0, -4.5, -6.0), (24.0, 0.0, 0.0), (0.0, 0.0, 16.0)))]))
+
+    spheres = []
+    emission = {}
+    for k, (centre, r) in enumerate(zip(light_row, PLATE_LIGHT_RADII)):
+        spheres.append(("light %d (radius %g)" % (k, r), centre, r, k))
+        emission[k] = 1.23 * (0.9 / r) ** 2
+    scene = {"mask": None, "name": "Veach's glossy plates", "figures": ["F04"],
+             "materials": materials, "walls": walls, "spheres": spheres, "light_box": [],
+             "emission": emission, "sun": None, "point": None, "background": None,
+             "fov_deg": 34.0,
+             "camera": (camera, sub(target, camera), (0.0, 1.0, 0.0))}
+    return scene
+
+
+# (file name, builder) of the figure scenes.
+FIGURE_SCENES = [
+    ("veach_plates.gltf", build_veach_plates),
+    ("indirect_room.gltf", build_indirect_room),
+    ("sds_glass_sphere.gltf", lambda: cornell_variant(
+        LIGHT_POINT | LARGE_GLASS_SPHERE,
+        "SDS: caustic of a glass sphere under a point light, seen through the sphere",
+        ["F08", "F13", "F16", "F17"])),
+    ("diffuse_box.gltf", lambda: cornell_variant(
+        LIGHT_CEILING, "diffuse: the empty Cornell box under its area light", ["F14", "F16"])),
+    ("caustic_glass_sphere.gltf", lambda: cornell_variant(
+        LIGHT_CEILING | LARGE_GLASS_SPHERE,
+        "caustic: a large glass sphere under the small area light", ["F07", "F09", "F10", "F11", "F12"])),
+]
+
+
+# ---------------------------------------------------------------------------
 # Compact JSON: number arrays and short objects on one line, the rest indented
 # ---------------------------------------------------------------------------
 
@@ -495,6 +612,12 @@ def main():
         with open(os.path.join(out_dir, file_name), "w", encoding="ascii", newline="\n") as f:
             f.write(text)
         print("wrote scenes/%s  (mask %d: %s)" % (file_name, mask, scene_name(mask)))
+    for file_name, builder in FIGURE_SCENES:
+        scene = builder()
+        text = dumps(to_gltf(scene)) + "\n"
+        with open(os.path.join(out_dir, file_name), "w", encoding="ascii", newline="\n") as f:
+            f.write(text)
+        print("wrote scenes/%s  (%s)" % (file_name, scene["name"]))
 
 
 if __name__ == "__main__":
