@@ -1650,6 +1650,11 @@ inline bool ParseAlgorithm(const std::string& aName, Algorithm& oAlgorithm) {
 
 enum class MisHeuristic { kBalance, kPower };
 
+// Path tracing only: the techniques that estimate direct light. kMis combines light
+// sampling (next-event estimation) and BSDF sampling; the other two keep one of them
+// alone, as the MIS slide compares them (F04).
+enum class DirectLightSampling { kMis, kLightOnly, kBsdfOnly };
+
 struct RenderOptions {
     Algorithm mAlgorithm = Algorithm::kVertexConnectionMerging;
     int mIterations = 1;          // iterations to run (0: unlimited, then mSeconds must be > 0)
@@ -1661,6 +1666,7 @@ struct RenderOptions {
     float mRadiusFactor = 0.003f; // merging radius = factor * scene radius (SmallVCM's default)
     float mRadiusAlpha = 0.75f;   // radius shrinks as r_i = r_0 (i+1)^((alpha-1)/2)
     MisHeuristic mMis = MisHeuristic::kBalance;
+    DirectLightSampling mDirectLight = DirectLightSampling::kMis;  // path tracing only
     bool mTechniqueLayers = false;// write per-technique layers into the film
     bool mProgress = true;        // progress line on stderr (only on a terminal, after 2 s)
     // When set (e.g. by a Ctrl-C handler), threads finish the iteration they are in and
@@ -1738,6 +1744,8 @@ public:
 // both pdfs in solid angle at the vertex, p_bsdf including the Russian roulette
 // continuation probability (it is part of how the path was sampled).
 // Russian roulette from the first hit on, with the material's continuation probability.
+// RenderOptions::mDirectLight can switch one technique off (weight 1 for the other), to
+// show what each does alone (the MIS figure, F04).
 // With technique layers on, each contribution is also written to one of five layers that
 // partition the image as the "partitioning the rendering equation" slide does:
 //   emitted                    light seen directly (path length 1)
@@ -1773,7 +1781,7 @@ public:
                         float directPdfW = 0.f;
                         const Vec3 radiance = background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection,
                                                                       Vec3(0.f), &directPdfW, nullptr);
-                        const float weight = lastSpecular ? 1.f : MisWeight(lastPdfW, directPdfW * lightPickProb);
+                        const float weight = lastSpecular ? 1.f : BsdfHitWeight(lastPdfW, directPdfW * lightPickProb);
                         AddContribution(pixel, pathLength, firstSpecular, throughput * radiance * weight);
                     }
                     break;
@@ -1794,7 +1802,7 @@ public:
                                 const float cosAtLight = glm::dot(hit.mNormal, -ray.mDirection);
                                 const float distance = hit.mDist + mScene.RayEpsilon();
                                 const float directPdfW = PdfAtoW(directPdfA, distance, cosAtLight) * lightPickProb;
-                                weight = MisWeight(lastPdfW, directPdfW);
+                                weight = BsdfHitWeight(lastPdfW, directPdfW);
                             }
                             AddContribution(pixel, pathLength, firstSpecular, throughput * radiance * weight);
                         }
@@ -1808,7 +1816,8 @@ public:
                 if (!bsdf.IsValid() || pathLength >= mOptions.mMaxPathLength) break;
 
                 // Next-event estimation: one light picked uniformly, one point on it.
-                if (!bsdf.IsDelta() && pathLength + 1 >= mOptions.mMinPathLength) {
+                if (!bsdf.IsDelta() && pathLength + 1 >= mOptions.mMinPathLength &&
+                    mOptions.mDirectLight != DirectLightSampling::kBsdfOnly) {
                     const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
                     LightSample sample;
                     const Vec2 rnd = aRng.GetVec2();
@@ -1818,7 +1827,7 @@ public:
                         if (!IsBlack(factor)) {
                             bsdfPdfW *= bsdf.ContinuationProb();
                             const float directPdfW = sample.mDirectPdfW * lightPickProb;
-                            const float weight = light.IsDelta() ? 1.f : MisWeight(directPdfW, bsdfPdfW);
+                            const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdfPdfW);
                             const Vec3 contribution = throughput * factor * sample.mRadiance * (weight * cosToLight / directPdfW);
                             if (!mScene.Occluded(hitPoint, sample.mDirToLight, sample.mDistance))
                                 AddContribution(pixel, pathLength + 1, false, contribution);
@@ -1845,6 +1854,18 @@ private:
     float MisWeight(float aPdfOfThis, float aPdfOfOther) const {
         const float mine = MisPower(mOptions.mMis, aPdfOfThis);
         return mine / (mine + MisPower(mOptions.mMis, aPdfOfOther));
+    }
+    // The weights of the two direct-light techniques; with one technique switched off
+    // the other gets weight 1 (and the path still scatters, for indirect light).
+    float LightSampleWeight(float aLightPdfW, float aBsdfPdfW) const {
+        return mOptions.mDirectLight == DirectLightSampling::kLightOnly ? 1.f : MisWeight(aLightPdfW, aBsdfPdfW);
+    }
+    float BsdfHitWeight(float aBsdfPdfW, float aLightPdfW) const {
+        switch (mOptions.mDirectLight) {
+        case DirectLightSampling::kLightOnly: return 0.f;
+        case DirectLightSampling::kBsdfOnly: return 1.f;
+        default: return MisWeight(aBsdfPdfW, aLightPdfW);
+        }
     }
 
     void AddContribution(int aPixel, int aPathLength, bool aFirstSpecular, const Vec3& aContribution) {
