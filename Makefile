@@ -19,7 +19,7 @@ IMPL_OBJ := $(BUILD)/smallvcm_impl.o
 TEST_SRC := $(filter-out tests/catch_main.cpp,$(wildcard tests/*.cpp))
 TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
-.PHONY: all deps demo test check fuzz convergence bench clean
+.PHONY: all deps demo test check fuzz convergence bench figures clean
 
 all: $(BUILD)/smallvcm $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
@@ -108,12 +108,32 @@ FUZZ_SECONDS ?= 300
 fuzz:
 	tests/fuzz/run_fuzzer.sh $(FUZZ_SECONDS)
 
+# The charts are drawn by matplotlib (Debian's python3-matplotlib), installed if missing.
+ENSURE_MATPLOTLIB = dpkg-query -W -f='$${Status}' python3-matplotlib 2>/dev/null | grep -q "install ok installed" || \
+	  { if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
+	    $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q python3-matplotlib; }
+
+# make figures: every course figure (F01-F19) at publication settings into docs/figures/,
+# then the charts and the gallery docs/figures.md (docs/figures.md says how long it takes;
+# references missing from docs/figures/references/ are rendered first).
+# make figures QUICK=1: the same programs at tiny settings into build/figures-quick/ (a
+# couple of minutes; the gallery check fails if a file the page shows was not made).
+FIGURE_PROGRAMS := fig_path_tracing fig_mis fig_bidirectional fig_photon_mapping fig_vcm fig_convergence fig_report
+FIGURE_OUT := $(if $(QUICK),$(BUILD)/figures-quick,docs/figures)
+FIGURE_PAGE := $(if $(QUICK),$(BUILD)/figures-quick/figures.md,docs/figures.md)
+figures: deps
+	$(MAKE) --no-print-directory $(FIGURE_PROGRAMS:%=$(BUILD)/%)
+	@$(ENSURE_MATPLOTLIB)
+	@start=$$(date +%s); for program in $(FIGURE_PROGRAMS); do \
+	  $(BUILD)/$$program $(if $(QUICK),--quick) --out $(FIGURE_OUT) || exit 1; done; \
+	  echo "figures: the programs took $$(( $$(date +%s) - start )) s"
+	/usr/bin/python3 docs/plot_figures.py $(FIGURE_OUT)
+	/usr/bin/python3 docs/make_gallery.py $(FIGURE_OUT) $(FIGURE_PAGE)
+
 # make convergence: the convergence study and its charts (docs/performance.md says how
 # long; references are made if missing). Needs python3-matplotlib (installed if missing).
 convergence: deps $(BUILD)/convergence
-	@dpkg-query -W -f='$${Status}' python3-matplotlib 2>/dev/null | grep -q "install ok installed" || \
-	  { if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
-	    $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q python3-matplotlib; }
+	@$(ENSURE_MATPLOTLIB)
 	$(BUILD)/convergence --make-references --reference-iterations 2048 --max-iterations 4096 \
 	    --max-seconds 10 --clock cpu --out docs/performance/convergence.csv
 	/usr/bin/python3 docs/plot_convergence.py docs/performance/convergence.csv

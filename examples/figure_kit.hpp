@@ -195,6 +195,18 @@ inline const Image& Layer(const RenderResult& aResult, const std::string& aName)
     throw Error("no layer named '" + aName + "' in the render");
 }
 
+// What the camera sees first through each pixel's centre (top row first): the masks
+// that tell the figures which pixels show a specular surface, a plate, a light.
+inline std::vector<smallvcm::Hit> FirstHits(const Scene& aScene) {
+    const smallvcm::Camera& camera = aScene.mCamera;
+    std::vector<smallvcm::Hit> hits(size_t(camera.PixelCount()));
+    for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
+        const smallvcm::Vec2 centre(float(pixel % camera.Width()) + 0.5f, float(pixel / camera.Width()) + 0.5f);
+        aScene.Intersect(camera.GenerateRay(centre), hits[size_t(pixel)]);
+    }
+    return hits;
+}
+
 // Least-squares slope of log(y) against log(x): the convergence rate of an error curve.
 inline double LogLogSlope(const std::vector<double>& aX, const std::vector<double>& aY) {
     double sx = 0, sy = 0, sxx = 0, sxy = 0;
