@@ -2638,6 +2638,7 @@ public:
     // --- what tests and tools may inspect ----------------------------------------------
     const VcmMisConstants& MisConstants() const { return mMis; }
     size_t LightVertexCount() const { return mLightVertices.size(); }
+    size_t LightVertexCapacity() const { return mLightVertices.capacity(); }  // for the memory report
 
 private:
     // The state of a sub-path while it is traced.

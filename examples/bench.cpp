@@ -19,10 +19,8 @@
 //      ru_maxrss that wait4() returns for it; the process's own ru_maxrss after loading
 //      the scene is the baseline. Nothing else ever ran in that process, so the number
 //      is the peak of that one (scene, algorithm, threads) and nothing more.
-//      Bytes per stored light vertex: sizeof of VertexCM's private vertex type, read at
-//      compile time through an explicit template instantiation (access checking does
-//      not apply to the names in one; no header change). If VertexCM's member is renamed
-//      this stops compiling: build with -DSMALLVCM_BENCH_NO_PRIVATE_ACCESS to report n/a.
+//      Bytes per stored light vertex: sizeof(VertexCM::LightVertex); the vertices kept
+//      by the last iteration: VertexCM::LightVertexCount() and LightVertexCapacity().
 //   3. BVH scaling. Bumpy spheres (a latitude-longitude mesh with smooth bumps and a
 //      fixed-seed random offset per vertex, see BuildBumpySphere) of exactly 10^2 .. 10^6
 //      triangles,
@@ -36,6 +34,7 @@
 // Build: make build/bench. Run with --help for the options.
 
 #include "smallvcm.hpp"
+#include "command_line.hpp"
 
 #include <charconv>
 #include <cstdarg>
@@ -71,36 +70,16 @@ double SecondsSince(Clock::time_point aStart) {
 // ---------------------------------------------------------------------------------------
 // Sizes of the stored light vertices
 // ---------------------------------------------------------------------------------------
-#ifndef SMALLVCM_BENCH_NO_PRIVATE_ACCESS
-// The names in an explicit instantiation are not access-checked ([temp.explicit] in C++17),
-// so Expose<Tag, &VertexCM::mLightVertices> may name the private member; the friend
-// function it defines hands the member pointer out. Only its type (and so sizeof of the
-// element) is used, plus size()/capacity() of a renderer the bench itself created.
-struct LightVerticesTag {
-    friend constexpr auto MemberOf(LightVerticesTag);
-};
-template <class Tag, auto kMember>
-struct Expose {
-    friend constexpr auto MemberOf(Tag) { return kMember; }
-};
-template struct Expose<LightVerticesTag, &smallvcm::VertexCM::mLightVertices>;
-using LightVertexVector =
-    std::remove_reference_t<decltype(std::declval<smallvcm::VertexCM&>().*MemberOf(LightVerticesTag{}))>;
-constexpr long kLightVertexBytes = long(sizeof(LightVertexVector::value_type));
+constexpr long kLightVertexBytes = long(sizeof(smallvcm::VertexCM::LightVertex));
 
 // Vertices stored by the last iteration of aRenderer (-1: not a VertexCM).
 void LightVertexCount(smallvcm::AbstractRenderer& aRenderer, long& oSize, long& oCapacity) {
     oSize = oCapacity = -1;
     if (auto* vcm = dynamic_cast<smallvcm::VertexCM*>(&aRenderer)) {
-        const LightVertexVector& vertices = vcm->*MemberOf(LightVerticesTag{});
-        oSize = long(vertices.size());
-        oCapacity = long(vertices.capacity());
+        oSize = long(vcm->LightVertexCount());
+        oCapacity = long(vcm->LightVertexCapacity());
     }
 }
-#else
-constexpr long kLightVertexBytes = -1;
-void LightVertexCount(smallvcm::AbstractRenderer&, long& oSize, long& oCapacity) { oSize = oCapacity = -1; }
-#endif
 constexpr long kPhotonBytes = long(sizeof(smallvcm::Photon));
 
 // ---------------------------------------------------------------------------------------
@@ -158,20 +137,6 @@ void PrintHelp() {
         "  --note TEXT            a line for the report (e.g. the commit measured)\n"
         "  --markdown FILE        also write the report to FILE\n"
         "  --help                 this text\n");
-}
-
-template <class T>
-T ParseNumber(const std::string& aOption, const std::string& aText, T aMin, T aMax) {
-    T value{};
-    const char* begin = aText.c_str();
-    const char* end = begin + aText.size();
-    const auto result = std::from_chars(begin, end, value);
-    if (aText.empty() || result.ec != std::errc() || result.ptr != end || !(value >= aMin && value <= aMax)) {
-        std::ostringstream range;
-        range << "[" << aMin << ", " << aMax << "]";
-        throw Error(aOption + ": '" + aText + "' is not a number in " + range.str());
-    }
-    return value;
 }
 
 std::vector<std::string> SplitList(const std::string& aText) {

@@ -5,6 +5,7 @@
 #include "smallvcm.hpp"
 
 #include <charconv>
+#include <sstream>
 #include <string>
 
 template <class T>
@@ -16,4 +17,12 @@ T ParseNumber(const std::string& aOption, const std::string& aText, T aMin, T aM
     if (aText.empty() || result.ec != std::errc() || result.ptr != end || !(value >= aMin && value <= aMax))
         throw smallvcm::Error(aOption + ": '" + aText + "' is not " + aRange);
     return value;
+}
+
+// The same, saying "a number in [aMin, aMax]" when the value is refused.
+template <class T>
+T ParseNumber(const std::string& aOption, const std::string& aText, T aMin, T aMax) {
+    std::ostringstream range;
+    range << "a number in [" << aMin << ", " << aMax << "]";
+    return ParseNumber<T>(aOption, aText, aMin, aMax, range.str().c_str());
 }
