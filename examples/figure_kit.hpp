@@ -319,13 +319,13 @@ inline ReferenceSpec StandardReference(const Kit& aKit, const std::string& aScen
                     "only, path length 2) each highlight is found well by one of its two techniques";
     } else if (deltaLight) {
         spec.mAlgorithm = Algorithm::kVertexConnectionMerging;
-        spec.mIterations = aKit.Pick(1024, 256);
+        spec.mIterations = aKit.Pick(512, 256);
         spec.mWhy = "VCM: the scene has a delta light and specular surfaces, so some light travels on "
                     "specular-diffuse-specular paths that no BPT technique samples; VCM's merging does, with a "
                     "bias that vanishes as its radius shrinks";
     } else {
         spec.mAlgorithm = Algorithm::kBidirectionalPathTracing;
-        spec.mIterations = aKit.Pick(1024, 256);
+        spec.mIterations = aKit.Pick(512, 256);
         spec.mWhy = "BPT: unbiased, and every light has an area, so every light path has at least one BPT "
                     "technique (it converges to the right image)";
     }
@@ -386,11 +386,22 @@ public:
 
     Json& Numbers() { return mRecord["numbers"]; }
 
+    // A chart drawn later from this figure's CSV by docs/plot_figures.py (the gallery
+    // shows it above the panels), and a page of its own the gallery links to (F19).
+    void AddChart(const std::string& aFile) { mRecord["charts"].push_back(aFile); }
+    void SetPage(const std::string& aFile) { mRecord["page"] = aFile; }
+
     // The outcome: whether the claim held in this run, in one sentence with the numbers.
     void Verdict(bool aHolds, const std::string& aSentence) {
         mRecord["claim_holds"] = aHolds;
         mRecord["verdict"] = aSentence;
         std::printf("  %s %s\n", aHolds ? "[claim holds]" : "[claim does NOT hold]", aSentence.c_str());
+    }
+
+    // For a figure that makes no claim (F19): a summary sentence, no verdict.
+    void Summary(const std::string& aSentence) {
+        mRecord["verdict"] = aSentence;
+        std::printf("  %s\n", aSentence.c_str());
     }
 
     // Writes <out>/<ID>.json (through a temporary file, so a failure leaves no half record).
