@@ -20,7 +20,8 @@
 // scene, in two independent halves A and B (different seeds), so that the reference's own
 // noise is known: reference = (A + B) / 2, its noise RMSE ~ Rmse(A, B) / 2. It is kept as
 // <out>/references/<scene>_<W>x<H>.pfm with a .json of its settings, and re-used while
-// those settings match; delete it to render it again. Its seeds differ from every seed
+// those settings match (they include a hash of the scene file, so editing the scene
+// renders it again); delete it to render it again. Its seeds differ from every seed
 // the figures use, so a figure's noise is never hidden by sharing random numbers.
 #pragma once
 #include "smallvcm.hpp"
@@ -239,9 +240,22 @@ struct Reference {
 
 inline constexpr uint64_t kReferenceSeedA = 777001, kReferenceSeedB = 777002;
 
-inline Json ReferenceSettings(const ReferenceSpec& aSpec) {
+// FNV-1a (64 bit) of a scene file's bytes, in hex: a reference made from an older
+// version of the scene no longer matches and is rendered again.
+inline std::string SceneFingerprint(const std::string& aPath) {
+    std::ifstream file(aPath, std::ios::binary);
+    if (!file) throw Error(aPath + ": cannot read the scene file");
+    uint64_t hash = 1469598103934665603ull;
+    for (char c; file.get(c);) hash = (hash ^ uint64_t(uint8_t(c))) * 1099511628211ull;
+    char text[17];
+    std::snprintf(text, sizeof(text), "%016llx", static_cast<unsigned long long>(hash));
+    return text;
+}
+
+inline Json ReferenceSettings(const Kit& aKit, const ReferenceSpec& aSpec) {
     Json settings;
     settings["scene"] = "scenes/" + aSpec.mScene;
+    settings["scene_fnv1a"] = SceneFingerprint(aKit.mScenes + "/" + aSpec.mScene);
     settings["resolution"] = std::to_string(aSpec.mWidth) + "x" + std::to_string(aSpec.mHeight);
     settings["algorithm"] = smallvcm::AlgorithmShortName(aSpec.mAlgorithm);
     settings["iterations"] = aSpec.mIterations;
@@ -253,7 +267,7 @@ inline Json ReferenceSettings(const ReferenceSpec& aSpec) {
 inline Reference GetReference(const Kit& aKit, const ReferenceSpec& aSpec) {
     const std::string stem = aKit.ReferenceFolder() + "/" + fs::path(aSpec.mScene).stem().string() + "_" +
                              std::to_string(aSpec.mWidth) + "x" + std::to_string(aSpec.mHeight);
-    const Json settings = ReferenceSettings(aSpec);
+    const Json settings = ReferenceSettings(aKit, aSpec);
     Reference reference;
     std::ifstream recordFile(stem + ".json");
     if (recordFile) {
