@@ -2566,8 +2566,9 @@ public:
                         vertex.mMis = light.mMis;
                         mLightVertices.push_back(vertex);
                     }
-                    // Light tracing: connect to the camera (t = 1).
-                    if ((mUseVC || mLightTraceOnly) && light.mPathLength + 1 >= mOptions.mMinPathLength)
+                    // Light tracing: connect to the camera (t = 1); the path has mPathLength + 1 segments, within both limits.
+                    if ((mUseVC || mLightTraceOnly) && light.mPathLength + 1 >= mOptions.mMinPathLength &&
+                        light.mPathLength + 1 <= mOptions.mMaxPathLength)
                         ConnectToCamera(light, hitPoint, bsdf);
                 }
                 // A vertex of length L is useful only if a path of length L + 1 may follow.
