@@ -93,6 +93,11 @@ def read_record(folder, figure_id):
 
 
 def reference_noise(record):
+    # A figure that measures its errors on part of the image (F12: the diffuse pixels)
+    # records the reference's noise on that part; it wins over the whole-image value.
+    own = record.get("numbers", {}).get("reference_noise_rmse_diffuse_pixels")
+    if isinstance(own, (int, float)) and own > 0:
+        return own
     for reference in record.get("references", []):
         noise = reference.get("noise_rmse")
         if isinstance(noise, (int, float)) and noise > 0:
