@@ -71,7 +71,6 @@ std::vector<Surface> SurfaceKinds(const Scene& aScene) {
     return kinds;
 }
 
-using Mask = std::vector<bool>;
 
 // Where a ray ends after mirrors and glass: a non-specular point, and the fraction of
 // the ray's light that takes this branch (Fresnel and mirror reflectance).
@@ -225,42 +224,6 @@ Mask MaskOf(const std::vector<Surface>& aKinds, Surface aKind) {
     Mask mask(aKinds.size());
     for (size_t i = 0; i < aKinds.size(); i++) mask[i] = aKinds[i] == aKind;
     return mask;
-}
-
-int CountOf(const Mask& aMask) { return int(std::count(aMask.begin(), aMask.end(), true)); }
-
-// Mean over the masked pixels and the three channels (MeanValue restricted to a mask).
-double MaskedMean(const Image& aImage, const Mask& aMask) {
-    double sum = 0.0;
-    for (size_t i = 0; i < aImage.mPixels.size(); i++)
-        if (aMask[i]) sum += double(aImage.mPixels[i].x) + double(aImage.mPixels[i].y) + double(aImage.mPixels[i].z);
-    return sum / (3.0 * std::max(1, CountOf(aMask)));
-}
-
-// RMSE over the masked pixels and the three channels (Rmse restricted to a mask).
-double MaskedRmse(const Image& aImage, const Image& aReference, const Mask& aMask) {
-    double sum = 0.0;
-    for (size_t i = 0; i < aImage.mPixels.size(); i++)
-        if (aMask[i]) {
-            const glm::dvec3 d = glm::dvec3(aImage.mPixels[i]) - glm::dvec3(aReference.mPixels[i]);
-            sum += glm::dot(d, d);
-        }
-    return std::sqrt(sum / (3.0 * std::max(1, CountOf(aMask))));
-}
-
-// A mask to look at: the masked pixels magenta, the others the image darkened to a quarter.
-Image MaskPanel(const Mask& aMask, const Image& aBackground) {
-    Image panel = Scaled(aBackground, 0.25f);
-    for (size_t i = 0; i < panel.mPixels.size(); i++)
-        if (aMask[i]) panel.mPixels[i] = Vec3(1.f, 0.f, 1.f);
-    return panel;
-}
-
-double Median(std::vector<double> aValues) {
-    if (aValues.empty()) return 0.0;
-    const size_t middle = aValues.size() / 2;
-    std::nth_element(aValues.begin(), aValues.begin() + long(middle), aValues.end());
-    return aValues[middle];
 }
 
 double PixelValue(const Vec3& aPixel) { return (double(aPixel.x) + double(aPixel.y) + double(aPixel.z)) / 3.0; }

@@ -134,7 +134,7 @@ struct Setup {
     int mSize = 0;
     Scene mScene;
     Reference mReference;
-    std::vector<char> mDiffuse;      // per pixel: 1 if it is one of the diffuse pixels
+    Mask mDiffuse;                   // per pixel: 1 if it is one of the diffuse pixels
     size_t mDiffuseCount = 0;
     double mReferenceNoise2 = 0.0;   // the reference's own variance on the diffuse pixels
     Json mRecord;                    // how they were found, for the figure records
@@ -144,7 +144,7 @@ struct Setup {
 // rays over the pixel (corners included) must all hit one, and so must every neighbour's
 // (a render jitters its one sample anywhere in the pixel, and the light is ~50x brighter
 // than the ceiling around it: one stray sample would dominate).
-std::vector<char> DiffusePixels(const Scene& aScene) {
+Mask DiffusePixels(const Scene& aScene) {
     const smallvcm::Camera& camera = aScene.mCamera;
     const int width = camera.Width(), height = camera.Height();
     std::vector<char> direct(size_t(camera.PixelCount()), 1);
@@ -217,23 +217,11 @@ Setup MakeSetup(const Kit& aKit, int aSize) {
     return setup;
 }
 
-// RMSE over the diffuse pixels (and the three channels, like smallvcm::Rmse).
+// RMSE and mean over the diffuse pixels (and the three channels, like smallvcm::Rmse).
 double DiffuseRmse(const Image& aImage, const Setup& aSetup) {
-    double sum = 0.0;
-    for (size_t i = 0; i < aImage.mPixels.size(); i++)
-        if (aSetup.mDiffuse[i])
-            for (int c = 0; c < 3; c++)
-                sum += Square(double(aImage.mPixels[i][c]) - double(aSetup.mReference.mImage.mPixels[i][c]));
-    return std::sqrt(sum / (3.0 * double(aSetup.mDiffuseCount)));
+    return MaskedRmse(aImage, aSetup.mReference.mImage, aSetup.mDiffuse);
 }
-
-// Mean over the diffuse pixels and channels.
-double DiffuseMean(const Image& aImage, const Setup& aSetup) {
-    double sum = 0.0;
-    for (size_t i = 0; i < aImage.mPixels.size(); i++)
-        if (aSetup.mDiffuse[i]) sum += double(aImage.mPixels[i].x) + aImage.mPixels[i].y + aImage.mPixels[i].z;
-    return sum / (3.0 * double(aSetup.mDiffuseCount));
-}
+double DiffuseMean(const Image& aImage, const Setup& aSetup) { return MaskedMean(aImage, aSetup.mDiffuse); }
 
 // ------------------------------------------------------------------------------------
 // Bias and variance

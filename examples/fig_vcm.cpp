@@ -99,7 +99,6 @@ std::string SceneSetting(const char* aScene) { return std::string("scenes/") + a
 
 bool IsPureSpecular(const Material& aMaterial) { return aMaterial.HasSpecular() && !aMaterial.HasNonSpecular(); }
 
-using Mask = std::vector<char>;
 
 // Pixels whose primary ray (through the pixel centre) first hits a purely specular
 // surface (mirror or glass): what they show arrives through a specular bounce.
@@ -113,25 +112,6 @@ Mask SpecularSeenMask(const Scene& aScene) {
             mask[size_t(pixel)] = IsPureSpecular(aScene.GetMaterial(hit.mMaterialId));
     }
     return mask;
-}
-
-int CountOf(const Mask& aMask) { return int(std::count(aMask.begin(), aMask.end(), 1)); }
-
-double MaskedMean(const Image& aImage, const Mask& aMask) {
-    double sum = 0.0;
-    for (size_t i = 0; i < aImage.mPixels.size(); i++)
-        if (aMask[i]) sum += double(aImage.mPixels[i].x) + double(aImage.mPixels[i].y) + double(aImage.mPixels[i].z);
-    return sum / std::max(1.0, 3.0 * double(CountOf(aMask)));
-}
-
-double MaskedRmse(const Image& aImage, const Image& aReference, const Mask& aMask) {
-    double sum = 0.0;
-    for (size_t i = 0; i < aImage.mPixels.size(); i++) {
-        if (!aMask[i]) continue;
-        const glm::dvec3 d = glm::dvec3(aImage.mPixels[i]) - glm::dvec3(aReference.mPixels[i]);
-        sum += glm::dot(d, d);
-    }
-    return std::sqrt(sum / std::max(1.0, 3.0 * double(CountOf(aMask))));
 }
 
 Image MaskImage(const Mask& aMask, int aWidth, int aHeight) {

@@ -208,6 +208,45 @@ inline std::vector<smallvcm::Hit> FirstHits(const Scene& aScene) {
     return hits;
 }
 
+// Pixel masks: which pixels a number is measured on (1 = counted).
+using Mask = std::vector<char>;
+
+inline int CountOf(const Mask& aMask) { return int(std::count(aMask.begin(), aMask.end(), char(1))); }
+
+// Mean over the masked pixels and the three channels (MeanValue restricted to a mask).
+inline double MaskedMean(const Image& aImage, const Mask& aMask) {
+    double sum = 0.0;
+    for (size_t i = 0; i < aImage.mPixels.size(); i++)
+        if (aMask[i]) sum += double(aImage.mPixels[i].x) + double(aImage.mPixels[i].y) + double(aImage.mPixels[i].z);
+    return sum / std::max(1.0, 3.0 * double(CountOf(aMask)));
+}
+
+// RMSE over the masked pixels and the three channels (Rmse restricted to a mask).
+inline double MaskedRmse(const Image& aImage, const Image& aReference, const Mask& aMask) {
+    double sum = 0.0;
+    for (size_t i = 0; i < aImage.mPixels.size(); i++)
+        if (aMask[i]) {
+            const glm::dvec3 d = glm::dvec3(aImage.mPixels[i]) - glm::dvec3(aReference.mPixels[i]);
+            sum += glm::dot(d, d);
+        }
+    return std::sqrt(sum / std::max(1.0, 3.0 * double(CountOf(aMask))));
+}
+
+// A mask to look at: the masked pixels magenta, the others the image darkened to a quarter.
+inline Image MaskPanel(const Mask& aMask, const Image& aBackground) {
+    Image panel = Scaled(aBackground, 0.25f);
+    for (size_t i = 0; i < panel.mPixels.size(); i++)
+        if (aMask[i]) panel.mPixels[i] = Vec3(1.f, 0.f, 1.f);
+    return panel;
+}
+
+inline double Median(std::vector<double> aValues) {
+    if (aValues.empty()) return 0.0;
+    const size_t middle = aValues.size() / 2;
+    std::nth_element(aValues.begin(), aValues.begin() + long(middle), aValues.end());
+    return aValues[middle];
+}
+
 // Least-squares slope of log(y) against log(x): the convergence rate of an error curve.
 inline double LogLogSlope(const std::vector<double>& aX, const std::vector<double>& aY) {
     double sx = 0, sy = 0, sxx = 0, sxy = 0;

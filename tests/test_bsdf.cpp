@@ -14,6 +14,7 @@
 #include <vector>
 
 using namespace smallvcm;
+using namespace testutil;
 
 namespace {
 
@@ -110,62 +111,9 @@ Bsdf Make(const Vec3& aFix, const Material& aMaterial, bool aFixIsLight = false,
     return bsdf;
 }
 
-// --- statistics (as in test_sampling.cpp) -------------------------------------------------
-// Upper chi-square quantile at significance 1e-3 by Wilson-Hilferty: (X/k)^(1/3) is nearly
-// normal with mean 1 - 2/(9k) and variance 2/(9k); z = 3.0902 is the normal quantile.
-double ChiSquareThreshold(int aDof) {
-    const double z = 3.090232306167813, k = double(aDof), a = 2.0 / (9.0 * k);
-    return k * std::pow(1.0 - a + z * std::sqrt(a), 3.0);
-}
-struct ChiSquare {
-    double statistic = 0.0;
-    int dof = 0;
-    double threshold = 0.0;
-};
-// Pearson's statistic; cells expecting fewer than 5 samples are pooled into one, and a
-// pool still below 5 joins the smallest remaining cell.
-ChiSquare ComputeChiSquare(const std::vector<double>& aObserved, const std::vector<double>& aExpected) {
-    std::vector<double> observed, expected;
-    double pooledObserved = 0.0, pooledExpected = 0.0;
-    for (size_t i = 0; i < aExpected.size(); i++) {
-        if (aExpected[i] < 5.0) { pooledObserved += aObserved[i]; pooledExpected += aExpected[i]; }
-        else { observed.push_back(aObserved[i]); expected.push_back(aExpected[i]); }
-    }
-    if (pooledExpected >= 5.0 || expected.empty()) {
-        observed.push_back(pooledObserved);
-        expected.push_back(pooledExpected);
-    } else if (pooledObserved > 0.0 || pooledExpected > 0.0) {
-        size_t smallest = 0;
-        for (size_t i = 1; i < expected.size(); i++) if (expected[i] < expected[smallest]) smallest = i;
-        observed[smallest] += pooledObserved;
-        expected[smallest] += pooledExpected;
-    }
-    ChiSquare result;
-    for (size_t i = 0; i < expected.size(); i++) {
-        const double d = observed[i] - expected[i];
-        result.statistic += expected[i] > 0.0 ? d * d / expected[i] : (observed[i] > 0.0 ? 1e30 : 0.0);
-    }
-    result.dof = std::max(1, int(expected.size()) - 1);
-    result.threshold = ChiSquareThreshold(result.dof);
-    return result;
-}
-
-struct Estimate {
-    double mean = 0.0, standardError = 0.0;
-};
-Estimate MeanOf(const std::vector<double>& aValues) {
-    double sum = 0.0, sumSqr = 0.0;
-    for (double v : aValues) { sum += v; sumSqr += v * v; }
-    const double n = double(aValues.size());
-    Estimate e;
-    e.mean = sum / n;
-    e.standardError = std::sqrt(std::max(0.0, sumSqr / n - e.mean * e.mean) / (n - 1.0));
-    return e;
-}
-
 // Monte Carlo albedo of one channel: the mean of f cos / pdf over Sample() (unusable
 // samples count as 0), with its standard error measured from the same samples.
-Estimate Albedo(const Bsdf& aBsdf, int aSamples, uint64_t aSeed, int aChannel = 0) {
+MeanAndError Albedo(const Bsdf& aBsdf, int aSamples, uint64_t aSeed, int aChannel = 0) {
     Rng rng(aSeed, 0);
     std::vector<double> weights(size_t(aSamples), 0.0);
     for (double& w : weights) {
@@ -283,7 +231,7 @@ TEST_CASE("Lambert's albedo is its reflectance for every incident direction", "[
             for (int c = 0; c < 3; c++) REQUIRE(f[c] * cosine / pdf == Approx(rho[c]).epsilon(1e-5));
         }
         for (int c = 0; c < 3; c++) {
-            const Estimate albedo = Albedo(bsdf, 20000, 312, c);
+            const MeanAndError albedo = Albedo(bsdf, 20000, 312, c);
             REQUIRE(std::abs(albedo.mean - rho[c]) <= 4.0 * albedo.standardError + 1e-5 * rho[c]);
         }
     }
@@ -298,7 +246,7 @@ TEST_CASE("Phong's albedo never exceeds its reflectance and equals it at normal 
         const double rho = material.mPhongReflectance.x;
         for (const float cosIn : kIncidentCosines) {
             INFO("exponent " << exponent << ", cos incident " << cosIn);
-            const Estimate albedo = Albedo(Make(DirectionAt(cosIn, 0.5f), material), 40000, 313);
+            const MeanAndError albedo = Albedo(Make(DirectionAt(cosIn, 0.5f), material), 40000, 313);
             INFO("albedo " << albedo.mean << " +- " << albedo.standardError);
             REQUIRE(albedo.mean <= rho + 4.0 * albedo.standardError);
             if (cosIn == 1.f) REQUIRE(std::abs(albedo.mean - rho) <= 4.0 * albedo.standardError);
@@ -324,7 +272,7 @@ TEST_CASE("No material reflects more energy than it receives", "[bsdf]") {
             const Bsdf bsdf = Make(DirectionAt(cosIn, 2.5f), material, fixIsLight);
             REQUIRE(bsdf.IsValid());
             for (int c = 0; c < 3; c++) {
-                const Estimate albedo = Albedo(bsdf, 20000, 314, c);
+                const MeanAndError albedo = Albedo(bsdf, 20000, 314, c);
                 INFO("albedo " << albedo.mean << " +- " << albedo.standardError);
                 REQUIRE(albedo.mean <= 1.0 + 4.0 * albedo.standardError + 1e-6);
             }
@@ -336,11 +284,11 @@ TEST_CASE("Albedos of the glossy floor and of diffuse + mirror are the sums of t
     // Floor at normal incidence: 0.1 (diffuse) + 0.7 (Phong, whole lobe above the horizon);
     // tolerance 4 measured standard errors. Diffuse + mirror: every sample weighs
     // 0.4 / P(diffuse) = 0.5 / P(mirror) = 0.9 (probabilities ~ luminance), at any angle.
-    const Estimate floor = Albedo(Make(kNormal, GlossyFloor()), 100000, 315);
+    const MeanAndError floor = Albedo(Make(kNormal, GlossyFloor()), 100000, 315);
     INFO("floor albedo " << floor.mean << " +- " << floor.standardError);
     REQUIRE(std::abs(floor.mean - 0.8) <= 4.0 * floor.standardError);
     for (const float cosIn : kIncidentCosines) {
-        const Estimate mix = Albedo(Make(DirectionAt(cosIn, 0.f), DiffuseMirror()), 5000, 316);
+        const MeanAndError mix = Albedo(Make(DirectionAt(cosIn, 0.f), DiffuseMirror()), 5000, 316);
         REQUIRE(mix.mean == Approx(0.9).epsilon(1e-5));
     }
 }

@@ -15,65 +15,11 @@
 #include <vector>
 
 using namespace smallvcm;
+using namespace testutil;
 
 namespace {
 
 constexpr double kTwoPi = 6.283185307179586;
-
-// Upper quantile of the chi-square distribution with aDof degrees of freedom at
-// significance 1e-3, by the Wilson-Hilferty approximation: (X / k)^(1/3) is nearly
-// normal with mean 1 - 2/(9k) and variance 2/(9k), so the quantile is
-// k (1 - 2/(9k) + z sqrt(2/(9k)))^3 with z = 3.0902, the standard normal quantile at
-// 1 - 1e-3. It errs on the safe side in the tail: k = 3 gives 16.55 (exact 16.27),
-// k = 100 gives 149.5 (exact 149.4).
-double ChiSquareThreshold(int aDof) {
-    const double z = 3.090232306167813;
-    const double k = double(aDof);
-    const double a = 2.0 / (9.0 * k);
-    return k * std::pow(1.0 - a + z * std::sqrt(a), 3.0);
-}
-
-struct ChiSquare {
-    double statistic = 0.0;
-    int dof = 0;
-    double threshold = 0.0;
-};
-
-// Pearson's statistic over the cells. Cells expecting fewer than 5 samples are pooled
-// into one (the usual validity condition of the chi-square approximation); if the pool
-// itself still expects fewer than 5 it is merged into the smallest remaining cell.
-ChiSquare ComputeChiSquare(const std::vector<double>& aObserved, const std::vector<double>& aExpected) {
-    std::vector<double> observed, expected;
-    double pooledObserved = 0.0, pooledExpected = 0.0;
-    for (size_t i = 0; i < aExpected.size(); i++) {
-        if (aExpected[i] < 5.0) {
-            pooledObserved += aObserved[i];
-            pooledExpected += aExpected[i];
-        } else {
-            observed.push_back(aObserved[i]);
-            expected.push_back(aExpected[i]);
-        }
-    }
-    if (pooledExpected >= 5.0 || expected.empty()) {
-        observed.push_back(pooledObserved);
-        expected.push_back(pooledExpected);
-    } else if (pooledObserved > 0.0 || pooledExpected > 0.0) {
-        size_t smallest = 0;
-        for (size_t i = 1; i < expected.size(); i++)
-            if (expected[i] < expected[smallest]) smallest = i;
-        observed[smallest] += pooledObserved;
-        expected[smallest] += pooledExpected;
-    }
-    ChiSquare result;
-    for (size_t i = 0; i < expected.size(); i++) {
-        const double d = observed[i] - expected[i];
-        // A cell that expects nothing but receives samples is an outright failure.
-        result.statistic += expected[i] > 0.0 ? d * d / expected[i] : (observed[i] > 0.0 ? 1e30 : 0.0);
-    }
-    result.dof = std::max(1, int(expected.size()) - 1);
-    result.threshold = ChiSquareThreshold(result.dof);
-    return result;
-}
 
 // Cells on the sphere of directions: bands between consecutive cos(theta) edges times
 // equal phi sectors, plus one last cell for every direction below the first edge.
@@ -123,20 +69,6 @@ std::vector<double> UniformEdges(double aFrom, double aTo, int aCount) {
     std::vector<double> edges;
     for (int i = 0; i <= aCount; i++) edges.push_back(aFrom + (aTo - aFrom) * i / aCount);
     return edges;
-}
-
-// Mean of a sample and the standard error of that mean (from the sample variance).
-struct Estimate {
-    double mean = 0.0, standardError = 0.0;
-};
-Estimate MeanOf(const std::vector<double>& aValues) {
-    double sum = 0.0, sumSqr = 0.0;
-    for (double v : aValues) { sum += v; sumSqr += v * v; }
-    const double n = double(aValues.size());
-    Estimate e;
-    e.mean = sum / n;
-    e.standardError = std::sqrt(std::max(0.0, sumSqr / n - e.mean * e.mean) / (n - 1.0));
-    return e;
 }
 
 // The Phong exponents the tests use: 0 (uniform hemisphere), 1, 10 and 90 (SmallVCM's floor).
@@ -264,7 +196,7 @@ TEST_CASE("Every direction pdf integrates to 1 over the sphere (Monte Carlo with
     auto check = [&](const char* aName, const std::function<double(const Vec3&)>& aPdf) {
         std::vector<double> values(directions.size());
         for (size_t i = 0; i < directions.size(); i++) values[i] = aPdf(directions[i]) / double(UniformSpherePdfW());
-        const Estimate e = MeanOf(values);
+        const MeanAndError e = MeanOf(values);
         INFO(aName << ": integral " << e.mean << " +- " << e.standardError);
         CHECK(std::abs(e.mean - 1.0) <= 5.0 * e.standardError);
     };
@@ -288,7 +220,7 @@ TEST_CASE("The concentric disc pdf integrates to 1 over the disc (Monte Carlo ov
         const Vec2 x = 2.f * rng.GetVec2() - Vec2(1.f);
         v = glm::dot(x, x) <= 1.f ? 4.0 * double(ConcentricDiscPdfA()) : 0.0;
     }
-    const Estimate e = MeanOf(values);
+    const MeanAndError e = MeanOf(values);
     INFO("integral " << e.mean << " +- " << e.standardError);
     REQUIRE(std::abs(e.mean - 1.0) <= 5.0 * e.standardError);
 }
