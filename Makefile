@@ -85,11 +85,14 @@ $(BUILD)/check/tests/run_tests: $(BUILD)/check/tests/catch_main.o $(SAN_TEST_OBJ
 
 # make test: the Catch2 suite (tests tagged [.] are slow and run only when asked for),
 # then the sanitizer smoke stage: the sanitized command line renders every algorithm on
-# every Cornell scene and is fed every bad scene file (tests/run_suite.sh says how each
-# run counts). Ends with the plain line "tests: N passed, N failed" that CI reads.
+# every Cornell scene and is fed every bad scene file, then every figure program runs at
+# quick settings and the gallery check passes (tests/run_suite.sh says how each run
+# counts). Ends with the plain line "tests: N passed, N failed" that CI reads.
 test: deps
-	$(MAKE) --no-print-directory all $(BUILD)/check/smallvcm
-	@tests/run_suite.sh --catch ../$(BUILD)/tests/run_tests $(TEST_ARGS) -- --smoke ../$(BUILD)/check/smallvcm
+	$(MAKE) --no-print-directory all $(BUILD)/check/smallvcm $(FIGURE_PROGRAMS:%=$(BUILD)/%)
+	@$(ENSURE_MATPLOTLIB)
+	@tests/run_suite.sh --catch ../$(BUILD)/tests/run_tests $(TEST_ARGS) -- --smoke ../$(BUILD)/check/smallvcm \
+	    --figures $(FIGURE_PROGRAMS:%=../$(BUILD)/%)
 
 # make check: the whole Catch2 suite under the sanitizers and invariant checks, then the
 # same smoke stage (slower: about 3x the normal suite; not run by CI, see docs/testing.md).

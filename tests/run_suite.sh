@@ -2,6 +2,7 @@
 # Runs the test stages of `make test` / `make check` and ends with the one line CI reads:
 #   tests: N passed, N failed
 # Usage: tests/run_suite.sh [--catch BINARY [CATCH ARGS...] --] [--smoke SMALLVCM_BINARY]
+#                           [--figures PROGRAM...]
 #   --catch   a Catch2 test binary, run from tests/; its summary counts test cases
 #   --smoke   a smallvcm binary (the sanitized build): every algorithm on every Cornell
 #             scene (16x16, 2 iterations) and every rejected file of tests/data/bad run
@@ -11,6 +12,10 @@
 #             their fix, tests/test_gltf.cpp checks which), and no run may
 #             print a sanitizer report (AddressSanitizer / UndefinedBehaviorSanitizer) or
 #             fail a SMALLVCM_CHECKS invariant.
+#   --figures the figure programs (build/fig_*), run with --quick into a temporary folder
+#             (each run one test: exit 0), then docs/plot_figures.py and
+#             docs/make_gallery.py on that folder (one test each: the gallery fails when
+#             a figure or a file it shows is missing) -- `make figures QUICK=1`, checked.
 set -u
 cd "$(dirname "$0")"
 passed=0
@@ -93,6 +98,27 @@ if [ "${1:-}" = "--smoke" ]; then
 -i
 OPTIONS
   echo "smoke stage with $binary: $((passed)) passed so far, $failed failed so far"
+  rm -rf "$out"
+  shift 2
+fi
+
+if [ "${1:-}" = "--figures" ]; then
+  shift
+  out=$(mktemp -d)
+  count() {  # name, then the command
+    local name=$1; shift
+    if "$@" > "$out/log.txt" 2>&1; then
+      passed=$((passed + 1))
+    else
+      failed=$((failed + 1)); status=1
+      echo "figures FAILED: $name"; tail -n 20 "$out/log.txt"
+    fi
+  }
+  start=$(date +%s)
+  for program in "$@"; do count "$program --quick" "$program" --quick --out "$out/figures"; done
+  count "plot_figures" /usr/bin/python3 ../docs/plot_figures.py "$out/figures"
+  count "make_gallery" /usr/bin/python3 ../docs/make_gallery.py "$out/figures" "$out/figures/figures.md"
+  echo "figures stage (quick): $(( $(date +%s) - start )) s"
   rm -rf "$out"
 fi
 
