@@ -162,9 +162,10 @@ def chart_f18(folder):
         draw_noise(ax, noise)
         finish(ax, xlabel, "own RMSE vs %s (log-log; dotted: as measured)" % axis)
     alphas = settings.get("radius_alpha", {})
-    subtitle = "F18 convergence rate: %s, %sx%s, %s s per estimator" % (
+    subtitle = "F18 convergence rate: %s, %sx%s, mean MSE of %s runs per estimator (at most %s s or %s iterations each)" % (
         os.path.basename(str(settings.get("scene", "?"))), settings.get("resolution", "?"),
-        settings.get("resolution", "?"), settings.get("seconds_per_estimator", "?"))
+        settings.get("resolution", "?"), settings.get("runs_per_estimator", "?"),
+        settings.get("seconds_per_run", "?"), settings.get("max_iterations_per_run", "?"))
     if alphas:
         subtitle += "; radius alpha " + ", ".join("%s %.3g" % (k, v) for k, v in alphas.items())
     figure.suptitle(subtitle + "\nslopes fitted (dashed) over the filled checkpoints (fitted=1 in F18.csv)",
