@@ -11,6 +11,8 @@ CXXFLAGS ?= -std=c++17 -O2 -g -Wall -Wextra -Wpedantic -Wshadow
 CPPFLAGS += -I.
 LDFLAGS  += -pthread
 BUILD    := build
+# Programs and tests build in parallel, one job per core.
+JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 
 DEB_PACKAGES := g++ make libglm-dev libtinygltf-dev libstb-dev catch2 nlohmann-json3-dev
 
@@ -89,7 +91,7 @@ $(BUILD)/check/tests/run_tests: $(BUILD)/check/tests/catch_main.o $(SAN_TEST_OBJ
 # quick settings and the gallery check passes (tests/run_suite.sh says how each run
 # counts). Ends with the plain line "tests: N passed, N failed" that CI reads.
 test: deps
-	$(MAKE) --no-print-directory all $(BUILD)/check/smallvcm $(FIGURE_PROGRAMS:%=$(BUILD)/%)
+	$(MAKE) -j$(JOBS) --no-print-directory all $(BUILD)/check/smallvcm $(FIGURE_PROGRAMS:%=$(BUILD)/%)
 	@$(ENSURE_MATPLOTLIB)
 	@tests/run_suite.sh --catch ../$(BUILD)/tests/run_tests $(TEST_ARGS) -- --smoke ../$(BUILD)/check/smallvcm \
 	    --figures $(FIGURE_PROGRAMS:%=../$(BUILD)/%)
@@ -97,7 +99,7 @@ test: deps
 # make check: the whole Catch2 suite under the sanitizers and invariant checks, then the
 # same smoke stage (slower: about 3x the normal suite; not run by CI, see docs/testing.md).
 check: deps
-	$(MAKE) --no-print-directory all $(BUILD)/check/smallvcm $(BUILD)/check/tests/run_tests
+	$(MAKE) -j$(JOBS) --no-print-directory all $(BUILD)/check/smallvcm $(BUILD)/check/tests/run_tests
 	@tests/run_suite.sh --catch ../$(BUILD)/check/tests/run_tests $(TEST_ARGS) -- --smoke ../$(BUILD)/check/smallvcm
 
 # make bench: seconds per iteration of every estimator on every Cornell scene (512x512,
@@ -125,7 +127,7 @@ FIGURE_PROGRAMS := fig_path_tracing fig_mis fig_bidirectional fig_photon_mapping
 FIGURE_OUT := $(if $(QUICK),$(BUILD)/figures-quick,docs/figures)
 FIGURE_PAGE := $(if $(QUICK),$(BUILD)/figures-quick/figures.md,docs/figures.md)
 figures: deps
-	$(MAKE) --no-print-directory $(FIGURE_PROGRAMS:%=$(BUILD)/%)
+	$(MAKE) -j$(JOBS) --no-print-directory $(FIGURE_PROGRAMS:%=$(BUILD)/%)
 	@$(ENSURE_MATPLOTLIB)
 	@start=$$(date +%s); for program in $(FIGURE_PROGRAMS); do \
 	  $(BUILD)/$$program $(if $(QUICK),--quick) --out $(FIGURE_OUT) || exit 1; done; \
