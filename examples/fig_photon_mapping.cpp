@@ -316,6 +316,25 @@ std::string DescribeParts(const ErrorParts& aParts) {
            ", " + Num(aParts.mSeconds, "%.2f") + " s per photon map";
 }
 
+// The error parts of a sequence of settings (photon counts, k), for the record and the
+// verdicts of F09 and F10.
+struct ErrorSeries {
+    std::vector<double> mRmse, mBias2, mBias2Error, mVariance;
+    void Add(const ErrorParts& aParts) {
+        mRmse.push_back(aParts.mRmse);
+        mBias2.push_back(aParts.mBias2);
+        mBias2Error.push_back(aParts.mBias2Error);
+        mVariance.push_back(aParts.mVariance);
+    }
+    void Record(Json& oNumbers, const Setup& aSetup) const {
+        oNumbers["rmse_diffuse_pixels"] = mRmse;
+        oNumbers["bias2"] = mBias2;
+        oNumbers["bias2_standard_error"] = mBias2Error;
+        oNumbers["variance"] = mVariance;
+        oNumbers["reference_noise_rmse_diffuse_pixels"] = std::sqrt(aSetup.mReferenceNoise2);
+    }
+};
+
 Json CommonSettings(const Setup& aSetup) {
     return {{"scene", std::string("scenes/") + kScene}, {"resolution", aSetup.mSize}, {"error_measured_on", aSetup.mRecord}};
 }
@@ -341,7 +360,8 @@ void FigurePhotonCounts(const Kit& aKit, const Setup& aSetup) {
     figure.Settings()["seeds"] = seeds;
     figure.Settings()["error_split"] = "bias^2 and variance from the renders of the seeds (see SplitError)";
     figure.AddPanel("reference", aSetup.mReference.mImage, "reference (BPT)");
-    std::vector<double> counts, rmse, bias2, bias2Error, variance;
+    std::vector<double> counts;
+    ErrorSeries series;
     for (const int slideCount : {50000, 100000, 200000, 500000}) {
         options.mPhotonCount = Photons(aKit, slideCount);
         const std::vector<RenderResult> renders = RenderSeeds(aKit, aSetup.mScene, options, 1, seeds);
@@ -354,18 +374,15 @@ void FigurePhotonCounts(const Kit& aKit, const Setup& aSetup) {
         numbers["error_split"] = parts.ToJson();
         PrintLine(std::to_string(options.mPhotonCount) + " photons: " + DescribeParts(parts));
         counts.push_back(options.mPhotonCount);
-        rmse.push_back(parts.mRmse);
-        bias2.push_back(parts.mBias2);
-        bias2Error.push_back(parts.mBias2Error);
-        variance.push_back(parts.mVariance);
+        series.Add(parts);
     }
     Json& numbers = figure.Numbers();
     numbers["photons"] = counts;
-    numbers["rmse_diffuse_pixels"] = rmse;
-    numbers["bias2"] = bias2;
-    numbers["bias2_standard_error"] = bias2Error;
-    numbers["variance"] = variance;
-    numbers["reference_noise_rmse_diffuse_pixels"] = std::sqrt(aSetup.mReferenceNoise2);
+    series.Record(numbers, aSetup);
+    const std::vector<double>& rmse = series.mRmse;
+    const std::vector<double>& bias2 = series.mBias2;
+    const std::vector<double>& bias2Error = series.mBias2Error;
+    const std::vector<double>& variance = series.mVariance;
     numbers["rmse_slope_loglog"] = LogLogSlope(counts, rmse);
     bool falls = true;
     for (size_t i = 1; i < rmse.size(); i++) falls = falls && rmse[i] < rmse[i - 1];
@@ -405,7 +422,8 @@ void FigureNearestPhotons(const Kit& aKit, const Setup& aSetup) {
     figure.Settings()["iterations"] = "1 (one photon map) per render";
     figure.Settings()["seeds"] = seeds;
     figure.Settings()["error_split"] = "bias^2 and variance from the renders of the seeds (see SplitError)";
-    std::vector<double> ks, rmse, bias2, bias2Error, variance;
+    std::vector<double> ks;
+    ErrorSeries series;
     for (const int k : {125, 500, 1000}) {
         options.mNearestPhotons = k;
         const std::vector<RenderResult> renders = RenderSeeds(aKit, aSetup.mScene, options, 1, seeds);
@@ -419,18 +437,13 @@ void FigureNearestPhotons(const Kit& aKit, const Setup& aSetup) {
         numbers["error_split"] = parts.ToJson();
         PrintLine("k = " + std::to_string(k) + ": " + DescribeParts(parts));
         ks.push_back(k);
-        rmse.push_back(parts.mRmse);
-        bias2.push_back(parts.mBias2);
-        bias2Error.push_back(parts.mBias2Error);
-        variance.push_back(parts.mVariance);
+        series.Add(parts);
     }
     Json& numbers = figure.Numbers();
     numbers["nearest_photons"] = ks;
-    numbers["rmse_diffuse_pixels"] = rmse;
-    numbers["bias2"] = bias2;
-    numbers["bias2_standard_error"] = bias2Error;
-    numbers["variance"] = variance;
-    numbers["reference_noise_rmse_diffuse_pixels"] = std::sqrt(aSetup.mReferenceNoise2);
+    series.Record(numbers, aSetup);
+    const std::vector<double>& bias2 = series.mBias2;
+    const std::vector<double>& variance = series.mVariance;
     bool lessNoise = true, moreBias = true;
     for (size_t i = 1; i < ks.size(); i++) {
         lessNoise = lessNoise && variance[i] < variance[i - 1];
