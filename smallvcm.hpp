@@ -362,31 +362,39 @@ struct WatertightRay {
     float mSx = 0.f, mSy = 0.f, mSz = 1.f;
 
     explicit WatertightRay(const Vec3& aDirection) {
+        // Components by runtime index read from a plain array: glm's operator[] is a
+        // switch (and an assert), a branch the predictor misses on random directions.
+        const float d[3] = {aDirection.x, aDirection.y, aDirection.z};
         const Vec3 absD = glm::abs(aDirection);
         mKz = absD.x > absD.y ? (absD.x > absD.z ? 0 : 2) : (absD.y > absD.z ? 1 : 2);
         mKx = (mKz + 1) % 3;
         mKy = (mKx + 1) % 3;
-        if (aDirection[mKz] < 0.f) std::swap(mKx, mKy);
-        mSx = aDirection[mKx] / aDirection[mKz];
-        mSy = aDirection[mKy] / aDirection[mKz];
-        mSz = 1.f / aDirection[mKz];
+        if (d[mKz] < 0.f) std::swap(mKx, mKy);
+        mSx = d[mKx] / d[mKz];
+        mSy = d[mKy] / d[mKz];
+        mSz = 1.f / d[mKz];
     }
 };
+
+// A ray on an edge in float (an edge function exactly 0) is decided in double. Rare, so
+// kept out of the test below, which stays small enough for the compiler to inline.
+inline void EdgeFunctionsInDouble(float ax, float ay, float bx, float by, float cx, float cy, float& u, float& v, float& w) {
+    u = float(double(cx) * double(by) - double(cy) * double(bx));
+    v = float(double(ax) * double(cy) - double(ay) * double(cx));
+    w = float(double(bx) * double(ay) - double(by) * double(ax));
+}
 
 inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Ray& aRay,
                               const WatertightRay& aShear, float aTMin, float aTMax, float& oT) {
     const int kx = aShear.mKx, ky = aShear.mKy, kz = aShear.mKz;
     const float sx = aShear.mSx, sy = aShear.mSy, sz = aShear.mSz;
-    const Vec3 a = aP0 - aRay.mOrigin, b = aP1 - aRay.mOrigin, c = aP2 - aRay.mOrigin;
+    const Vec3 pa = aP0 - aRay.mOrigin, pb = aP1 - aRay.mOrigin, pc = aP2 - aRay.mOrigin;
+    const float a[3] = {pa.x, pa.y, pa.z}, b[3] = {pb.x, pb.y, pb.z}, c[3] = {pc.x, pc.y, pc.z};
     const float ax = a[kx] - sx * a[kz], ay = a[ky] - sy * a[kz];
     const float bx = b[kx] - sx * b[kz], by = b[ky] - sy * b[kz];
     const float cx = c[kx] - sx * c[kz], cy = c[ky] - sy * c[kz];
     float u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
-    if (u == 0.f || v == 0.f || w == 0.f) {  // on an edge in float: decide in double
-        u = float(double(cx) * double(by) - double(cy) * double(bx));
-        v = float(double(ax) * double(cy) - double(ay) * double(cx));
-        w = float(double(bx) * double(ay) - double(by) * double(ax));
-    }
+    if (u == 0.f || v == 0.f || w == 0.f) EdgeFunctionsInDouble(ax, ay, bx, by, cx, cy, u, v, w);
     if ((u < 0.f || v < 0.f || w < 0.f) && (u > 0.f || v > 0.f || w > 0.f)) return false;
     const float det = u + v + w;
     if (det == 0.f || !std::isfinite(det)) return false;
@@ -416,34 +424,6 @@ struct Aabb {
     }
 };
 
-// Slab test against a box; aInvDir = 1 / direction. Infinities are fine (IEEE); the NaN
-// of 0 * inf (a ray lying in the plane of a face) is skipped explicitly below.
-inline bool IntersectAabb(const float aMin[3], const float aMax[3], const Vec3& aOrigin,
-                          const Vec3& aInvDir, float aTMax, float& oTNear, bool aRayHasZeroComponent) {
-    // Fast path: the three slabs without branches.
-    const float tx0 = (aMin[0] - aOrigin.x) * aInvDir.x, tx1 = (aMax[0] - aOrigin.x) * aInvDir.x;
-    const float ty0 = (aMin[1] - aOrigin.y) * aInvDir.y, ty1 = (aMax[1] - aOrigin.y) * aInvDir.y;
-    const float tz0 = (aMin[2] - aOrigin.z) * aInvDir.z, tz1 = (aMax[2] - aOrigin.z) * aInvDir.z;
-    float tNear = std::max(std::max(std::min(tx0, tx1), std::min(ty0, ty1)), std::max(std::min(tz0, tz1), 0.f));
-    float tFar = std::min(std::min(std::max(tx0, tx1), std::max(ty0, ty1)), std::min(std::max(tz0, tz1), aTMax));
-    oTNear = tNear;
-    if (tNear <= tFar * 1.00000024f) return true;  // 1 + 2 ulp: rounding must not drop a hit on a face
-    if (!aRayHasZeroComponent) return false;
-    // A direction component of zero: 0 * inf = NaN when the ray runs in the plane of a
-    // face. Such a ray is inside that slab, so the careful path skips the axis.
-    tNear = 0.f;
-    tFar = aTMax;
-    for (int k = 0; k < 3; k++) {
-        const float t0 = (aMin[k] - aOrigin[k]) * aInvDir[k];
-        const float t1 = (aMax[k] - aOrigin[k]) * aInvDir[k];
-        if (std::isnan(t0) || std::isnan(t1)) continue;
-        tNear = std::max(tNear, std::min(t0, t1));
-        tFar = std::min(tFar, std::max(t0, t1));
-    }
-    oTNear = tNear;
-    return tNear <= tFar * 1.00000024f;
-}
-
 // The primitives the BVH is built over, in the layout the traversal reads: triangles as
 // their three vertices (shared vertices stay bit-identical, which the watertight test
 // needs), spheres as centre and radius. The index of a primitive is its position in
@@ -472,21 +452,35 @@ struct PrimitiveSoup {
 // Bounding-volume hierarchy. Build: top-down, splitting each node at the best of 16
 // binned surface-area-heuristic candidates along its longest centroid axis (Wald 2007),
 // and stopping where the SAH says a leaf is cheaper (leaves of at most 8 primitives).
-// Nodes are 32 bytes, stored depth-first so a left child directly follows its parent; the
-// primitives are copied into leaf order, so a leaf reads consecutive records. Traversal:
-// a stack, visiting the nearer child first.
+// The binary tree is then collapsed into a 4-wide one (Dammertz et al. 2008): a node
+// keeps up to four children, found by opening the largest child until there are four.
+// A node stores its children's boxes axis by axis ("structure of arrays"), so one node
+// visit tests four boxes in one loop without branches (the compiler may use one SIMD
+// instruction per step) instead of walking two levels of a binary tree box by box.
+// A leaf needs no node of its own: its parent's slot says where its primitives are,
+// and the primitives are copied into leaf order, so a leaf reads consecutive records.
+// Traversal: a stack, nearer children first; a popped child whose box starts beyond the
+// nearest hit found meanwhile is skipped without another test.
 class Bvh {
 public:
+    static constexpr int kWidth = 4;
+    // An inner node (128 bytes): the boxes of its children, [axis][child], then for each
+    // child either an inner node (mCount == 0, mIndex = node index) or a leaf (mCount
+    // records from mIndex). An unused slot has an inverted box (min > max), which the
+    // slab test never hits.
     struct Node {
-        float mMin[3];
-        uint32_t mOffset;  // leaf: first record; inner: right child index
-        float mMax[3];
-        uint32_t mCount;   // leaf: number of primitives (>0); inner: 0
+        float mMin[3][kWidth];
+        float mMax[3][kWidth];
+        uint32_t mIndex[kWidth];
+        uint32_t mCount[kWidth];
     };
 
     void Build(const PrimitiveSoup& aSoup) {
         mNodes.clear();
         mRecords.clear();
+        mRoot = ChildRef{};
+        mLeafCount = 0;
+        mBuildDepth = 0;
         const int count = aSoup.Count();
         mPrimitiveCount = count;
         std::vector<uint32_t> order(count);
@@ -498,8 +492,11 @@ public:
             centroids[i] = bounds[i].Centroid();
         }
         if (count == 0) return;
-        mNodes.reserve(size_t(count));
-        BuildRange(bounds, centroids, order, 0, uint32_t(count));
+        std::vector<BinaryNode> binary;
+        binary.reserve(size_t(count));
+        const ChildRef binaryRoot = BuildBinary(bounds, centroids, order, 0, uint32_t(count), 0, binary);
+        mNodes.reserve(binary.size() / 2 + 1);
+        mRoot = Collapse(binary, binaryRoot);
         // The primitives in leaf order, triangles as vertices, spheres as centre and radius.
         mRecords.resize(size_t(count));
         for (int k = 0; k < count; k++) {
@@ -521,81 +518,84 @@ public:
 
     // Nearest hit in (aTMin, ioTMax); returns the primitive index or -1.
     int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
-        if (mNodes.empty()) return -1;
-        const Vec3 invDir = 1.f / aRay.mDirection;
+        if (mRecords.empty()) return -1;
+        const RayBoxData ray(aRay);
         const WatertightRay shear(aRay.mDirection);
-        const bool zero = HasZeroComponent(aRay.mDirection);
         int hitPrimitive = -1;
-        uint32_t stack[64];
+        Pending stack[kStackSize];
         int stackSize = 0;
-        uint32_t nodeIndex = 0;
-        float tNear;
-        if (!NodeHit(0, aRay.mOrigin, invDir, ioTMax, tNear, zero)) return -1;
+        if (!HitsRoot(ray, ioTMax)) return -1;
+        uint32_t index = mRoot.mIndex, count = mRoot.mCount;
         for (;;) {
-            const Node& node = mNodes[nodeIndex];
-            if (node.mCount > 0) {
-                for (uint32_t i = 0; i < node.mCount; i++) {
-                    const Record& record = mRecords[node.mOffset + i];
+            if (count > 0) {  // a leaf: test its primitives
+                for (uint32_t i = 0; i < count; i++) {
+                    const Record& record = mRecords[index + i];
                     float t;
                     if (IntersectRecord(record, aRay, shear, aTMin, ioTMax, t)) {
                         ioTMax = t;
                         hitPrimitive = int(record.mId & ~kSphereBit);
                     }
                 }
-            } else {
-                uint32_t near = nodeIndex + 1, far = node.mOffset;
-                float tNearA, tNearB;
-                const bool hitA = NodeHit(near, aRay.mOrigin, invDir, ioTMax, tNearA, zero);
-                const bool hitB = NodeHit(far, aRay.mOrigin, invDir, ioTMax, tNearB, zero);
-                if (hitA && hitB) {
-                    if (tNearB < tNearA) std::swap(near, far);
-                    stack[stackSize++] = far;
-                    nodeIndex = near;
-                    continue;
+            } else {  // an inner node: push the children it hits, farthest first
+                const Node& node = mNodes[index];
+                float tNear[kWidth];
+                const int hits = HitsChildren(node, ray, ioTMax, tNear);
+                const int first = stackSize;
+                for (int c = 0; c < kWidth; c++) {
+                    if (!(hits & (1 << c))) continue;
+                    // Insertion into the pushed run, which stays sorted by decreasing tNear.
+                    int slot = stackSize++;
+                    while (slot > first && stack[slot - 1].mTNear < tNear[c]) {
+                        stack[slot] = stack[slot - 1];
+                        slot--;
+                    }
+                    stack[slot] = Pending{node.mIndex[c], node.mCount[c], tNear[c]};
                 }
-                if (hitA) { nodeIndex = near; continue; }
-                if (hitB) { nodeIndex = far; continue; }
             }
-            // Pop the next node that is still closer than the current nearest hit.
-            bool found = false;
-            while (stackSize > 0) {
-                nodeIndex = stack[--stackSize];
-                if (NodeHit(nodeIndex, aRay.mOrigin, invDir, ioTMax, tNear, zero)) { found = true; break; }
-            }
-            if (!found) return hitPrimitive;
+            // Pop the next child whose box starts before the nearest hit so far.
+            do {
+                if (stackSize == 0) return hitPrimitive;
+                --stackSize;
+            } while (stack[stackSize].mTNear > ioTMax * kFarWidening);
+            index = stack[stackSize].mIndex;
+            count = stack[stackSize].mCount;
         }
     }
 
     // Any hit in (aTMin, aTMax): the shadow-ray query.
     bool Occluded(const Ray& aRay, float aTMin, float aTMax) const {
-        if (mNodes.empty()) return false;
-        const Vec3 invDir = 1.f / aRay.mDirection;
+        if (mRecords.empty()) return false;
+        const RayBoxData ray(aRay);
         const WatertightRay shear(aRay.mDirection);
-        const bool zero = HasZeroComponent(aRay.mDirection);
-        uint32_t stack[64];
+        Pending stack[kStackSize];
         int stackSize = 0;
-        stack[stackSize++] = 0;
+        if (!HitsRoot(ray, aTMax)) return false;
+        stack[stackSize++] = Pending{mRoot.mIndex, mRoot.mCount, 0.f};
         while (stackSize > 0) {
-            const uint32_t nodeIndex = stack[--stackSize];
-            const Node& node = mNodes[nodeIndex];
-            float tNear;
-            if (!NodeHit(nodeIndex, aRay.mOrigin, invDir, aTMax, tNear, zero)) continue;
-            if (node.mCount > 0) {
-                for (uint32_t i = 0; i < node.mCount; i++) {
+            const Pending current = stack[--stackSize];
+            if (current.mCount > 0) {
+                for (uint32_t i = 0; i < current.mCount; i++) {
                     float t;
-                    if (IntersectRecord(mRecords[node.mOffset + i], aRay, shear, aTMin, aTMax, t)) return true;
+                    if (IntersectRecord(mRecords[current.mIndex + i], aRay, shear, aTMin, aTMax, t)) return true;
                 }
-            } else {
-                stack[stackSize++] = node.mOffset;
-                stack[stackSize++] = nodeIndex + 1;
+                continue;
             }
+            const Node& node = mNodes[current.mIndex];
+            float tNear[kWidth];
+            const int hits = HitsChildren(node, ray, aTMax, tNear);
+            for (int c = 0; c < kWidth; c++)
+                if (hits & (1 << c)) stack[stackSize++] = Pending{node.mIndex[c], node.mCount[c], tNear[c]};
         }
         return false;
     }
 
-    size_t NodeCount() const { return mNodes.size(); }
+    // Nodes of the tree, leaves included (a leaf lives in its parent's slot).
+    size_t NodeCount() const { return mNodes.size() + mLeafCount; }
+    size_t StorageBytes() const { return mNodes.size() * sizeof(Node) + mRecords.size() * sizeof(Record); }
     int PrimitiveCount() const { return mPrimitiveCount; }
-    int Depth() const { return mNodes.empty() ? 0 : DepthOf(0); }
+    // Levels of the 4-wide tree a ray walks, and of the binary tree it was collapsed from.
+    int Depth() const { return mRecords.empty() ? 0 : DepthOf(mRoot.mIndex, mRoot.mCount); }
+    int BuildDepth() const { return mBuildDepth; }
 
 private:
     // A primitive as the traversal reads it (40 bytes): a triangle's three vertices, or a
@@ -605,14 +605,79 @@ private:
         Vec3 mA{0.f}, mB{0.f}, mC{0.f};
         uint32_t mId = 0;
     };
+    // A subtree as its parent sees it: its box, and an inner node or a leaf as in Node.
+    struct ChildRef {
+        Aabb mBox;
+        uint32_t mIndex = 0, mCount = 0;
+    };
+    struct BinaryNode { ChildRef mChild[2]; };
+    struct Pending { uint32_t mIndex, mCount; float mTNear; };
+
     static constexpr uint32_t kSphereBit = 0x80000000u;
     static constexpr uint32_t kMaxLeafSize = 8;
     static constexpr int kBinCount = 16;
     // SAH costs in units of one primitive test: visiting a node tests two boxes.
     static constexpr float kTraversalCost = 1.f;
-    // The stack of 64 entries holds any tree of depth <= 64; BuildRange guarantees it by
-    // splitting by the median when the SAH split fails and by capping the depth.
+    // The binary build stops at this depth (splitting by the median when the SAH split
+    // fails keeps real scenes far below it). The 4-wide tree is no deeper, and a visit
+    // leaves at most kWidth - 1 children on the stack, so (kWidth - 1) * 64 entries hold
+    // every path.
     static constexpr int kMaxDepth = 60;
+    static constexpr int kStackSize = (kWidth - 1) * 64;
+    // A hit exactly on a face must survive rounding in the slab test: the far distance
+    // is widened by 2 ulp.
+    static constexpr float kFarWidening = 1.00000024f;
+
+    // What the slab test needs of a ray: its origin, 1 / direction (infinite for a zero
+    // component), and along which axes it runs backwards (then the max plane of a slab
+    // is the one it enters).
+    struct RayBoxData {
+        float mOrigin[3], mInvDir[3];
+        bool mNegative[3];
+        explicit RayBoxData(const Ray& aRay) {
+            for (int k = 0; k < 3; k++) {
+                mOrigin[k] = aRay.mOrigin[k];
+                mInvDir[k] = 1.f / aRay.mDirection[k];
+                mNegative[k] = std::signbit(mInvDir[k]);
+            }
+        }
+    };
+
+    // Slab test of the four child boxes against [0, aTMax]: a bit per child hit, and the
+    // distance where the ray enters each box in oTNear. The near and far planes are
+    // chosen by the ray's direction, so an inverted (empty) box always misses.
+    // A ray with a zero direction component that lies in the plane of a face gets
+    // (plane - origin) * inf = 0 * inf = NaN there; std::max(a, NaN) and std::min(a, NaN)
+    // return a, so that axis does not narrow the interval: the ray is inside the slab.
+    static int HitsChildren(const Node& aNode, const RayBoxData& aRay, float aTMax, float oTNear[kWidth]) {
+        float tNear[kWidth], tFar[kWidth];
+        for (int c = 0; c < kWidth; c++) { tNear[c] = 0.f; tFar[c] = aTMax; }
+        for (int k = 0; k < 3; k++) {
+            const float* nearPlane = aRay.mNegative[k] ? aNode.mMax[k] : aNode.mMin[k];
+            const float* farPlane = aRay.mNegative[k] ? aNode.mMin[k] : aNode.mMax[k];
+            for (int c = 0; c < kWidth; c++) {
+                tNear[c] = std::max(tNear[c], (nearPlane[c] - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+                tFar[c] = std::min(tFar[c], (farPlane[c] - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+            }
+        }
+        bool hit[kWidth];
+        for (int c = 0; c < kWidth; c++) {
+            oTNear[c] = tNear[c];
+            hit[c] = tNear[c] <= tFar[c] * kFarWidening;
+        }
+        static_assert(kWidth == 4, "the mask below is written out for four children");
+        return int(hit[0]) | int(hit[1]) << 1 | int(hit[2]) << 2 | int(hit[3]) << 3;
+    }
+    bool HitsRoot(const RayBoxData& aRay, float aTMax) const {
+        float tNear = 0.f, tFar = aTMax;
+        for (int k = 0; k < 3; k++) {
+            const float nearPlane = aRay.mNegative[k] ? mRoot.mBox.mMax[k] : mRoot.mBox.mMin[k];
+            const float farPlane = aRay.mNegative[k] ? mRoot.mBox.mMin[k] : mRoot.mBox.mMax[k];
+            tNear = std::max(tNear, (nearPlane - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+            tFar = std::min(tFar, (farPlane - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+        }
+        return tNear <= tFar * kFarWidening;
+    }
 
     static bool IntersectRecord(const Record& aRecord, const Ray& aRay, const WatertightRay& aShear,
                                 float aTMin, float aTMax, float& oT) {
@@ -620,37 +685,34 @@ private:
         return IntersectTriangle(aRecord.mA, aRecord.mB, aRecord.mC, aRay, aShear, aTMin, aTMax, oT);
     }
 
-    bool NodeHit(uint32_t aNode, const Vec3& aOrigin, const Vec3& aInvDir, float aTMax, float& oTNear, bool aZero) const {
-        const Node& n = mNodes[aNode];
-        return IntersectAabb(n.mMin, n.mMax, aOrigin, aInvDir, aTMax, oTNear, aZero);
-    }
-    static bool HasZeroComponent(const Vec3& aDirection) {
-        return aDirection.x == 0.f || aDirection.y == 0.f || aDirection.z == 0.f;
-    }
-
-    int DepthOf(uint32_t aNode) const {
-        const Node& n = mNodes[aNode];
-        if (n.mCount > 0) return 1;
-        return 1 + std::max(DepthOf(aNode + 1), DepthOf(n.mOffset));
+    int DepthOf(uint32_t aIndex, uint32_t aCount) const {
+        if (aCount > 0) return 1;
+        const Node& n = mNodes[aIndex];
+        int deepest = 0;
+        for (int c = 0; c < kWidth; c++)
+            if (n.mMin[0][c] <= n.mMax[0][c]) deepest = std::max(deepest, DepthOf(n.mIndex[c], n.mCount[c]));
+        return 1 + deepest;
     }
 
-    uint32_t BuildRange(const std::vector<Aabb>& aBounds, const std::vector<Vec3>& aCentroids,
-                        std::vector<uint32_t>& ioOrder, uint32_t aBegin, uint32_t aEnd, int aDepth = 0) {
-        const uint32_t nodeIndex = uint32_t(mNodes.size());
-        mNodes.push_back(Node{});
-        Aabb box, centroidBox;
+    // Builds the binary subtree over ioOrder[aBegin, aEnd) into ioNodes and returns it
+    // as its parent sees it.
+    ChildRef BuildBinary(const std::vector<Aabb>& aBounds, const std::vector<Vec3>& aCentroids,
+                         std::vector<uint32_t>& ioOrder, uint32_t aBegin, uint32_t aEnd, int aDepth,
+                         std::vector<BinaryNode>& ioNodes) {
+        mBuildDepth = std::max(mBuildDepth, aDepth + 1);
+        ChildRef result;
+        Aabb centroidBox;
         for (uint32_t i = aBegin; i < aEnd; i++) {
-            box.Extend(aBounds[ioOrder[i]]);
+            result.mBox.Extend(aBounds[ioOrder[i]]);
             centroidBox.Extend(aCentroids[ioOrder[i]]);
         }
-        for (int k = 0; k < 3; k++) { mNodes[nodeIndex].mMin[k] = box.mMin[k]; mNodes[nodeIndex].mMax[k] = box.mMax[k]; }
+        const uint32_t count = aEnd - aBegin;
         auto makeLeaf = [&] {
-            mNodes[nodeIndex].mOffset = aBegin;
-            mNodes[nodeIndex].mCount = aEnd - aBegin;
-            return nodeIndex;
+            result.mIndex = aBegin;
+            result.mCount = count;
+            return result;
         };
 
-        const uint32_t count = aEnd - aBegin;
         const Vec3 extent = centroidBox.mMax - centroidBox.mMin;
         const int axis = (extent.x >= extent.y && extent.x >= extent.z) ? 0 : (extent.y >= extent.z ? 1 : 2);
         // An extent so small (a denormal: centroids 1e-43 apart) that kBinCount / extent
@@ -693,7 +755,7 @@ private:
                 bestSplit = b;
             }
         }
-        const float area = box.SurfaceArea();
+        const float area = result.mBox.SurfaceArea();
         const bool splitPays = bestSplit >= 0 && area > 0.f && kTraversalCost + bestCost / area < float(count);
         if (count <= kMaxLeafSize && !splitPays) return makeLeaf();
 
@@ -707,16 +769,59 @@ private:
             std::nth_element(ioOrder.begin() + aBegin, ioOrder.begin() + middle, ioOrder.begin() + aEnd,
                              [&](uint32_t a, uint32_t b) { return aCentroids[a][axis] < aCentroids[b][axis]; });
         }
-        BuildRange(aBounds, aCentroids, ioOrder, aBegin, middle, aDepth + 1);
-        const uint32_t right = BuildRange(aBounds, aCentroids, ioOrder, middle, aEnd, aDepth + 1);
-        mNodes[nodeIndex].mOffset = right;
-        mNodes[nodeIndex].mCount = 0;
-        return nodeIndex;
+        const ChildRef left = BuildBinary(aBounds, aCentroids, ioOrder, aBegin, middle, aDepth + 1, ioNodes);
+        const ChildRef right = BuildBinary(aBounds, aCentroids, ioOrder, middle, aEnd, aDepth + 1, ioNodes);
+        ioNodes.push_back(BinaryNode{{left, right}});
+        result.mIndex = uint32_t(ioNodes.size() - 1);
+        result.mCount = 0;
+        return result;
     }
 
-    std::vector<Node> mNodes;
+    // Turns the binary subtree aSubtree into 4-wide nodes (depth-first, a node before
+    // its children) and returns it as its parent sees it.
+    ChildRef Collapse(const std::vector<BinaryNode>& aBinary, const ChildRef& aSubtree) {
+        if (aSubtree.mCount > 0) {
+            mLeafCount++;
+            return aSubtree;
+        }
+        // Open the inner child of largest surface area until there are kWidth children.
+        ChildRef children[kWidth];
+        int childCount = 2;
+        children[0] = aBinary[aSubtree.mIndex].mChild[0];
+        children[1] = aBinary[aSubtree.mIndex].mChild[1];
+        while (childCount < kWidth) {
+            int largest = -1;
+            for (int c = 0; c < childCount; c++)
+                if (children[c].mCount == 0 && (largest < 0 || children[c].mBox.SurfaceArea() > children[largest].mBox.SurfaceArea()))
+                    largest = c;
+            if (largest < 0) break;  // only leaves left
+            const BinaryNode& opened = aBinary[children[largest].mIndex];
+            children[largest] = opened.mChild[0];
+            children[childCount++] = opened.mChild[1];
+        }
+        const uint32_t nodeIndex = uint32_t(mNodes.size());
+        mNodes.push_back(Node{});
+        for (int c = 0; c < kWidth; c++) {
+            const ChildRef child = c < childCount ? Collapse(aBinary, children[c]) : ChildRef{};  // empty: inverted box
+            Node& node = mNodes[nodeIndex];  // Collapse may have reallocated mNodes
+            for (int k = 0; k < 3; k++) {
+                node.mMin[k][c] = child.mBox.mMin[k];
+                node.mMax[k][c] = child.mBox.mMax[k];
+            }
+            node.mIndex[c] = child.mIndex;
+            node.mCount[c] = child.mCount;
+        }
+        ChildRef result = aSubtree;
+        result.mIndex = nodeIndex;
+        return result;
+    }
+
+    std::vector<Node> mNodes;      // inner nodes, depth-first (a node before its children)
     std::vector<Record> mRecords;
+    ChildRef mRoot;                // the root, a leaf when the scene is small enough
+    size_t mLeafCount = 0;
     int mPrimitiveCount = 0;
+    int mBuildDepth = 0;
 };
 
 // =====================================================================================
@@ -2433,7 +2538,9 @@ public:
         mRadius = aRadius;
         mRadiusSqr = Sqr(aRadius);
         mInvCellSize = 1.f / (2.f * aRadius);
-        const size_t buckets = std::max<size_t>(aCount, 1);
+        size_t buckets = 1;
+        while (buckets < aCount) buckets *= 2;  // a power of two: the hash is masked, not divided
+        mBucketMask = uint32_t(buckets - 1);
         mBucketEnds.assign(buckets, 0);
         mIndices.resize(aCount);
         mPositions.resize(aCount);
@@ -2458,30 +2565,37 @@ public:
         if (mIndices.empty()) return;
         const glm::ivec3 low = CellOf(aQuery - Vec3(mRadius));
         const glm::ivec3 high = CellOf(aQuery + Vec3(mRadius));
-        uint32_t visited[8];
-        int visitedCount = 0;
+        // First the buckets of the cells (2 x 2 x 2, as cells are 2r wide; 3 per axis
+        // when rounding puts a bound on a cell border), then their points: the loads of
+        // the bucket ranges do not wait for one another, so their cache misses overlap.
+        uint32_t buckets[27], begins[27], ends[27];
+        int bucketCount = 0;
         for (int z = low.z; z <= high.z; z++)
             for (int y = low.y; y <= high.y; y++)
                 for (int x = low.x; x <= high.x; x++) {
                     const uint32_t bucket = BucketOf(glm::ivec3(x, y, z));
-                    if (std::find(visited, visited + visitedCount, bucket) != visited + visitedCount) continue;
-                    if (visitedCount < 8) visited[visitedCount++] = bucket;
-                    const uint32_t begin = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
-                    for (uint32_t k = begin; k < mBucketEnds[bucket]; k++) {
-                        const Vec3 d = mPositions[k] - aQuery;
-                        if (glm::dot(d, d) <= mRadiusSqr) aVisit(mIndices[k]);
-                    }
+                    // Two cells may share a bucket: its points are visited once.
+                    if (std::find(buckets, buckets + bucketCount, bucket) != buckets + bucketCount) continue;
+                    buckets[bucketCount] = bucket;
+                    begins[bucketCount] = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
+                    ends[bucketCount++] = mBucketEnds[bucket];
                 }
+        for (int b = 0; b < bucketCount; b++)
+            for (uint32_t k = begins[b]; k < ends[b]; k++) {
+                const Vec3 d = mPositions[k] - aQuery;
+                if (glm::dot(d, d) <= mRadiusSqr) aVisit(mIndices[k]);
+            }
     }
 
 private:
     glm::ivec3 CellOf(const Vec3& aPosition) const { return glm::ivec3(glm::floor(aPosition * mInvCellSize)); }
     uint32_t BucketOf(const glm::ivec3& aCell) const {
         const uint32_t hash = (uint32_t(aCell.x) * 73856093u) ^ (uint32_t(aCell.y) * 19349663u) ^ (uint32_t(aCell.z) * 83492791u);
-        return hash % uint32_t(mBucketEnds.size());
+        return hash & mBucketMask;
     }
 
     float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
+    uint32_t mBucketMask = 0;
     std::vector<uint32_t> mBucketEnds;
     std::vector<uint32_t> mIndices;    // point indices in bucket order
     std::vector<Vec3> mPositions;      // their positions, in the same order

@@ -566,6 +566,7 @@ struct BvhRow {
     double mBuildCpuShare = 0.0;    // CPU time of the thread / wall time, over all the builds
     int mBuildRuns = 0;
     size_t mNodes = 0;
+    size_t mBvhBytes = 0;  // inner nodes and primitive records
     int mDepth = 0;
     double mNearestRaysPerSecond = 0.0, mNearestHitFraction = 0.0;
     double mShadowRaysPerSecond = 0.0, mShadowOccludedFraction = 0.0;
@@ -598,6 +599,7 @@ BvhRow MeasureBvh(const Options& aOptions, long aTriangles) {
     }
     row.mBuildCpuShare = total > 0.0 ? totalCpu / total : 0.0;
     row.mNodes = scene.GetBvh().NodeCount();
+    row.mBvhBytes = scene.GetBvh().StorageBytes();
     row.mDepth = scene.GetBvh().Depth();
 
     // Rays from the bounding box of the mesh (it holds the whole sphere; its corners are
@@ -842,10 +844,8 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
         out << "\nNotes: light vertices are counted after one iteration of a renderer the bench runs itself "
                "(the 1-thread warm-up); \"stored vertices MiB\" is that count (and the vector's capacity) times the "
                "size of one stored vertex, for one thread (the hash grid adds its own arrays, and while the vector "
-               "grows the old and the new buffer coexist). The size of VertexCM's private vertex type is read through "
-               "an explicit template instantiation naming VertexCM::mLightVertices"
-            << (kLightVertexBytes > 0 ? "" : " (disabled in this build: n/a)")
-            << ". Photons (pm, pmfg) are public: sizeof(Photon); their count per iteration is not visible "
+               "grows the old and the new buffer coexist). Bytes per vertex: sizeof(VertexCM::LightVertex); the count "
+               "and capacity: VertexCM::LightVertexCount() and LightVertexCapacity(). Photons (pm, pmfg) are public: sizeof(Photon); their count per iteration is not visible "
                "from outside the renderer (n/a); the kd-tree keeps a further position and an axis byte per photon.\n\n";
 
         out << "### Every configuration\n\n";
@@ -868,13 +868,14 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
                "of the runs shown (wall clock; CPU util. = CPU time / wall time over all of them). Nearest-hit rays: Scene::Intersect from a random point of the bounding box in a uniformly "
                "random direction. Shadow rays: Scene::Occluded between two random points of the bounding box. "
                "Rays per second are per wall second and, after the slash, per CPU second of the tracing thread "
-               "(the two differ when other programs share the cores). Node size: " << sizeof(smallvcm::Bvh::Node) << " bytes.\n\n";
-        out << "| triangles | build ms (runs, CPU util.) | nodes | depth | node MiB | nearest-hit rays/s, wall / CPU (hit %) | "
+               "(the two differ when other programs share the cores). Nodes count leaves too; BVH MiB is what the tree stores: its inner nodes ("
+            << sizeof(smallvcm::Bvh::Node) << " bytes each, the boxes of both children) and one 40-byte record per primitive.\n\n";
+        out << "| triangles | build ms (runs, CPU util.) | nodes | depth | BVH MiB | nearest-hit rays/s, wall / CPU (hit %) | "
                "shadow rays/s, wall / CPU (occluded %) | rays traced | process peak RSS MiB |\n"
                "|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
         for (const BvhRow& r : aBvh)
             out << "| " << r.mTriangles << " | " << Format("%.3f (%d, %.0f%%)", 1e3 * r.mBuildSeconds, r.mBuildRuns, 100.0 * r.mBuildCpuShare) << " | " << r.mNodes << " | "
-                << r.mDepth << " | " << Format("%.2f", double(r.mNodes * sizeof(smallvcm::Bvh::Node)) / 1048576.0) << " | "
+                << r.mDepth << " | " << Format("%.2f", double(r.mBvhBytes) / 1048576.0) << " | "
                 << Rate(r.mNearestRaysPerSecond) << " / " << Rate(r.mNearestRaysPerCpuSecond)
                 << Format(" (%.0f%%)", 100.0 * r.mNearestHitFraction) << " | " << Rate(r.mShadowRaysPerSecond) << " / "
                 << Rate(r.mShadowRaysPerCpuSecond) << Format(" (%.0f%%)", 100.0 * r.mShadowOccludedFraction) << " | "
