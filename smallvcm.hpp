@@ -2542,8 +2542,7 @@ public:
         while (buckets < aCount) buckets *= 2;  // a power of two: the hash is masked, not divided
         mBucketMask = uint32_t(buckets - 1);
         mBucketEnds.assign(buckets, 0);
-        mIndices.resize(aCount);
-        mPositions.resize(aCount);
+        mPoints.resize(aCount);
         mBucketOf.resize(aCount);
         for (size_t i = 0; i < aCount; i++) {
             mBucketOf[i] = BucketOf(CellOf(aPositionOf(i)));
@@ -2554,15 +2553,14 @@ public:
         mCursor = mBucketEnds;
         for (size_t i = aCount; i-- > 0;) {
             const uint32_t slot = --mCursor[mBucketOf[i]];
-            mIndices[slot] = uint32_t(i);
-            mPositions[slot] = aPositionOf(i);
+            mPoints[slot] = Point{aPositionOf(i), uint32_t(i)};
         }
     }
 
     // Calls aVisit(index) for every point within the radius of aQuery (distance <= r).
     template <class Visit>
     void Process(const Vec3& aQuery, Visit&& aVisit) const {
-        if (mIndices.empty()) return;
+        if (mPoints.empty()) return;
         const glm::ivec3 low = CellOf(aQuery - Vec3(mRadius));
         const glm::ivec3 high = CellOf(aQuery + Vec3(mRadius));
         // First the buckets of the cells (2 x 2 x 2, as cells are 2r wide; 3 per axis
@@ -2582,8 +2580,8 @@ public:
                 }
         for (int b = 0; b < bucketCount; b++)
             for (uint32_t k = begins[b]; k < ends[b]; k++) {
-                const Vec3 d = mPositions[k] - aQuery;
-                if (glm::dot(d, d) <= mRadiusSqr) aVisit(mIndices[k]);
+                const Vec3 d = mPoints[k].mPosition - aQuery;
+                if (glm::dot(d, d) <= mRadiusSqr) aVisit(mPoints[k].mIndex);
             }
     }
 
@@ -2597,8 +2595,10 @@ private:
     float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
     uint32_t mBucketMask = 0;
     std::vector<uint32_t> mBucketEnds;
-    std::vector<uint32_t> mIndices;    // point indices in bucket order
-    std::vector<Vec3> mPositions;      // their positions, in the same order
+    // The points in bucket order, each with its index (16 bytes: a bucket's candidates
+    // share cache lines).
+    struct Point { Vec3 mPosition; uint32_t mIndex; };
+    std::vector<Point> mPoints;
     std::vector<uint32_t> mBucketOf, mCursor;  // build scratch, kept to avoid reallocating
 };
 

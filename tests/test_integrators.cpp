@@ -321,3 +321,40 @@ TEST_CASE("The same seed and thread count give a bit-identical image", "[integra
     const Image other = Render(scene, options).mImage;
     CHECK(std::memcmp(first.mPixels.data(), other.mPixels.data(), first.mPixels.size() * sizeof(Vec3)) != 0);
 }
+
+TEST_CASE("VCM's hash grid visits exactly the light vertices within the merge radius, each once", "[integrators]") {
+    // Brute force against HashGrid::Process: points uniform in a box, plus a cluster much
+    // smaller than a cell (a bucket with many points) and points exactly on cell borders
+    // (cells are 2r wide, so multiples of 2r). Few points give a small table, so distinct
+    // cells often share a bucket: such a bucket must still be visited once.
+    Rng rng(31, 0);
+    for (const int count : {1, 7, 100, 5000}) {
+        for (const float radius : {0.01f, 0.1f, 0.5f}) {
+            std::vector<Vec3> points;
+            for (int i = 0; i < count; i++) {
+                const float kind = rng.GetFloat();
+                if (kind < 0.6f) points.push_back(Vec3(rng.GetFloat(), rng.GetFloat(), rng.GetFloat()) * 2.f - 1.f);
+                else if (kind < 0.8f) points.push_back(Vec3(0.3f) + 0.01f * radius * Vec3(rng.GetFloat(), rng.GetFloat(), rng.GetFloat()));
+                else points.push_back(2.f * radius * Vec3(float(int(rng.GetFloat() * 8.f) - 4), float(int(rng.GetFloat() * 8.f) - 4), 0.f));
+            }
+            HashGrid grid;
+            grid.Build(points.size(), radius, [&](size_t i) { return points[i]; });
+            int wrong = 0, visits = 0;
+            for (int q = 0; q < 300; q++) {
+                // Queries near the points (some exactly on one) and anywhere in the box.
+                Vec3 query = q % 3 == 0 ? points[size_t(rng.GetFloat() * float(count)) % points.size()]
+                                        : Vec3(rng.GetFloat(), rng.GetFloat(), rng.GetFloat()) * 2.2f - 1.1f;
+                if (q % 3 == 1) query = points[size_t(q) % points.size()] + radius * 0.9f * Vec3(1.f, 0.f, 0.f);
+                std::vector<int> seen(points.size(), 0);
+                grid.Process(query, [&](uint32_t aIndex) { seen[aIndex]++; visits++; });
+                for (size_t i = 0; i < points.size(); i++) {
+                    const Vec3 d = points[i] - query;
+                    const int expected = glm::dot(d, d) <= radius * radius ? 1 : 0;
+                    wrong += seen[i] != expected;
+                }
+            }
+            INFO(count << " points, radius " << radius << ": " << visits << " visits");
+            CHECK(wrong == 0);
+        }
+    }
+}
