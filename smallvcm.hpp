@@ -538,11 +538,11 @@ public:
                 }
             } else {  // an inner node: push the children it hits, farthest first
                 const Node& node = mNodes[index];
-                float tNear[kWidth];
-                const int hits = HitsChildren(node, ray, ioTMax, tNear);
+                float tNear[kWidth], tFar[kWidth];
+                SlabTestChildren(node, ray, ioTMax, tNear, tFar);
                 const int first = stackSize;
                 for (int c = 0; c < kWidth; c++) {
-                    if (!(hits & (1 << c))) continue;
+                    if (!(tNear[c] <= tFar[c])) continue;
                     // Insertion into the pushed run, which stays sorted by decreasing tNear.
                     int slot = stackSize++;
                     while (slot > first && stack[slot - 1].mTNear < tNear[c]) {
@@ -581,10 +581,10 @@ public:
                 continue;
             }
             const Node& node = mNodes[current.mIndex];
-            float tNear[kWidth];
-            const int hits = HitsChildren(node, ray, aTMax, tNear);
+            float tNear[kWidth], tFar[kWidth];
+            SlabTestChildren(node, ray, aTMax, tNear, tFar);
             for (int c = 0; c < kWidth; c++)
-                if (hits & (1 << c)) stack[stackSize++] = Pending{node.mIndex[c], node.mCount[c], tNear[c]};
+                if (tNear[c] <= tFar[c]) stack[stackSize++] = Pending{node.mIndex[c], node.mCount[c], tNear[c]};
         }
         return false;
     }
@@ -643,30 +643,29 @@ private:
         }
     };
 
-    // Slab test of the four child boxes against [0, aTMax]: a bit per child hit, and the
-    // distance where the ray enters each box in oTNear. The near and far planes are
-    // chosen by the ray's direction, so an inverted (empty) box always misses.
+    // Slab test of the four child boxes against [0, aTMax]: where the ray enters each box
+    // (oTNear) and leaves it (oTFar, widened); child c is hit when oTNear[c] <= oTFar[c].
+    // The near and far planes are chosen by the ray's direction, so an inverted (empty)
+    // box always misses. The loops over the children have a fixed count of four and no
+    // branches, so the compiler turns each into a few SIMD instructions.
     // A ray with a zero direction component that lies in the plane of a face gets
     // (plane - origin) * inf = 0 * inf = NaN there; std::max(a, NaN) and std::min(a, NaN)
     // return a, so that axis does not narrow the interval: the ray is inside the slab.
-    static int HitsChildren(const Node& aNode, const RayBoxData& aRay, float aTMax, float oTNear[kWidth]) {
-        float tNear[kWidth], tFar[kWidth];
-        for (int c = 0; c < kWidth; c++) { tNear[c] = 0.f; tFar[c] = aTMax; }
-        for (int k = 0; k < 3; k++) {
+    static void SlabTestChildren(const Node& aNode, const RayBoxData& aRay, float aTMax, float oTNear[kWidth],
+                                 float oTFar[kWidth]) {
+        for (int c = 0; c < kWidth; c++) { oTNear[c] = 0.f; oTFar[c] = aTMax; }
+        auto slab = [&](int k) {
             const float* nearPlane = aRay.mNegative[k] ? aNode.mMax[k] : aNode.mMin[k];
             const float* farPlane = aRay.mNegative[k] ? aNode.mMin[k] : aNode.mMax[k];
             for (int c = 0; c < kWidth; c++) {
-                tNear[c] = std::max(tNear[c], (nearPlane[c] - aRay.mOrigin[k]) * aRay.mInvDir[k]);
-                tFar[c] = std::min(tFar[c], (farPlane[c] - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+                oTNear[c] = std::max(oTNear[c], (nearPlane[c] - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+                oTFar[c] = std::min(oTFar[c], (farPlane[c] - aRay.mOrigin[k]) * aRay.mInvDir[k]);
             }
-        }
-        bool hit[kWidth];
-        for (int c = 0; c < kWidth; c++) {
-            oTNear[c] = tNear[c];
-            hit[c] = tNear[c] <= tFar[c] * kFarWidening;
-        }
-        static_assert(kWidth == 4, "the mask below is written out for four children");
-        return int(hit[0]) | int(hit[1]) << 1 | int(hit[2]) << 2 | int(hit[3]) << 3;
+        };
+        slab(0);
+        slab(1);
+        slab(2);
+        for (int c = 0; c < kWidth; c++) oTFar[c] *= kFarWidening;
     }
     bool HitsRoot(const RayBoxData& aRay, float aTMax) const {
         float tNear = 0.f, tFar = aTMax;
