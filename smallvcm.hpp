@@ -1487,8 +1487,11 @@ public:
     // non-specular pick the returned f and pdf are those of all non-specular components
     // together (one-sample MIS over them); for a specular pick they are the component's,
     // with f / pdf * cos = its weight. Returns black when the sample is unusable.
+    // oReversePdfW: the pdf of the opposite choice, sampling fix given gen (what Pdf(gen,
+    // true) returns; for a specular pick the same selection probability). Evaluating the
+    // non-specular components yields it anyway, and bidirectional methods need it.
     Vec3 Sample(const Vec3& aRnd, Vec3& oWorldDirGen, float& oPdfW, float& oCosThetaGen,
-                uint32_t* oSampledEvent = nullptr) const {
+                uint32_t* oSampledEvent = nullptr, float* oReversePdfW = nullptr) const {
         if (oSampledEvent) *oSampledEvent = kEventNone;
         oPdfW = 0.f;
         Vec3 localDirGen;
@@ -1506,6 +1509,7 @@ public:
             event = kEventReflect;
             localDirGen = ReflectLocal(mLocalDirFix);
             oPdfW = p[kReflect];
+            if (oReversePdfW) *oReversePdfW = oPdfW;
             oCosThetaGen = std::abs(localDirGen.z);
             oWorldDirGen = mFrame.ToWorld(localDirGen);
             if (oSampledEvent) *oSampledEvent = event;
@@ -1516,6 +1520,7 @@ public:
             if (!RefractLocal(mLocalDirFix, mMaterial->mIor, localDirGen, etaFixOverEtaGen) || !(p[kRefract] > 0.f))
                 return Vec3(0.f);
             oPdfW = p[kRefract];
+            if (oReversePdfW) *oReversePdfW = oPdfW;
             oCosThetaGen = std::abs(localDirGen.z);
             oWorldDirGen = mFrame.ToWorld(localDirGen);
             if (oSampledEvent) *oSampledEvent = event;
@@ -1531,6 +1536,7 @@ public:
         float reversePdfW;
         EvaluateNonSpecular(localDirGen, f, oPdfW, reversePdfW);
         if (!(oPdfW > 0.f)) return Vec3(0.f);
+        if (oReversePdfW) *oReversePdfW = reversePdfW;
         oCosThetaGen = localDirGen.z;
         oWorldDirGen = mFrame.ToWorld(localDirGen);
         if (oSampledEvent) *oSampledEvent = event;
@@ -1619,6 +1625,7 @@ struct ScatterSample {
     Vec3 mDirection{0.f};
     Vec3 mWeight{0.f};      // f cos / pdf: what the path throughput is multiplied by
     float mPdfW = 0.f;      // solid-angle pdf of mDirection, continuation probability included
+    float mReversePdfW = 0.f;  // the pdf of the reverse choice (Bsdf::Sample), likewise
     float mCosThetaOut = 0.f;
     uint32_t mEvent = kEventNone;
     bool IsSpecular() const { return (mEvent & kEventSpecular) != 0; }
@@ -1626,11 +1633,13 @@ struct ScatterSample {
 
 // False when the walk ends here (a black sample, or Russian roulette).
 inline bool SampleScatteringWithRoulette(const Bsdf& aBsdf, Rng& aRng, ScatterSample& oSample) {
-    const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), oSample.mDirection, oSample.mPdfW, oSample.mCosThetaOut, &oSample.mEvent);
+    const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), oSample.mDirection, oSample.mPdfW, oSample.mCosThetaOut,
+                                     &oSample.mEvent, &oSample.mReversePdfW);
     if (IsBlack(factor)) return false;
     const float continuationProb = aBsdf.ContinuationProb();
     if (aRng.GetFloat() >= continuationProb) return false;
     oSample.mPdfW *= continuationProb;
+    oSample.mReversePdfW *= continuationProb;
     oSample.mWeight = factor * (oSample.mCosThetaOut / oSample.mPdfW);
     return true;
 }
@@ -2831,8 +2840,7 @@ private:
         const bool specular = scatter.IsSpecular();
         // For a specular event both pdfs are the component's selection probability (the
         // Fresnel term is the same for both directions of a reflection or refraction).
-        const float revPdfW = specular ? scatter.mPdfW : aBsdf.Pdf(scatter.mDirection, true) * aBsdf.ContinuationProb();
-        VcmMis::AfterScatter(mMis, ioState.mMis, scatter.mCosThetaOut, scatter.mPdfW, revPdfW, specular);
+        VcmMis::AfterScatter(mMis, ioState.mMis, scatter.mCosThetaOut, scatter.mPdfW, scatter.mReversePdfW, specular);
         ioState.mOrigin = aHitPoint;
         ioState.mDirection = scatter.mDirection;
         ioState.mThroughput *= scatter.mWeight;

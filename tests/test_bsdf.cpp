@@ -297,7 +297,7 @@ TEST_CASE("Albedos of the glossy floor and of diffuse + mirror are the sums of t
 // Sample / Evaluate / Pdf consistency
 // ---------------------------------------------------------------------------------
 
-TEST_CASE("A non-specular sample's f and pdf are what Evaluate and Pdf give for its direction", "[bsdf]") {
+TEST_CASE("A non-specular sample's f, pdf and reverse pdf are what Evaluate and Pdf give for its direction", "[bsdf]") {
     // Evaluate sees the sampled direction after a trip through world space and back, which
     // moves its local coordinates by a few 1e-8: the Phong lobe's slope (n / cos relative)
     // turns that into up to ~1e-5 relative, hence 1e-4; near the horizon the cosine (and
@@ -310,11 +310,13 @@ TEST_CASE("A non-specular sample's f and pdf are what Evaluate and Pdf give for 
             int checked = 0;
             for (int i = 0; i < 2000; i++) {
                 Vec3 direction;
-                float pdf = 0.f, cosine = 0.f;
+                float pdf = 0.f, cosine = 0.f, reversePdf = -1.f;
                 uint32_t event = kEventNone;
-                const Vec3 f = bsdf.Sample(rng.GetVec3(), direction, pdf, cosine, &event);
+                const Vec3 f = bsdf.Sample(rng.GetVec3(), direction, pdf, cosine, &event, &reversePdf);
+                if (event & kEventSpecular) REQUIRE(reversePdf == pdf);  // a selection probability, both ways
                 if (!(event == kEventDiffuse || event == kEventPhong)) continue;
                 checked++;
+                REQUIRE(reversePdf == Approx(bsdf.Pdf(direction, true)).epsilon(1e-4).margin(1e-6));
                 float evalCosine, evalPdf;
                 const Vec3 evaluated = bsdf.Evaluate(direction, evalCosine, &evalPdf);
                 REQUIRE(glm::length(direction) == Approx(1.f).epsilon(1e-5));
