@@ -2576,12 +2576,18 @@ public:
         // the bucket ranges do not wait for one another, so their cache misses overlap.
         uint32_t buckets[27], begins[27], ends[27];
         int bucketCount = 0;
+        uint32_t summary = 0;
         for (int z = low.z; z <= high.z; z++)
             for (int y = low.y; y <= high.y; y++)
                 for (int x = low.x; x <= high.x; x++) {
                     const uint32_t bucket = BucketOf(glm::ivec3(x, y, z));
-                    // Two cells may share a bucket: its points are visited once.
-                    if (std::find(buckets, buckets + bucketCount, bucket) != buckets + bucketCount) continue;
+                    // Two cells may share a bucket: its points are visited once. Rare, so
+                    // a 32-bit summary of the buckets so far (one bit per bucket mod 32)
+                    // rules it out cheaply, and only a match is checked in full.
+                    const uint32_t summaryBit = 1u << (bucket & 31u);
+                    if ((summary & summaryBit) && std::find(buckets, buckets + bucketCount, bucket) != buckets + bucketCount)
+                        continue;
+                    summary |= summaryBit;
                     buckets[bucketCount] = bucket;
                     begins[bucketCount] = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
                     ends[bucketCount++] = mBucketEnds[bucket];
@@ -2594,7 +2600,13 @@ public:
     }
 
 private:
-    glm::ivec3 CellOf(const Vec3& aPosition) const { return glm::ivec3(glm::floor(aPosition * mInvCellSize)); }
+    glm::ivec3 CellOf(const Vec3& aPosition) const {
+        // floor() by truncation and a correction for negatives: without SSE4.1 std::floor
+        // is a library call, and this runs six times per query.
+        auto floorToInt = [](float aX) { const int i = int(aX); return i - int(aX < float(i)); };
+        const Vec3 scaled = aPosition * mInvCellSize;
+        return glm::ivec3(floorToInt(scaled.x), floorToInt(scaled.y), floorToInt(scaled.z));
+    }
     uint32_t BucketOf(const glm::ivec3& aCell) const {
         const uint32_t hash = (uint32_t(aCell.x) * 73856093u) ^ (uint32_t(aCell.y) * 19349663u) ^ (uint32_t(aCell.z) * 83492791u);
         return hash & mBucketMask;
