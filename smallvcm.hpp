@@ -2607,8 +2607,11 @@ private:
         const Vec3 scaled = aPosition * mInvCellSize;
         return glm::ivec3(floorToInt(scaled.x), floorToInt(scaled.y), floorToInt(scaled.z));
     }
+    // Neighbours along x get neighbouring buckets (x enters with factor 1), so the two
+    // x-cells of a query share cache lines in both arrays; y and z enter with large odd
+    // factors, which keeps cells of one surface from colliding in a pattern.
     uint32_t BucketOf(const glm::ivec3& aCell) const {
-        const uint32_t hash = (uint32_t(aCell.x) * 73856093u) ^ (uint32_t(aCell.y) * 19349663u) ^ (uint32_t(aCell.z) * 83492791u);
+        const uint32_t hash = uint32_t(aCell.x) + uint32_t(aCell.y) * 73856093u + uint32_t(aCell.z) * 19349663u;
         return hash & mBucketMask;
     }
 
