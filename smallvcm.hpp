@@ -616,7 +616,9 @@ private:
     static constexpr uint32_t kSphereBit = 0x80000000u;
     static constexpr uint32_t kMaxLeafSize = 8;
     static constexpr int kBinCount = 16;
-    // SAH costs in units of one primitive test: visiting a node tests two boxes.
+    // SAH costs in units of one primitive test: a binary node's two boxes (half of what a
+    // 4-wide node tests in one loop). Measured on Cornell scenes 0 and 4: 0.5 is as fast, 2
+    // is 1.3-1.5x slower (fatter leaves: more of the costlier watertight triangle tests).
     static constexpr float kTraversalCost = 1.f;
     // The binary build stops at this depth (splitting by the median when the SAH split
     // fails keeps real scenes far below it). The 4-wide tree is no deeper, and a visit
