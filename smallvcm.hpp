@@ -2677,6 +2677,11 @@ public:
         // Stage 1: light sub-paths
         // ---------------------------------------------------------------------------
         mLightVertices.clear();
+        // Room for 4 stored vertices per light path before the first iteration (the
+        // Cornell scenes store 0.5 to 2.2 at the defaults), so the vector does not grow
+        // by copying itself while it is filled: reserved pages that are never written
+        // take no physical memory. Later iterations keep the capacity.
+        if (mLightVertices.capacity() == 0 && (mUseVC || mUseVM)) mLightVertices.reserve(4 * size_t(pathCount));
         mPathEnds.assign(size_t(pathCount), 0);
         for (int path = 0; path < pathCount; path++) {
             SubPathState light;

@@ -843,8 +843,10 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
         }
         out << "\nNotes: light vertices are counted after one iteration of a renderer the bench runs itself "
                "(the 1-thread warm-up); \"stored vertices MiB\" is that count (and the vector's capacity) times the "
-               "size of one stored vertex, for one thread (the hash grid adds its own arrays, and while the vector "
-               "grows the old and the new buffer coexist). Bytes per vertex: sizeof(VertexCM::LightVertex); the count "
+               "size of one stored vertex, for one thread (the hash grid adds its own arrays). VertexCM reserves room for "
+               "4 vertices per light path before its first iteration, so the vector rarely grows by copying itself; "
+               "reserved pages that are never written take no physical memory: the capacity is address space, the "
+               "peak RSS what is used. Bytes per vertex: sizeof(VertexCM::LightVertex); the count "
                "and capacity: VertexCM::LightVertexCount() and LightVertexCapacity(). Photons (pm, pmfg) are public: sizeof(Photon); their count per iteration is not visible "
                "from outside the renderer (n/a); the kd-tree keeps a further position and an axis byte per photon.\n\n";
 
