@@ -85,6 +85,52 @@ TEST_CASE("The kd-tree's k nearest neighbours equal brute force, with ties and a
     }
 }
 
+TEST_CASE("FindNearest returns the k nearest by (distance, index), the k-th last, whatever the first guess", "[photon_mapping]") {
+    // FindNearest leaves its result unsorted and may start from a guessed bound (the
+    // k-th distance of the previous query): the set must still be exactly the first k of
+    // the total order (distance, then index), and the k-th must be last, since the density
+    // estimate divides by the disc through it. Guesses far too small (widened in steps),
+    // far too large, and none; k from 1 to 150 (cut-backs at 1.5 k inside the search,
+    // and exactly k candidates found, where no cut-back happens); an accept filter.
+    Rng rng(11, 2);
+    std::vector<Vec3> points;
+    for (int i = 0; i < 5000; i++) points.push_back(rng.GetVec3() * 2.f - 1.f);
+    for (int x = -4; x <= 4; x++) for (int y = -4; y <= 4; y++) points.push_back(Vec3(float(x), float(y), 0.f) * 0.125f);
+    KdTree tree;
+    std::vector<uint32_t> order;
+    tree.Build(points.size(), [&](size_t i) { return points[i]; }, order);
+    auto accept = [&](size_t aIndex) { return order[aIndex] % 7 != 3; };  // drops one point in seven
+    std::vector<KdTree::Neighbor> found;
+    float hint = 0.f;
+    for (int q = 0; q < 400; q++) {
+        const Vec3 query = q % 4 == 0 ? Vec3(0.f) : rng.GetVec3() * 2.f - 1.f;
+        const int k = 1 + (q * 37) % 150;
+        const float maxDistSqr = q % 6 == 0 ? 0.002f : 10.f;
+        // The brute-force answer: every accepted point within the radius, in the total order.
+        std::vector<KdTree::Neighbor> all;
+        for (size_t i = 0; i < tree.Size(); i++) {
+            const Vec3 d = tree.Position(i) - query;
+            const float distSqr = glm::dot(d, d);
+            if (distSqr <= maxDistSqr && accept(i)) all.push_back(KdTree::Neighbor{uint32_t(i), distSqr});
+        }
+        std::sort(all.begin(), all.end());
+        if (all.size() > size_t(k)) all.resize(size_t(k));
+        const float guesses[4] = {0.f, 1e-9f, 5.f, hint};
+        const float guess = guesses[q % 4];
+        float ioHint = guess;
+        tree.FindNearest(query, k, maxDistSqr, accept, found, &ioHint);
+        INFO("query " << q << ", k " << k << ", first guess " << guess << ", found " << found.size() << " of " << all.size());
+        REQUIRE(found.size() == all.size());
+        if (found.size() == size_t(k)) {
+            CHECK(found.back().mIndex == all.back().mIndex);  // the k-th nearest is last
+            CHECK(found.back().mDistSqr == all.back().mDistSqr);
+        }
+        std::sort(found.begin(), found.end());
+        for (size_t i = 0; i < found.size(); i++) CHECK(found[i].mIndex == all[i].mIndex);
+        hint = ioHint;  // 0 (no guess) when the k-th nearest lies on the query point
+    }
+}
+
 TEST_CASE("The density estimate on a plane under a point light converges to the analytic radiance", "[photon_mapping]") {
     // A Lambert plane (rho = 0.5) at distance 1 below a point light of intensity 1:
     // straight below, E = I / h^2 = 1 and L = rho E / pi. The irradiance falls off as
