@@ -5,6 +5,8 @@
 //   build/bench --quick                   a smoke test: 64x64, no warm-up, one iteration per thread,
 //                                         meshes up to 10^4 triangles (about 20 s)
 //   build/bench --scenes 4 --algorithms vcm,bpt --threads 1,2 --markdown vcm.md
+//   build/bench --markdown docs/performance/bench.md --csv docs/performance/bench
+//                                         also the numbers as CSV, for docs/plot_bench.py
 //
 // Three measurements, then a one-page markdown report on stdout (and in --markdown FILE):
 //   1. Render speed. For every Cornell scene, estimator and thread count: one warm-up
@@ -28,6 +30,16 @@
 //      and depth, and single-thread throughput of nearest-hit rays (Scene::Intersect from
 //      random points of the bounding box in random directions) and of shadow rays
 //      (Scene::Occluded between two random points of the bounding box).
+// With --csv PREFIX the numbers behind the charts are also written as data (the charts
+// are drawn by docs/plot_bench.py with matplotlib, not here):
+//   PREFIX_bvh.csv     one row per mesh of 3.: triangles, build ms, nodes, depth, BVH MiB,
+//                      rays per wall second and per CPU second, hit fractions, peak RSS
+//   PREFIX_render.csv  one row per successful measurement of 1. and 2.: scene, algorithm,
+//                      threads, iterations, wall and CPU seconds per iteration, rays per
+//                      second, CPU utilisation, peak RSS, resolution
+// Only the files of the parts that ran are written (--no-bvh, --no-render leave the other
+// one alone), each through FILE.partial and a rename, so that an interrupted run never
+// leaves half a table under the real name.
 // Progress goes to stderr. Timings are wall-clock (std::chrono::steady_clock); CPU times
 // (getrusage, CLOCK_THREAD_CPUTIME_ID) are reported beside them, as on a shared machine
 // they are the figures that stay comparable between runs.
@@ -112,6 +124,7 @@ struct Options {
     int mBvhRays = 131072;      // rays per batch (each batch is traced at least once)
     double mBvhSeconds = 0.5;   // tracing time per mesh and ray kind
     std::string mMarkdown;
+    std::string mCsvPrefix;     // --csv: PREFIX_bvh.csv and PREFIX_render.csv
     std::string mNote;
     std::string mCommand;
     bool mQuick = false;
@@ -136,6 +149,9 @@ void PrintHelp() {
         "  --no-bvh               skip the BVH scaling\n"
         "  --note TEXT            a line for the report (e.g. the commit measured)\n"
         "  --markdown FILE        also write the report to FILE\n"
+        "  --csv PREFIX           also write the numbers to PREFIX_bvh.csv (BVH scaling) and\n"
+        "                         PREFIX_render.csv (render speed), for docs/plot_bench.py;\n"
+        "                         only the files of the parts that run (see --no-render, --no-bvh)\n"
         "  --help                 this text\n");
 }
 
@@ -208,6 +224,10 @@ Options ParseOptions(int argc, char** argv) {
         else if (arg == "--no-bvh") o.mBvh = false;
         else if (arg == "--note") o.mNote = value(i);
         else if (arg == "--markdown") o.mMarkdown = value(i);
+        else if (arg == "--csv") {
+            o.mCsvPrefix = value(i);
+            if (o.mCsvPrefix.empty()) throw Error(arg + ": needs a non-empty PREFIX");
+        }
         else throw Error(arg + ": unknown option (see --help)");
     }
     return o;
@@ -887,6 +907,92 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
     return out.str();
 }
 
+// ---------------------------------------------------------------------------------------
+// CSV (--csv): the same numbers as data, for docs/plot_bench.py
+// ---------------------------------------------------------------------------------------
+
+std::string BvhCsvPath(const Options& aOptions) { return aOptions.mCsvPrefix + "_bvh.csv"; }
+std::string RenderCsvPath(const Options& aOptions) { return aOptions.mCsvPrefix + "_render.csv"; }
+
+// The CSV files this run will write: only those of the parts that run, so that
+// --no-bvh does not overwrite a BVH table measured earlier with an empty one.
+std::vector<std::string> CsvPaths(const Options& aOptions) {
+    std::vector<std::string> paths;
+    if (aOptions.mCsvPrefix.empty()) return paths;
+    if (aOptions.mBvh) paths.push_back(BvhCsvPath(aOptions));
+    if (aOptions.mRender) paths.push_back(RenderCsvPath(aOptions));
+    return paths;
+}
+
+// Fails early, before minutes of measuring, if aPath cannot be written: creates and
+// removes aPath.partial, the file the real write goes through (aPath itself is left
+// untouched, so an earlier result survives a run that fails).
+void CheckWritable(const std::string& aPath) {
+    const std::string probe = aPath + ".partial";
+    FILE* file = std::fopen(probe.c_str(), "wb");
+    if (!file) throw Error(aPath + ": cannot write here (" + std::strerror(errno) + ")");
+    std::fclose(file);
+    std::remove(probe.c_str());
+}
+
+// Writes aText to aPath through aPath.partial and a rename (the project's rule: no half
+// file under the real name); on failure the .partial is removed too.
+void WriteFileAtomically(const std::string& aPath, const std::string& aText) {
+    const std::string partial = aPath + ".partial";
+    {
+        std::ofstream file(partial, std::ios::binary | std::ios::trunc);
+        if (!file) throw Error(aPath + ": cannot open " + partial + " for writing (" + std::strerror(errno) + ")");
+        file << aText;
+        if (!file.flush()) {
+            std::remove(partial.c_str());
+            throw Error(aPath + ": write failed (" + std::strerror(errno) + ")");
+        }
+    }
+    if (std::rename(partial.c_str(), aPath.c_str()) != 0) {
+        const std::string reason = std::strerror(errno);
+        std::remove(partial.c_str());
+        throw Error(aPath + ": cannot rename " + partial + " into place (" + reason + ")");
+    }
+}
+
+// One row per mesh. Full precision (%.6g and integers), unlike the report's rounded
+// cells: the charts take logarithms and fit lines through these numbers.
+std::string BvhCsv(const std::vector<BvhRow>& aBvh) {
+    std::ostringstream out;
+    out << "triangles,build_ms,build_runs,build_cpu_utilisation,nodes,depth,bvh_mib,"
+           "nearest_rays_per_s,shadow_rays_per_s,nearest_rays_per_cpu_s,shadow_rays_per_cpu_s,"
+           "nearest_hit_fraction,shadow_occluded_fraction,peak_rss_mib\n";
+    for (const BvhRow& r : aBvh)
+        out << r.mTriangles << "," << Format("%.6g", 1e3 * r.mBuildSeconds) << "," << r.mBuildRuns << ","
+            << Format("%.4f", r.mBuildCpuShare) << "," << r.mNodes << "," << r.mDepth << ","
+            << Format("%.6g", double(r.mBvhBytes) / 1048576.0) << "," << Format("%.6g", r.mNearestRaysPerSecond) << ","
+            << Format("%.6g", r.mShadowRaysPerSecond) << "," << Format("%.6g", r.mNearestRaysPerCpuSecond) << ","
+            << Format("%.6g", r.mShadowRaysPerCpuSecond) << "," << Format("%.4f", r.mNearestHitFraction) << ","
+            << Format("%.4f", r.mShadowOccludedFraction) << "," << Format("%.2f", double(r.mPeakKb) / 1024.0) << "\n";
+    return out.str();
+}
+
+// One row per successful (scene, algorithm, threads) measurement, in the order measured.
+// Failed ones are left out (the report names them and the exit code is 1): a CSV cell
+// that is not a number would only make the chart script refuse the whole file. The scene
+// name is the scene file's stem, which holds no comma.
+std::string RenderCsv(const Options& aOptions, const std::vector<Measurement>& aRuns) {
+    std::ostringstream out;
+    out << "scene,scene_name,algorithm,threads,iterations,s_per_iteration,cpu_s_per_iteration,rays_per_s,"
+           "cpu_utilisation,peak_rss_mib,resolution\n";
+    for (const Measurement& m : aRuns) {
+        if (!m.mOk || m.mIterations <= 0) continue;
+        std::string name = kCornellScenes[m.mScene];
+        name = name.substr(0, name.rfind(".gltf"));
+        out << m.mScene << "," << name << "," << smallvcm::AlgorithmShortName(m.mAlgorithm) << "," << m.mThreads << ","
+            << m.mIterations << "," << Format("%.6g", m.SecondsPerIteration()) << ","
+            << Format("%.6g", m.mCpuSeconds / m.mIterations) << "," << Format("%.6g", m.RaysPerSecond()) << ","
+            << Format("%.4f", m.Utilisation()) << "," << Format("%.2f", double(m.mPeakKb) / 1024.0) << ","
+            << aOptions.mWidth << "x" << aOptions.mHeight << "\n";
+    }
+    return out.str();
+}
+
 std::string Now() {
     const std::time_t t = std::time(nullptr);
     char buffer[64];
@@ -901,10 +1007,9 @@ int main(int argc, char** argv) {
     Options options;
     try {
         options = ParseOptions(argc, argv);
-        if (!options.mMarkdown.empty()) {  // fail now, not after ten minutes
-            std::ofstream probe(options.mMarkdown, std::ios::app);
-            if (!probe) throw Error(options.mMarkdown + ": cannot write here");
-        }
+        // Fail now, not after minutes of measuring, if an output cannot be written.
+        if (!options.mMarkdown.empty()) CheckWritable(options.mMarkdown);
+        for (const std::string& path : CsvPaths(options)) CheckWritable(path);
     } catch (const Error& e) {
         std::fprintf(stderr, "bench: %s\n", e.what());
         return 2;
@@ -960,14 +1065,19 @@ int main(int argc, char** argv) {
     const std::string report = Report(options, runs, bvh, date, SecondsSince(start), loadStart, LoadAverage());
     std::fputs(report.c_str(), stdout);
     std::fflush(stdout);
-    if (!options.mMarkdown.empty()) {
-        std::ofstream file(options.mMarkdown, std::ios::trunc);
-        file << report;
-        if (!file) {
-            std::fprintf(stderr, "bench: %s: cannot write the report\n", options.mMarkdown.c_str());
-            return 1;
+    // The report first, then the CSVs: if one cannot be written, the report is already safe.
+    try {
+        if (!options.mMarkdown.empty()) {
+            WriteFileAtomically(options.mMarkdown, report);
+            std::fprintf(stderr, "bench: report written to %s\n", options.mMarkdown.c_str());
         }
-        std::fprintf(stderr, "bench: report written to %s\n", options.mMarkdown.c_str());
+        for (const std::string& path : CsvPaths(options)) {
+            WriteFileAtomically(path, path == BvhCsvPath(options) ? BvhCsv(bvh) : RenderCsv(options, runs));
+            std::fprintf(stderr, "bench: CSV written to %s\n", path.c_str());
+        }
+    } catch (const Error& e) {
+        std::fprintf(stderr, "bench: %s\n", e.what());
+        return 1;
     }
     for (const Measurement& m : runs)
         if (!m.mOk) return 1;
