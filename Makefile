@@ -104,13 +104,14 @@ check: deps
 
 # make bench: seconds per iteration of every estimator on every Cornell scene (512x512,
 # 1 and 2 threads), rays per second, peak memory, BVH build and tracing as the triangle
-# count grows from 1e2 to 1e6 (about 6 minutes on 2 cores); the report goes to
+# count grows from 1e2 to 1e6 (each configuration the fastest of two measurements, to
+# ride out the machine's own drift; about 9 minutes on 2 cores); the report goes to
 # docs/performance/bench.md, its numbers to docs/performance/bench_bvh.csv and
 # bench_render.csv, and docs/plot_bench.py draws them (matplotlib, installed if missing)
 # into docs/performance/bvh_scaling.png and speed_per_iteration.png.
 bench: deps $(BUILD)/bench
 	@$(ENSURE_MATPLOTLIB)
-	$(BUILD)/bench --markdown docs/performance/bench.md --csv docs/performance/bench
+	$(BUILD)/bench --repeat 2 --markdown docs/performance/bench.md --csv docs/performance/bench
 	/usr/bin/python3 docs/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
 
 # make fuzz [FUZZ_SECONDS=600]: libFuzzer over the glTF loader (installs clang if missing).
