@@ -2277,7 +2277,7 @@ public:
 
     void RunIteration(int /*aIteration*/, Rng& aRng) override {
         TracePhotons(mScene, mOptions.mPhotonCount, mOptions.mMaxPathLength, aRng, mGlobal, mCaustic);
-        mHintSqr[0] = mHintSqr[1] = 0.f;  // an iteration depends on its random numbers only
+        mGlobalHintSqr = mCausticHintSqr = 0.f;  // an iteration depends on its random numbers only
         const Camera& camera = mScene.mCamera;
         for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
             const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aRng.GetVec2();
@@ -2329,7 +2329,8 @@ private:
     Vec3 Estimate(const PhotonMap& aMap, const Vec3& aPoint, const Bsdf& aBsdf, int aPathLength) {
         if (aPathLength + 1 > mOptions.mMaxPathLength) return Vec3(0.f);
         return aMap.EstimateRadiance(aPoint, aBsdf, mOptions.mNearestPhotons, mMaxRadius,
-                                     mOptions.mMaxPathLength - aPathLength, mScratch, &mHintSqr[&aMap == &mCaustic]);
+                                     mOptions.mMaxPathLength - aPathLength, mScratch,
+                                     &aMap == &mCaustic ? &mCausticHintSqr : &mGlobalHintSqr);
     }
 
     // Samples the BSDF; continues (true) only if a specular component was picked.
@@ -2392,7 +2393,9 @@ private:
     float mMaxRadius = 0.f;
     PhotonMap mGlobal, mCaustic;
     std::vector<KdTree::Neighbor> mScratch;
-    float mHintSqr[2] = {0.f, 0.f};  // KdTree::FindNearest's guesses for the global and the caustic map
+    // KdTree::FindNearest's first guesses of the k-th distance^2, one per map: the two
+    // maps' densities differ by orders of magnitude.
+    float mGlobalHintSqr = 0.f, mCausticHintSqr = 0.f;
     int mLayers[kLayerCount] = {-1, -1, -1, -1, -1, -1};
 };
 
