@@ -53,11 +53,11 @@ const char* const kProgram = "../build/convergence";
 const std::vector<std::string> kEstimators = {"pt", "lt", "ppm", "bpm", "bpt", "vcm", "pm", "pmfg"};
 const std::vector<int> kCheckpoints = {1, 2, 4, 8, 16, 32, 64, 128};  // --quick's
 
+using testutil::ExitCode;
 using testutil::Quote;
+using testutil::SplitCsvLine;
 using testutil::ReadText;
 using testutil::TemporaryFolder;
-
-int ExitCode(int aStatus) { return WIFEXITED(aStatus) ? WEXITSTATUS(aStatus) : 128 + (WIFSIGNALED(aStatus) ? WTERMSIG(aStatus) : 0); }
 
 struct Row {
     int mScene = -1;
@@ -66,13 +66,6 @@ struct Row {
     double mSeconds = 0.0, mRmse = 0.0, mRelMse = 0.0;
 };
 
-std::vector<std::string> Split(const std::string& aLine) {
-    std::vector<std::string> fields;
-    std::string field;
-    std::stringstream stream(aLine);
-    while (std::getline(stream, field, ',')) fields.push_back(field);
-    return fields;
-}
 
 // Least-squares slope of log(rmse) against log(iterations).
 double LogLogSlope(const std::vector<Row>& aRows) {
@@ -131,7 +124,7 @@ TEST_CASE("convergence --quick: one row per checkpoint, errors that fall, unbias
     std::map<std::pair<int, std::string>, std::vector<Row>> runs;
     int rowCount = 0;
     while (std::getline(csv, line)) {
-        const std::vector<std::string> fields = Split(line);
+        const std::vector<std::string> fields = SplitCsvLine(line);
         INFO("row: " << line);
         REQUIRE(fields.size() == 6);
         Row row;

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 namespace testutil {
@@ -221,6 +222,20 @@ inline std::string ReadText(const std::string& aPath) {
     std::stringstream text;
     text << file.rdbuf();
     return text.str();
+}
+
+// The exit code of a std::system() status (128 + the signal for a killed child).
+inline int ExitCode(int aStatus) {
+    return WIFEXITED(aStatus) ? WEXITSTATUS(aStatus) : 128 + (WIFSIGNALED(aStatus) ? WTERMSIG(aStatus) : 0);
+}
+
+// The comma-separated fields of one CSV line (the tools' CSVs quote nothing).
+inline std::vector<std::string> SplitCsvLine(const std::string& aLine) {
+    std::vector<std::string> fields;
+    std::string field;
+    std::stringstream stream(aLine);
+    while (std::getline(stream, field, ',')) fields.push_back(field);
+    return fields;
 }
 
 } // namespace testutil
