@@ -104,6 +104,7 @@
 #include <cstdio>
 #include <limits>
 #include <memory>
+#include <new>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -1106,6 +1107,9 @@ public:
     }
     void SetResolution(int aWidth, int aHeight) {
         if (aWidth <= 0 || aHeight <= 0) throw Error("resolution: width and height must be positive");
+        // Pixel indices are ints, and a film of 16384x16384 is already 6 GiB a thread.
+        if (int64_t(aWidth) * int64_t(aHeight) > (int64_t(1) << 28))
+            throw Error("resolution: " + std::to_string(aWidth) + "x" + std::to_string(aHeight) + " is more than 2^28 pixels (16384x16384)");
         mWidth = aWidth;
         mHeight = aHeight;
         Update();
@@ -3160,21 +3164,79 @@ inline std::unique_ptr<AbstractRenderer> CreateRenderer(const Scene& aScene, con
     }
 }
 
+// Threads beyond a few per core only add memory (a film each) and scheduling delay.
+inline int MaxThreads() { return 4 * int(std::max(1u, std::thread::hardware_concurrency())); }
+
+// A merging radius above a quarter of the scene's radius blurs light across whole walls
+// and makes every lookup visit a large share of all light vertices (at 10, renders run
+// over a hundred times slower); a photon search radius beyond the scene finds nothing more.
+constexpr float kMaxRadiusFactor = 0.25f;
+constexpr float kMaxPhotonRadiusFactor = 1.f;
+
 // Throws Error naming the first option that is out of range.
 inline void ValidateRenderOptions(const RenderOptions& aOptions) {
     if (aOptions.mIterations < 0) throw Error("iterations: must be >= 0 (0 = until the time budget ends)");
     if (!(aOptions.mSeconds >= 0.0) || !std::isfinite(aOptions.mSeconds)) throw Error("seconds: must be a finite number >= 0");
     if (aOptions.mIterations == 0 && aOptions.mSeconds <= 0.0) throw Error("iterations: 0 needs a time budget (seconds > 0)");
     if (aOptions.mThreads < 0) throw Error("threads: must be >= 0 (0 = all cores)");
+    if (aOptions.mThreads > MaxThreads())
+        throw Error("threads: " + std::to_string(aOptions.mThreads) + " is more than 4 per core (at most " + std::to_string(MaxThreads()) +
+                    " here): more threads only cost memory and time");
     if (aOptions.mMinPathLength < 0) throw Error("min path length: must be >= 0");
     if (aOptions.mMaxPathLength < 1) throw Error("max path length: must be >= 1");
     if (aOptions.mMinPathLength > aOptions.mMaxPathLength) throw Error("min path length: must not exceed the max path length");
     if (!(aOptions.mRadiusFactor > 0.f) || !std::isfinite(aOptions.mRadiusFactor)) throw Error("radius factor: must be a finite number > 0");
+    if (aOptions.mRadiusFactor > kMaxRadiusFactor)
+        throw Error("radius factor: " + std::to_string(aOptions.mRadiusFactor) + " is above " + std::to_string(kMaxRadiusFactor) +
+                    " (a merging radius that large blurs light across whole surfaces and makes every lookup visit most light vertices)");
     if (!(aOptions.mRadiusAlpha > 0.f && aOptions.mRadiusAlpha <= 1.f)) throw Error("radius alpha: must be in (0, 1]");
     if (aOptions.mPhotonCount < 1) throw Error("photon count: must be >= 1");
     if (aOptions.mNearestPhotons < 1) throw Error("nearest photons: must be >= 1");
     if (!(aOptions.mMaxPhotonRadiusFactor > 0.f) || !std::isfinite(aOptions.mMaxPhotonRadiusFactor))
         throw Error("max photon radius: must be a finite number > 0");
+    if (aOptions.mMaxPhotonRadiusFactor > kMaxPhotonRadiusFactor)
+        throw Error("max photon radius: must not exceed 1 (the scene's radius: a larger search finds nothing more)");
+}
+
+// The bytes Render touches for aThreads threads, roughly from above: per thread a film
+// (double RGB per pixel, and per layer), the light vertices of the VertexCM family (3 per
+// light path, plus the range-search grid: the Cornell scenes store 0.5 to 2.2; the room
+// reserved for 4 is not touched) or the photon maps (4 photons per emitted path, twice:
+// photons and the kd-tree); once, the resolved images.
+inline uint64_t EstimateRenderBytes(const Camera& aCamera, const RenderOptions& aOptions, int aThreads) {
+    const uint64_t pixels = uint64_t(aCamera.PixelCount());
+    const uint64_t layers = aOptions.mTechniqueLayers ? 64 : 0;  // VertexCM's pyramid is the most: 56
+    uint64_t perThread = pixels * sizeof(glm::dvec3) * (1 + layers);
+    switch (aOptions.mAlgorithm) {
+    case Algorithm::kEyeLight:
+    case Algorithm::kPathTracing: break;
+    case Algorithm::kPhotonMapping:
+    case Algorithm::kPhotonMappingFinalGather: perThread += uint64_t(aOptions.mPhotonCount) * 4 * 2 * sizeof(Photon); break;
+    default: perThread += pixels * (3 * (sizeof(VertexCM::LightVertex) + 16) + sizeof(int)); break;
+    }
+    return perThread * uint64_t(aThreads) + pixels * sizeof(Vec3) * (1 + layers);
+}
+
+// The machine's physical memory in bytes (0 where it cannot be asked).
+inline uint64_t PhysicalMemoryBytes() {
+#if defined(__unix__) || defined(__APPLE__)
+    const long pages = sysconf(_SC_PHYS_PAGES), pageSize = sysconf(_SC_PAGE_SIZE);
+    if (pages > 0 && pageSize > 0) return uint64_t(pages) * uint64_t(pageSize);
+#endif
+    return 0;
+}
+
+// Throws Error when the render would need more than 3/4 of the machine's memory: one
+// clear line before the first allocation instead of std::bad_alloc (or the OOM killer)
+// in the middle.
+inline void CheckRenderMemory(const Camera& aCamera, const RenderOptions& aOptions, int aThreads) {
+    const uint64_t needed = EstimateRenderBytes(aCamera, aOptions, aThreads);
+    const uint64_t physical = PhysicalMemoryBytes();
+    if (physical == 0 || needed <= physical / 4 * 3) return;
+    auto gib = [](uint64_t aBytes) { return std::to_string(aBytes >> 30) + "." + std::to_string(((aBytes >> 20) & 1023) * 10 / 1024) + " GiB"; };
+    throw Error("memory: " + std::to_string(aCamera.Width()) + "x" + std::to_string(aCamera.Height()) + " with " +
+                AlgorithmShortName(aOptions.mAlgorithm) + " on " + std::to_string(aThreads) + " thread(s) needs about " + gib(needed) +
+                ", more than 3/4 of this machine's " + gib(physical) + ": use fewer threads or a smaller resolution");
 }
 
 inline uint64_t SplitMix64(uint64_t aX) {
@@ -3198,8 +3260,14 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
 
     int threadCount = aOptions.mThreads > 0 ? aOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));
     if (aOptions.mIterations > 0) threadCount = std::min(threadCount, aOptions.mIterations);
+    CheckRenderMemory(aScene.mCamera, aOptions, threadCount);
+    static const char* const kOutOfMemory = "memory: out of memory while rendering (use fewer threads or a smaller resolution)";
     std::vector<std::unique_ptr<AbstractRenderer>> renderers;
-    for (int t = 0; t < threadCount; t++) renderers.push_back(CreateRenderer(aScene, aOptions));
+    try {
+        for (int t = 0; t < threadCount; t++) renderers.push_back(CreateRenderer(aScene, aOptions));
+    } catch (const std::bad_alloc&) {
+        throw Error(kOutOfMemory);
+    }
 
     const bool timed = aOptions.mSeconds > 0.0;
     std::atomic<int> nextIteration{0};
@@ -3228,6 +3296,8 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
                 renderers[size_t(aThread)]->RunIteration(iteration, rng);
                 completed++;
             }
+        } catch (const std::bad_alloc&) {
+            if (!failed.exchange(true)) failure = kOutOfMemory;
         } catch (const std::exception& e) {
             if (!failed.exchange(true)) failure = e.what();
         }
@@ -3323,18 +3393,34 @@ inline double RelativeMse(const Image& aImage, const Image& aReference) {
     return sum / (3.0 * double(std::max<size_t>(1, aImage.mPixels.size())));
 }
 
-// Writes .png, .hdr or .pfm by the file's extension. Throws Error on failure.
+enum class ImageFormat { kUnknown, kPng, kHdr, kPfm };
+
+// The format an image path asks for, by its extension in any case (.png, .PNG, ...).
+inline ImageFormat ImageFormatOf(const std::string& aPath) {
+    const size_t dot = aPath.find_last_of("./");
+    if (dot == std::string::npos || aPath[dot] != '.' || dot == 0 || aPath[dot - 1] == '/') return ImageFormat::kUnknown;
+    std::string extension = aPath.substr(dot + 1);
+    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (extension == "png") return ImageFormat::kPng;
+    if (extension == "hdr") return ImageFormat::kHdr;
+    if (extension == "pfm") return ImageFormat::kPfm;
+    return ImageFormat::kUnknown;
+}
+inline bool IsSupportedImagePath(const std::string& aPath) { return ImageFormatOf(aPath) != ImageFormat::kUnknown; }
+
+// Writes .png, .hdr or .pfm by the file's extension. Throws Error on failure. The bytes
+// go to a new temporary file of a unique name in the same folder (created exclusively:
+// never an existing file, never through a symlink), which is then renamed onto aPath in
+// one step: aPath holds the old file or the whole new image, and two programs writing
+// the same path both leave a valid image. SIGINT, SIGTERM and SIGHUP are held back on
+// the calling thread while the temporary file exists, so a signal cannot leave it behind.
 void WriteImage(const std::string& aPath, const Image& aImage);
+// Throws Error naming aPath unless an image can be written there: a known extension, an
+// existing folder in which files can be created, and no directory of that name. Call it
+// before a long render; it leaves nothing behind.
+void CheckOutputPath(const std::string& aPath);
 // Reads a PFM written by WriteImage (or any 3-channel PFM). Throws Error on failure.
 Image ReadPfm(const std::string& aPath);
-// True when aPath ends in an extension WriteImage knows.
-inline bool IsSupportedImagePath(const std::string& aPath) {
-    auto endsWith = [&](const char* aSuffix) {
-        const std::string suffix(aSuffix);
-        return aPath.size() > suffix.size() && aPath.compare(aPath.size() - suffix.size(), suffix.size(), suffix) == 0;
-    };
-    return endsWith(".png") || endsWith(".hdr") || endsWith(".pfm");
-}
 
 // =====================================================================================
 // [SECTION] Scene loading (glTF)
@@ -3350,7 +3436,17 @@ struct GltfLoadReport {
     int mSkippedDegenerateTriangles = 0;  // zero-area triangles, dropped
 };
 
-Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr);
+// What a scene file may make the loader read. A scene is an untrusted document: every
+// URI must name a regular file inside mResourceRoot (after resolving ".." and symlinks),
+// and no file, nor all of them together, may exceed the byte limits (checked before a
+// byte is read). docs/testing.md states the whole threat model.
+struct GltfLoadOptions {
+    std::string mResourceRoot;                  // "" = the folder of the scene file
+    uint64_t mMaxFileBytes = uint64_t(1) << 30;  // the scene file, and each file it names
+    uint64_t mMaxTotalBytes = uint64_t(4) << 30; // the scene file and its files together
+};
+
+Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr, const GltfLoadOptions& aOptions = {});
 
 } // namespace smallvcm
 
@@ -3378,27 +3474,78 @@ Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr)
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <new>
 #include <set>
 #include <sstream>
+
+#include <csignal>
+#include <fcntl.h>
+#include <pthread.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 namespace smallvcm {
 namespace detail {
 
-// Writes aBytes to aPath through a temporary file in the same folder and a rename, so
-// the requested name either holds the complete image or nothing new.
+// Holds back the signals that end a program (SIGINT, SIGTERM, SIGHUP) on this thread
+// while it lives; one that arrives meanwhile is delivered when it ends.
+class SignalsHeldBack {
+public:
+    SignalsHeldBack() {
+        sigset_t held;
+        sigemptyset(&held);
+        sigaddset(&held, SIGINT);
+        sigaddset(&held, SIGTERM);
+        sigaddset(&held, SIGHUP);
+        pthread_sigmask(SIG_BLOCK, &held, &mPrevious);
+    }
+    ~SignalsHeldBack() { pthread_sigmask(SIG_SETMASK, &mPrevious, nullptr); }
+    SignalsHeldBack(const SignalsHeldBack&) = delete;
+    SignalsHeldBack& operator=(const SignalsHeldBack&) = delete;
+private:
+    sigset_t mPrevious;
+};
+
+// Creates a new file "aPath.XXXXXXXX.partial" that did not exist (O_EXCL: an existing
+// name or a symlink planted there is never opened) and returns its descriptor and name.
+inline int CreateUniqueTemporary(const std::string& aPath, std::string& oName) {
+    static std::atomic<uint64_t> counter{0};
+    const uint64_t seed = uint64_t(std::chrono::steady_clock::now().time_since_epoch().count()) ^ (uint64_t(::getpid()) << 32);
+    for (int attempt = 0; attempt < 64; attempt++) {
+        uint64_t bits = SplitMix64(seed + counter.fetch_add(1));
+        char suffix[9];
+        for (int i = 0; i < 8; i++, bits >>= 5) suffix[i] = "abcdefghijklmnopqrstuvwxyz234567"[bits & 31];
+        suffix[8] = '\0';
+        oName = aPath + "." + suffix + ".partial";
+        const int fd = ::open(oName.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+        if (fd >= 0 || errno != EEXIST) return fd;
+    }
+    errno = EEXIST;
+    return -1;
+}
+
+// Writes aBytes to aPath through a unique temporary file and a rename (see WriteImage).
 inline void WriteFileAtomically(const std::string& aPath, const std::vector<unsigned char>& aBytes) {
-    const std::string temporary = aPath + ".partial";
-    FILE* file = std::fopen(temporary.c_str(), "wb");
-    if (!file) throw Error(aPath + ": cannot open for writing (" + std::strerror(errno) + ")");
-    const bool written = std::fwrite(aBytes.data(), 1, aBytes.size(), file) == aBytes.size();
-    const bool closed = std::fclose(file) == 0;
-    if (!written || !closed) {
-        std::remove(temporary.c_str());
+    const SignalsHeldBack held;
+    std::string temporary;
+    const int fd = CreateUniqueTemporary(aPath, temporary);
+    if (fd < 0) throw Error(aPath + ": cannot create a file next to it (" + std::strerror(errno) + ")");
+    size_t written = 0;
+    while (written < aBytes.size()) {
+        const ssize_t count = ::write(fd, aBytes.data() + written, aBytes.size() - written);
+        if (count < 0 && errno == EINTR) continue;
+        if (count <= 0) break;
+        written += size_t(count);
+    }
+    const bool closed = ::close(fd) == 0;
+    if (written != aBytes.size() || !closed) {
+        ::unlink(temporary.c_str());
         throw Error(aPath + ": write failed (disk full?)");
     }
     if (std::rename(temporary.c_str(), aPath.c_str()) != 0) {
-        std::remove(temporary.c_str());
-        throw Error(aPath + ": cannot rename the temporary file into place (" + std::strerror(errno) + ")");
+        const int renameError = errno;
+        ::unlink(temporary.c_str());
+        throw Error(aPath + ": cannot put the image in place (" + std::strerror(renameError) + ")");
     }
 }
 
@@ -3414,26 +3561,48 @@ inline float LinearToSrgb(float aValue) {
     return aValue <= 0.0031308f ? 12.92f * aValue : 1.055f * std::pow(aValue, 1.f / 2.4f) - 0.055f;
 }
 
-inline bool EndsWith(const std::string& aText, const std::string& aSuffix) {
-    return aText.size() >= aSuffix.size() && aText.compare(aText.size() - aSuffix.size(), aSuffix.size(), aSuffix) == 0;
+inline bool EndsWithIgnoringCase(const std::string& aText, const std::string& aSuffix) {
+    if (aText.size() < aSuffix.size()) return false;
+    for (size_t i = 0; i < aSuffix.size(); i++)
+        if (std::tolower(static_cast<unsigned char>(aText[aText.size() - aSuffix.size() + i])) != std::tolower(static_cast<unsigned char>(aSuffix[i])))
+            return false;
+    return true;
 }
 
 } // namespace detail
 
+void CheckOutputPath(const std::string& aPath) {
+    if (!IsSupportedImagePath(aPath)) throw Error(aPath + ": unknown image format (use .png, .hdr or .pfm)");
+    struct stat info;
+    if (::stat(aPath.c_str(), &info) == 0 && S_ISDIR(info.st_mode)) throw Error(aPath + ": is a directory");
+    const std::filesystem::path parent = std::filesystem::path(aPath).parent_path();
+    const std::string folder = parent.empty() ? std::string(".") : parent.string();
+    if (::stat(folder.c_str(), &info) != 0) throw Error(aPath + ": the folder " + folder + " does not exist");
+    if (!S_ISDIR(info.st_mode)) throw Error(aPath + ": " + folder + " is not a folder");
+    // The one sure test of "can a file be made here": make one, exclusively, and remove it.
+    const detail::SignalsHeldBack held;
+    std::string probe;
+    const int fd = detail::CreateUniqueTemporary(aPath, probe);
+    if (fd < 0) throw Error(aPath + ": cannot write here (" + std::strerror(errno) + ")");
+    ::close(fd);
+    ::unlink(probe.c_str());
+}
+
 void WriteImage(const std::string& aPath, const Image& aImage) {
     if (aImage.mWidth <= 0 || aImage.mHeight <= 0) throw Error(aPath + ": the image is empty");
     std::vector<unsigned char> bytes;
-    if (detail::EndsWith(aPath, ".png")) {
+    const ImageFormat format = ImageFormatOf(aPath);
+    if (format == ImageFormat::kPng) {
         std::vector<unsigned char> pixels(aImage.mPixels.size() * 3);
         for (size_t i = 0; i < aImage.mPixels.size(); i++)
             for (int c = 0; c < 3; c++)
                 pixels[3 * i + size_t(c)] = (unsigned char)(detail::LinearToSrgb(aImage.mPixels[i][c]) * 255.f + 0.5f);
         if (!stbi_write_png_to_func(detail::AppendBytes, &bytes, aImage.mWidth, aImage.mHeight, 3, pixels.data(), aImage.mWidth * 3))
             throw Error(aPath + ": PNG encoding failed");
-    } else if (detail::EndsWith(aPath, ".hdr")) {
+    } else if (format == ImageFormat::kHdr) {
         if (!stbi_write_hdr_to_func(detail::AppendBytes, &bytes, aImage.mWidth, aImage.mHeight, 3, &aImage.mPixels[0].x))
             throw Error(aPath + ": HDR encoding failed");
-    } else if (detail::EndsWith(aPath, ".pfm")) {
+    } else if (format == ImageFormat::kPfm) {
         // PFM: "PF", size, scale (negative = little endian), rows bottom to top.
         const std::string header = "PF\n" + std::to_string(aImage.mWidth) + " " + std::to_string(aImage.mHeight) + "\n-1\n";
         bytes.assign(header.begin(), header.end());
@@ -3475,6 +3644,94 @@ Image ReadPfm(const std::string& aPath) {
 }
 
 // -------------------------------------------------------------------------------------
+// Untrusted files
+// -------------------------------------------------------------------------------------
+// A scene file, and every file its URIs name, may come from anyone. So: read regular
+// files only (a FIFO blocks forever, /dev/zero never ends), opened without blocking, and
+// check their size before reading a byte; read a URI's file only if it lies inside the
+// scene's folder after resolving ".." and symlinks, and say the same words whether an
+// outside file exists or not, so a scene cannot learn anything about one; quote user text
+// in messages only as a short excerpt.
+namespace detail {
+
+// User text (a name, a URI, a parser message) as quoted in an error: at most aMax
+// characters, control characters replaced, so a 60 KB data URI cannot flood a terminal.
+inline std::string Excerpt(const std::string& aText, size_t aMax = 64) {
+    std::string excerpt;
+    for (size_t i = 0; i < std::min(aMax, aText.size()); i++) {
+        const unsigned char c = static_cast<unsigned char>(aText[i]);
+        excerpt += (c < 0x20 || c == 0x7f) ? '?' : char(c);
+    }
+    if (aText.size() > aMax) excerpt += "... (" + std::to_string(aText.size()) + " characters)";
+    return excerpt;
+}
+
+// The canonical absolute path (".." and symlinks resolved), or "" if there is none.
+inline std::string RealPath(const std::string& aPath) {
+    char* resolved = ::realpath(aPath.c_str(), nullptr);
+    if (!resolved) return std::string();
+    const std::string result(resolved);
+    std::free(resolved);
+    return result;
+}
+
+// True when the canonical path aPath is the canonical folder aFolder or lies below it.
+inline bool IsInsideFolder(const std::string& aPath, const std::string& aFolder) {
+    if (aPath.compare(0, aFolder.size(), aFolder) != 0) return false;
+    return aPath.size() == aFolder.size() || aFolder == "/" || aPath[aFolder.size()] == '/';
+}
+
+inline std::string ByteCount(uint64_t aBytes) {
+    if (aBytes < (uint64_t(1) << 20)) return std::to_string(aBytes) + " bytes";
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.1f MiB", double(aBytes) / double(uint64_t(1) << 20));
+    return text;
+}
+
+// Reads the file aPath whole into oBytes; returns "" or the problem in a few words.
+// With aRoot (a canonical folder) the file must resolve inside it, and every failure
+// to find such a file has the same words. aSizeProblem(size) says why a file of that
+// size must not be read ("" to read it); it is asked before reading.
+inline std::string ReadUntrustedFile(const std::string& aPath, const std::string& aRoot,
+                                     const std::function<std::string(uint64_t)>& aSizeProblem,
+                                     std::vector<unsigned char>& oBytes) {
+    static const char* const kNotInside = "no readable file of that name inside the scene's folder";
+    std::string path = aPath;
+    if (!aRoot.empty()) {
+        path = RealPath(aPath);
+        if (path.empty() || !IsInsideFolder(path, aRoot)) return kNotInside;
+    }
+    // O_NONBLOCK: opening a FIFO must not wait for a writer. O_NOFOLLOW on the resolved
+    // path, and the check of what was opened, close the gap a link swapped since then.
+    const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY | (aRoot.empty() ? 0 : O_NOFOLLOW));
+    if (fd < 0) return aRoot.empty() ? std::string("cannot open the file (") + std::strerror(errno) + ")" : kNotInside;
+    struct Closer { int mFd; ~Closer() { ::close(mFd); } } closer{fd};
+    if (!aRoot.empty()) {
+        const std::string opened = RealPath("/proc/self/fd/" + std::to_string(fd));
+        if (!opened.empty() && !IsInsideFolder(opened, aRoot)) return kNotInside;
+    }
+    struct stat info;
+    if (::fstat(fd, &info) != 0) return std::string("cannot read the file (") + std::strerror(errno) + ")";
+    if (S_ISDIR(info.st_mode)) return "is a directory, not a file";
+    if (!S_ISREG(info.st_mode)) return "is not a regular file (a FIFO, socket or device is never read)";
+    const uint64_t size = uint64_t(info.st_size);
+    const std::string sizeProblem = aSizeProblem(size);
+    if (!sizeProblem.empty()) return sizeProblem;
+    oBytes.resize(size_t(size));
+    size_t done = 0;
+    while (done < size) {
+        const ssize_t got = ::read(fd, oBytes.data() + done, size_t(size) - done);
+        if (got < 0 && errno == EINTR) continue;
+        if (got < 0) return std::string("read error (") + std::strerror(errno) + ")";
+        if (got == 0) return "the file shrank while it was read";
+        done += size_t(got);
+    }
+    return "";
+}
+
+} // namespace detail
+
+// -------------------------------------------------------------------------------------
 // glTF loading
 // -------------------------------------------------------------------------------------
 namespace detail {
@@ -3483,7 +3740,7 @@ using Mat4 = glm::dmat4;
 
 class GltfLoader {
 public:
-    explicit GltfLoader(const std::string& aPath) : mPath(aPath) {}
+    GltfLoader(const std::string& aPath, const GltfLoadOptions& aOptions) : mPath(aPath), mOptions(aOptions) {}
 
     Scene Load(GltfLoadReport* oReport) {
         ParseFile();
@@ -3504,27 +3761,35 @@ public:
 private:
     [[noreturn]] void Fail(const std::string& aProblem) const { throw Error(mPath + ": " + aProblem); }
 
+    // Reads the scene file (bounded, regular files only), checks what tinygltf would
+    // trip over, then parses it; buffer files are read through ReadBufferFile.
     void ParseFile() {
-        std::error_code ignored;
-        if (std::filesystem::is_directory(mPath, ignored)) Fail("is a directory, not a glTF file");
-        std::ifstream probe(mPath, std::ios::binary);
-        if (!probe) Fail(std::string("cannot open the file (") + std::strerror(errno) + ")");
-        // tinygltf turns extras and extensions into values recursively: a file nested
-        // thousands of levels deep would overflow the stack, so bound the nesting first.
-        const std::string bytes((std::istreambuf_iterator<char>(probe)), std::istreambuf_iterator<char>());
-        probe.close();
+        std::vector<unsigned char> bytes;
+        const std::string problem = ReadUntrustedFile(mPath, "", [&](uint64_t aSize) { return SizeProblem(aSize); }, bytes);
+        if (!problem.empty()) Fail(problem);
+        if (bytes.empty()) Fail("the file is empty (0 bytes)");
+        // URIs are relative to the scene's folder and must resolve inside mRoot.
+        const std::string parent = std::filesystem::path(mPath).parent_path().string();
+        mFolder = RealPath(parent.empty() ? std::string(".") : parent);
+        mRoot = mOptions.mResourceRoot.empty() ? mFolder : RealPath(mOptions.mResourceRoot);
+        if (mRoot.empty()) Fail("the resource folder '" + Excerpt(mOptions.mResourceRoot) + "' does not exist");
+        // A binary glTF starts with "glTF", a version and the total length; its JSON is
+        // the first chunk. Only version 2 is glTF 2.0.
+        const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
         size_t jsonBegin = 0, jsonEnd = bytes.size();
-        if (EndsWith(mPath, ".glb") && bytes.size() >= 20) {  // the JSON chunk of a .glb
-            uint32_t length;
+        if (binary && bytes.size() >= 20) {
+            uint32_t version, total, length;
+            std::memcpy(&version, bytes.data() + 4, 4);
+            std::memcpy(&total, bytes.data() + 8, 4);
             std::memcpy(&length, bytes.data() + 12, 4);
+            if (version != 2)
+                Fail("a binary glTF (.glb) of version " + std::to_string(version) + " is not supported (glTF 2.0 binaries have version 2)");
             jsonBegin = 20;
             jsonEnd = std::min(bytes.size(), size_t(20) + length);
             // tinygltf 2.7 checks a BIN chunk's length against the file without the
             // chunk's own 8-byte header, then copies up to 8 bytes past the end of the
             // file into the buffer: check the layout here (header length <= file size,
             // and the BIN chunk, header included, inside that length).
-            uint32_t total;
-            std::memcpy(&total, bytes.data() + 8, 4);
             const uint64_t binStart = uint64_t(20) + length;
             if (total <= bytes.size() && binStart + 8 <= total) {
                 uint32_t binLength;
@@ -3533,10 +3798,59 @@ private:
                     Fail("glTF parse error: the BIN chunk of the .glb is longer than the file (invalid glTF binary)");
             }
         }
+        CheckJsonNesting(bytes, jsonBegin, jsonEnd);
+        CheckDeclaredBuffers(bytes, jsonBegin, jsonEnd);
+
+        tinygltf::TinyGLTF gltf;
+        // Images are not supported; the loader must not try to decode them. A model that
+        // uses one is rejected by CheckModelFeatures with a clear message.
+        gltf.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
+                               const unsigned char*, int, void*) { return true; }, nullptr);
+        // Every file a URI names is read by ReadBufferFile. FileExists says yes without
+        // looking, so tinygltf never falls back to its second search path, the current
+        // directory, and never probes the file system itself.
+        tinygltf::FsCallbacks files;
+        files.FileExists = [](const std::string&, void*) { return true; };
+        files.ExpandFilePath = &tinygltf::ExpandFilePath;
+        files.ReadWholeFile = [](std::vector<unsigned char>* oBytes, std::string* oError, const std::string& aFile, void* aLoader) {
+            return static_cast<GltfLoader*>(aLoader)->ReadBufferFile(*oBytes, *oError, aFile);
+        };
+        files.WriteWholeFile = &tinygltf::WriteWholeFile;
+        files.user_data = this;
+        gltf.SetFsCallbacks(files);
+        std::string error, warning;
+        const bool ok = binary || EndsWithIgnoringCase(mPath, ".glb")
+            ? gltf.LoadBinaryFromMemory(&mModel, &error, &warning, bytes.data(), unsigned(bytes.size()), mFolder)
+            : gltf.LoadASCIIFromString(&mModel, &error, &warning, reinterpret_cast<const char*>(bytes.data()), unsigned(bytes.size()), mFolder);
+        if (!mBufferProblem.empty()) Fail(mBufferProblem);
+        if (!ok || !error.empty()) {
+            std::string message = error.empty() ? std::string("not a valid glTF file") : error;
+            while (!message.empty() && (message.back() == '\n' || message.back() == ' ')) message.pop_back();
+            std::replace(message.begin(), message.end(), '\n', ';');
+            Fail("glTF parse error: " + Excerpt(message, 240));
+        }
+        if (mModel.asset.version.compare(0, 2, "2.") != 0)
+            Fail("glTF version " + Excerpt(mModel.asset.version) + " is not supported (asset.version must be \"2.0\")");
+    }
+
+    std::string SizeProblem(uint64_t aSize) {
+        if (aSize > mOptions.mMaxFileBytes)
+            return "the file is " + ByteCount(aSize) + ", more than the loader's limit of " + ByteCount(mOptions.mMaxFileBytes) +
+                   " per file (GltfLoadOptions::mMaxFileBytes)";
+        if (aSize > mOptions.mMaxTotalBytes - std::min(mOptions.mMaxTotalBytes, mBytesRead))
+            return "the scene's files together exceed the loader's limit of " + ByteCount(mOptions.mMaxTotalBytes) +
+                   " (GltfLoadOptions::mMaxTotalBytes)";
+        mBytesRead += aSize;
+        return "";
+    }
+
+    // tinygltf turns extras and extensions into values recursively: a file nested
+    // thousands of levels deep would overflow the stack, so bound the nesting first.
+    void CheckJsonNesting(const std::vector<unsigned char>& aBytes, size_t aBegin, size_t aEnd) const {
         int depth = 0, deepest = 0;
         bool inString = false, escaped = false;
-        for (size_t i = jsonBegin; i < jsonEnd; i++) {
-            const char c = bytes[i];
+        for (size_t i = aBegin; i < aEnd; i++) {
+            const char c = char(aBytes[i]);
             if (inString) {
                 if (escaped) escaped = false;
                 else if (c == '\\') escaped = true;
@@ -3546,43 +3860,47 @@ private:
             else if (c == ']' || c == '}') depth--;
         }
         if (deepest > 512) Fail("the JSON is nested " + std::to_string(deepest) + " levels deep (at most 512 are read)");
-        tinygltf::TinyGLTF gltf;
-        // Images are not supported; the loader must not try to decode them. A model that
-        // uses one is rejected by CheckModelFeatures with a clear message.
-        gltf.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
-                               const unsigned char*, int, void*) { return true; }, nullptr);
-        // Buffer URIs name files: read regular files only. tinygltf's own callbacks open
-        // whatever the URI names: a directory reports a size of 2^63 - 1 bytes (the
-        // allocation fails), and a FIFO or a terminal blocks the load forever.
-        tinygltf::FsCallbacks files;
-        files.FileExists = [](const std::string& aFile, void*) {
-            std::error_code ignore;
-            return std::filesystem::exists(aFile, ignore);  // without opening it
-        };
-        files.ExpandFilePath = &tinygltf::ExpandFilePath;
-        files.ReadWholeFile = [](std::vector<unsigned char>* oBytes, std::string* oError, const std::string& aFile, void*) {
-            std::error_code ignore;
-            if (!std::filesystem::is_regular_file(aFile, ignore)) {
-                if (oError) *oError += "not a regular file";
-                return false;
+    }
+
+    // The sizes the buffers declare, known before tinygltf reads or decodes a byte: a
+    // file is read only if it is as long as some buffer says, and a data URI is decoded
+    // only if its text is no longer than its byteLength needs. (tinygltf itself reads a
+    // whole file, or decodes a whole URI, before it compares the size.)
+    void CheckDeclaredBuffers(const std::vector<unsigned char>& aBytes, size_t aBegin, size_t aEnd) {
+        const nlohmann::json json = nlohmann::json::parse(aBytes.begin() + std::ptrdiff_t(aBegin), aBytes.begin() + std::ptrdiff_t(aEnd),
+                                                          nullptr, false);
+        if (!json.is_object() || !json.contains("buffers") || !json["buffers"].is_array()) return;  // tinygltf says what is wrong
+        const nlohmann::json& buffers = json["buffers"];
+        for (size_t b = 0; b < buffers.size(); b++) {
+            const nlohmann::json& buffer = buffers[b];
+            if (!buffer.is_object() || !buffer.contains("byteLength") || !buffer["byteLength"].is_number_unsigned()) continue;
+            const uint64_t byteLength = buffer["byteLength"].get<uint64_t>();
+            if (!buffer.contains("uri") || !buffer["uri"].is_string()) continue;
+            const std::string& uri = buffer["uri"].get_ref<const std::string&>();
+            if (uri.compare(0, 5, "data:") == 0) {
+                const size_t comma = uri.find(',');
+                const uint64_t encoded = comma == std::string::npos ? 0 : uint64_t(uri.size() - comma - 1);
+                if (encoded / 4 * 3 > byteLength + 3)
+                    Fail("buffer " + std::to_string(b) + ": its data URI holds about " + ByteCount(encoded / 4 * 3) +
+                         ", more than its byteLength of " + ByteCount(byteLength) + " (not decoded)");
+            } else {
+                mDeclaredBufferSizes.insert(byteLength);
             }
-            return tinygltf::ReadWholeFile(oBytes, oError, aFile, nullptr);
-        };
-        files.WriteWholeFile = &tinygltf::WriteWholeFile;
-        files.user_data = nullptr;
-        gltf.SetFsCallbacks(files);
-        std::string error, warning;
-        const bool binary = EndsWith(mPath, ".glb");
-        const bool ok = binary ? gltf.LoadBinaryFromFile(&mModel, &error, &warning, mPath)
-                               : gltf.LoadASCIIFromFile(&mModel, &error, &warning, mPath);
-        if (!ok || !error.empty()) {
-            std::string message = error.empty() ? std::string("not a valid glTF file") : error;
-            while (!message.empty() && (message.back() == '\n' || message.back() == ' ')) message.pop_back();
-            std::replace(message.begin(), message.end(), '\n', ';');
-            Fail("glTF parse error: " + message);
         }
-        if (mModel.asset.version.compare(0, 2, "2.") != 0)
-            Fail("glTF version " + mModel.asset.version + " is not supported (asset.version must be \"2.0\")");
+    }
+
+    // tinygltf's file reader: aFile is the scene's folder joined with a buffer's URI.
+    bool ReadBufferFile(std::vector<unsigned char>& oBytes, std::string& oError, const std::string& aFile) {
+        const std::string uri = aFile.compare(0, mFolder.size(), mFolder) == 0 ? aFile.substr(std::min(aFile.size(), mFolder.size() + 1)) : aFile;
+        const std::string problem = ReadUntrustedFile(aFile, mRoot, [&](uint64_t aSize) -> std::string {
+            if (!mDeclaredBufferSizes.count(aSize)) return "its size, " + ByteCount(aSize) + ", is no buffer's byteLength (not read)";
+            return SizeProblem(aSize);
+        }, oBytes);
+        if (problem.empty()) return true;
+        // Kept for the message: tinygltf would quote the whole joined path.
+        if (mBufferProblem.empty()) mBufferProblem = "buffer URI '" + Excerpt(uri) + "': " + problem;
+        oError += problem;
+        return false;
     }
 
     void CheckModelFeatures() {
@@ -3590,7 +3908,7 @@ private:
             "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
             "KHR_materials_ior", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
         for (const std::string& required : mModel.extensionsRequired)
-            if (!kSupported.count(required)) Fail("required extension '" + required + "' is not supported");
+            if (!kSupported.count(required)) Fail("required extension '" + Excerpt(required) + "' is not supported");
         if (!mModel.skins.empty()) Fail("skins are not supported");
         for (const tinygltf::Accessor& accessor : mModel.accessors)
             if (accessor.sparse.isSparse) Fail("sparse accessors are not supported");
@@ -3622,7 +3940,7 @@ private:
     void ConvertMaterials() {
         for (size_t m = 0; m < mModel.materials.size(); m++) {
             const tinygltf::Material& source = mModel.materials[m];
-            const std::string what = "material " + std::to_string(m) + (source.name.empty() ? "" : " '" + source.name + "'");
+            const std::string what = "material " + std::to_string(m) + (source.name.empty() ? "" : " '" + Excerpt(source.name) + "'");
             const auto& pbr = source.pbrMetallicRoughness;
             auto textureUsed = [&](int aIndex, const char* aName) {
                 if (aIndex >= 0) Fail(what + " uses a texture (" + aName + "); textures are not supported");
@@ -3632,7 +3950,7 @@ private:
             textureUsed(source.normalTexture.index, "normalTexture");
             textureUsed(source.occlusionTexture.index, "occlusionTexture");
             textureUsed(source.emissiveTexture.index, "emissiveTexture");
-            if (source.alphaMode != "OPAQUE") Fail(what + " has alphaMode " + source.alphaMode + "; only OPAQUE is supported");
+            if (source.alphaMode != "OPAQUE") Fail(what + " has alphaMode " + Excerpt(source.alphaMode) + "; only OPAQUE is supported");
 
             Material material;
             material.mName = source.name;
@@ -3784,7 +4102,7 @@ private:
         if (!mVisitedNodes.insert(aNodeIndex).second)
             Fail("node " + std::to_string(aNodeIndex) + " is reached twice: it has more than one parent, or is part of a cycle (glTF nodes form trees)");
         const tinygltf::Node& node = mModel.nodes[size_t(aNodeIndex)];
-        const std::string what = "node " + std::to_string(aNodeIndex) + (node.name.empty() ? "" : " '" + node.name + "'");
+        const std::string what = "node " + std::to_string(aNodeIndex) + (node.name.empty() ? "" : " '" + Excerpt(node.name) + "'");
         const Mat4 world = aParent * LocalMatrix(node, what);
         for (int c = 0; c < 4; c++) for (int r = 0; r < 4; r++)
             if (!std::isfinite(world[c][r])) Fail(what + ": its transform is not finite");
@@ -3931,7 +4249,7 @@ private:
         const int index = aValue.Get("light").GetNumberAsInt();
         if (index < 0 || index >= int(mModel.lights.size())) Fail(aWhat + " refers to light " + std::to_string(index) + ", which does not exist");
         const tinygltf::Light& light = mModel.lights[size_t(index)];
-        const std::string what = "light " + std::to_string(index) + (light.name.empty() ? "" : " '" + light.name + "'");
+        const std::string what = "light " + std::to_string(index) + (light.name.empty() ? "" : " '" + Excerpt(light.name) + "'");
         if (light.range > 0.0) Fail(what + ": 'range' is not supported (lights here have no cut-off)");
         Vec3 color(1.f);
         if (!light.color.empty() && light.color.size() != 3) Fail(what + ": 'color' must have 3 numbers");
@@ -3945,7 +4263,7 @@ private:
             if (!Direction(-glm::dvec3(aWorld[2]), direction)) Fail(aWhat + ": the directional light's node has a degenerate transform");
             mScene.AddDirectionalLight(Vec3(direction), emission);
         } else {
-            Fail(what + ": light type '" + light.type + "' is not supported (point and directional are)");
+            Fail(what + ": light type '" + Excerpt(light.type) + "' is not supported (point and directional are)");
         }
     }
 
@@ -3953,7 +4271,7 @@ private:
         if (mHasCamera) return;  // the first camera in depth-first order is used
         if (aCameraIndex < 0 || aCameraIndex >= int(mModel.cameras.size())) Fail(aWhat + " refers to camera " + std::to_string(aCameraIndex) + ", which does not exist");
         const tinygltf::Camera& camera = mModel.cameras[size_t(aCameraIndex)];
-        if (camera.type != "perspective") Fail("camera " + std::to_string(aCameraIndex) + ": type '" + camera.type + "' is not supported (only perspective)");
+        if (camera.type != "perspective") Fail("camera " + std::to_string(aCameraIndex) + ": type '" + Excerpt(camera.type) + "' is not supported (only perspective)");
         const double yfov = camera.perspective.yfov;
         const double aspect = camera.perspective.aspectRatio > 0.0 ? camera.perspective.aspectRatio : 1.0;
         if (!(yfov > 0.0 && yfov < 3.1) || !std::isfinite(aspect))
@@ -3983,6 +4301,12 @@ private:
     }
 
     std::string mPath;
+    GltfLoadOptions mOptions;
+    std::string mFolder;                        // the scene file's canonical folder: URIs are relative to it
+    std::string mRoot;                          // canonical folder every URI must resolve into
+    std::set<uint64_t> mDeclaredBufferSizes;    // byteLength of every buffer with a file URI
+    uint64_t mBytesRead = 0;                    // scene file and buffer files so far
+    std::string mBufferProblem;                 // why a buffer file was not read, if one was not
     tinygltf::Model mModel;
     Scene mScene;
     std::vector<Vec3> mMaterialEmission;  // per scene material
@@ -3996,11 +4320,13 @@ private:
 
 } // namespace detail
 
-Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport) {
+Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport, const GltfLoadOptions& aOptions) {
     try {
-        return detail::GltfLoader(aPath).Load(oReport);
+        return detail::GltfLoader(aPath, aOptions).Load(oReport);
     } catch (const Error&) {
         throw;
+    } catch (const std::bad_alloc&) {
+        throw Error(aPath + ": out of memory while loading (the scene needs more memory than this machine can give)");
     } catch (const std::exception& e) {
         // tinygltf and nlohmann-json may throw on input they cannot handle.
         throw Error(aPath + ": " + e.what());

@@ -5,8 +5,9 @@
 //
 // Every bad value gives one line "smallvcm: <option>: <problem>" on stderr and exit code 2;
 // a problem with the scene or the output file gives "smallvcm: <file>: <problem>" and
-// exit code 1. No output file is written unless the render succeeded. Ctrl-C stops the
-// render after the iterations in flight, writes what was accumulated and exits with 130.
+// exit code 1. No output file is written unless the render succeeded. Ctrl-C (SIGINT) or
+// SIGTERM stops the render after the iterations in flight, writes what was accumulated
+// and exits with 130 or 143; a second signal ends it at once, leaving no temporary file.
 // Build: make build/smallvcm. Run with --help for the options.
 
 #include "smallvcm.hpp"
@@ -19,19 +20,26 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace {
 
 using smallvcm::Error;
 
-// Ctrl-C asks the render to stop after the iterations in flight; a second Ctrl-C kills
-// the program at once (the default handler is back by then). A lock-free atomic store is
-// what a signal handler may do.
+// SIGINT (Ctrl-C) and SIGTERM (a batch scheduler's time limit) ask the render to stop
+// after the iterations in flight; the image accumulated so far is written and the program
+// exits with 128 + the signal's number, the conventional status. The handler puts the
+// default action back, so a second signal ends the program at once; WriteImage holds
+// signals back while its temporary file exists, so even then none is left behind. A
+// lock-free atomic store is what a signal handler may do.
 std::atomic<bool> gStopRequested{false};
-extern "C" void OnInterrupt(int) {
+std::atomic<int> gStopSignal{0};
+extern "C" void OnStopSignal(int aSignal) {
+    gStopSignal.store(aSignal);
     gStopRequested.store(true);
     std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
 }
 
 const char* const kCornellScenes[] = {
@@ -52,20 +60,21 @@ void PrintHelp() {
         "  -a ALGORITHM        el, pt, lt, ppm, bpm, bpt, vcm, pm, pmfg (default vcm)\n"
         "  -i ITERATIONS       number of iterations, one sample per pixel each (default 1)\n"
         "  -t SECONDS          time budget; with -t and no -i, runs until the time is up\n"
-        "  -o FILE             output image: .png, .hdr or .pfm (default smallvcm.png)\n"
+        "  -o FILE             output image: .png, .hdr or .pfm, in any case (default smallvcm.png)\n"
         "  -r WIDTHxHEIGHT     resolution (default 512x512)\n"
-        "  -j THREADS          threads (default: all cores)\n"
+        "  -j THREADS          threads (default: all cores; at most 4 per core)\n"
         "  --seed N            base random seed (default 1234)\n"
         "  --min-path-length N shortest path length rendered, in segments (default 0)\n"
         "  --max-path-length N longest path length rendered, in segments (default 10)\n"
-        "  --radius-factor F   merging radius as a fraction of the scene radius (default 0.003)\n"
+        "  --radius-factor F   merging radius as a fraction of the scene radius (default 0.003, at most 0.25)\n"
         "  --radius-alpha A    radius shrinking exponent in (0, 1] (default 0.75)\n"
         "  --mis balance|power MIS heuristic (default balance)\n"
         "  --photons N         pm, pmfg: photons traced per iteration (default 200000)\n"
         "  --knn K             pm, pmfg: nearest photons per estimate (default 100)\n"
-        "  --max-radius F      pm, pmfg: largest search radius, fraction of the scene radius (default 0.05)\n"
+        "  --max-radius F      pm, pmfg: largest search radius, fraction of the scene radius (default 0.05, at most 1)\n"
         "  --layers            also write per-technique layers as FILE-stem.LAYER.ext\n"
         "  -q                  quiet: no summary line, no progress\n"
+        "Ctrl-C or SIGTERM writes the iterations done so far (exit 130 or 143); a second one stops at once.\n"
         "  --help              this text\n");
 }
 
@@ -103,17 +112,6 @@ std::string WithLayerName(const std::string& aPath, const std::string& aLayer) {
     return aPath.substr(0, dot) + "." + aLayer + aPath.substr(dot);
 }
 
-// Fails early, before a long render, if the output cannot be written.
-void CheckOutputWritable(const std::string& aPath) {
-    if (!smallvcm::IsSupportedImagePath(aPath))
-        throw Error("-o: '" + aPath + "' has an unknown image format (use .png, .hdr or .pfm)");
-    const std::string probe = aPath + ".partial";
-    FILE* file = std::fopen(probe.c_str(), "wb");
-    if (!file) throw Error(aPath + ": cannot write here (" + std::strerror(errno) + ")");
-    std::fclose(file);
-    std::remove(probe.c_str());
-}
-
 struct CommandLine {
     std::string mScene = "4";
     std::string mOutput = "smallvcm.png";
@@ -145,7 +143,7 @@ CommandLine Parse(int argc, char** argv) {
         else if (arg == "-o") {
             cl.mOutput = value(i);
             if (!smallvcm::IsSupportedImagePath(cl.mOutput))
-                throw Error("-o: '" + cl.mOutput + "' has an unknown image format (use .png, .hdr or .pfm)");
+                throw Error("-o: '" + cl.mOutput + "' has an unknown image format (use .png, .hdr or .pfm, in any case)");
         }
         else if (arg == "-r") {
             const std::string text = value(i);
@@ -154,11 +152,18 @@ CommandLine Parse(int argc, char** argv) {
             cl.mWidth = ParseNumber<int>(arg, text.substr(0, x), 1, 16384, "WIDTHxHEIGHT with sizes in [1, 16384]");
             cl.mHeight = ParseNumber<int>(arg, text.substr(x + 1), 1, 16384, "WIDTHxHEIGHT with sizes in [1, 16384]");
         }
-        else if (arg == "-j") cl.mOptions.mThreads = ParseNumber<int>(arg, value(i), 1, 1024, "an integer in [1, 1024]");
+        else if (arg == "-j") {
+            const int most = smallvcm::MaxThreads();
+            const std::string range = "an integer in [1, " + std::to_string(most) + "] (at most 4 threads per core: more only cost memory and time)";
+            cl.mOptions.mThreads = ParseNumber<int>(arg, value(i), 1, most, range.c_str());
+        }
         else if (arg == "--seed") cl.mOptions.mSeed = ParseNumber<uint64_t>(arg, value(i), 0, UINT64_MAX, "a non-negative integer");
         else if (arg == "--min-path-length") cl.mOptions.mMinPathLength = ParseNumber<int>(arg, value(i), 0, 1000, "an integer in [0, 1000]");
         else if (arg == "--max-path-length") cl.mOptions.mMaxPathLength = ParseNumber<int>(arg, value(i), 1, 1000, "an integer in [1, 1000]");
-        else if (arg == "--radius-factor") cl.mOptions.mRadiusFactor = ParseNumber<float>(arg, value(i), 1e-7f, 10.f, "a number in [1e-7, 10]");
+        else if (arg == "--radius-factor")
+            cl.mOptions.mRadiusFactor = ParseNumber<float>(arg, value(i), 1e-7f, smallvcm::kMaxRadiusFactor,
+                "a number in [1e-7, 0.25] (a larger merging radius blurs light across whole surfaces and makes every lookup "
+                "visit most light vertices: hundreds of times slower)");
         else if (arg == "--radius-alpha") {
             cl.mOptions.mRadiusAlpha = ParseNumber<float>(arg, value(i), 0.f, 1.f, "a number in (0, 1]");
             if (!(cl.mOptions.mRadiusAlpha > 0.f)) throw Error("--radius-alpha: '0' is not a number in (0, 1]");
@@ -171,7 +176,9 @@ CommandLine Parse(int argc, char** argv) {
         }
         else if (arg == "--photons") cl.mOptions.mPhotonCount = ParseNumber<int>(arg, value(i), 1, 100000000, "an integer in [1, 1e8]");
         else if (arg == "--knn") cl.mOptions.mNearestPhotons = ParseNumber<int>(arg, value(i), 1, 100000, "an integer in [1, 100000]");
-        else if (arg == "--max-radius") cl.mOptions.mMaxPhotonRadiusFactor = ParseNumber<float>(arg, value(i), 1e-6f, 10.f, "a number in [1e-6, 10]");
+        else if (arg == "--max-radius")
+            cl.mOptions.mMaxPhotonRadiusFactor = ParseNumber<float>(arg, value(i), 1e-6f, smallvcm::kMaxPhotonRadiusFactor,
+                "a number in [1e-6, 1] (a search beyond the scene's radius finds nothing more)");
         else if (arg == "--layers") cl.mOptions.mTechniqueLayers = true;
         else if (arg == "-q") cl.mQuiet = true;
         else throw Error(arg + ": unknown option (see --help)");
@@ -198,7 +205,7 @@ int main(int argc, char** argv) {
         return 2;
     }
     try {
-        CheckOutputWritable(cl.mOutput);
+        smallvcm::CheckOutputPath(cl.mOutput);  // before a long render, not after it
         const std::string& scenePath = cl.mScene;
         smallvcm::GltfLoadReport report;
         smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath, &report);
@@ -206,26 +213,40 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "smallvcm: %s: note: skipped %d degenerate (zero-area) triangles\n", scenePath.c_str(),
                          report.mSkippedDegenerateTriangles);
         scene.mCamera.SetResolution(cl.mWidth, cl.mHeight);
+        const int threads = cl.mOptions.mThreads > 0 ? cl.mOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));
+        try {
+            smallvcm::CheckRenderMemory(scene.mCamera, cl.mOptions, threads);
+        } catch (const Error& e) {
+            std::fprintf(stderr, "smallvcm: -r: %s\n", e.what() + std::strlen("memory: "));
+            return 2;
+        }
         cl.mOptions.mStopRequested = &gStopRequested;
-        std::signal(SIGINT, OnInterrupt);
+        std::signal(SIGINT, OnStopSignal);
+        std::signal(SIGTERM, OnStopSignal);
         const smallvcm::RenderResult result = smallvcm::Render(scene, cl.mOptions);
-        std::signal(SIGINT, SIG_DFL);
+        const int stopSignal = gStopSignal.load();
         if (result.mStopped && result.mIterations == 0) {
-            std::fprintf(stderr, "smallvcm: interrupted before the first iteration finished; nothing written\n");
-            return 130;
+            std::fprintf(stderr, "smallvcm: interrupted (%s) before the first iteration finished; nothing written\n",
+                         stopSignal == SIGTERM ? "SIGTERM" : "SIGINT");
+            return 128 + stopSignal;
         }
         if (result.mStopped)
-            std::fprintf(stderr, "smallvcm: interrupted: writing the %d iterations accumulated so far\n", result.mIterations);
+            std::fprintf(stderr, "smallvcm: interrupted (%s): writing the %d iteration%s accumulated so far\n",
+                         stopSignal == SIGTERM ? "SIGTERM" : "SIGINT", result.mIterations, result.mIterations == 1 ? "" : "s");
         smallvcm::WriteImage(cl.mOutput, result.mImage);
         for (const auto& layer : result.mLayers) smallvcm::WriteImage(WithLayerName(cl.mOutput, layer.first), layer.second);
         if (!cl.mQuiet)
-            std::printf("%s: %s, %dx%d, %d iterations in %.2f s (%.3f s/iteration), mean %.6f -> %s\n", scenePath.c_str(),
+            std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s\n", scenePath.c_str(),
                         smallvcm::AlgorithmShortName(cl.mOptions.mAlgorithm), cl.mWidth, cl.mHeight, result.mIterations,
-                        result.mSeconds, result.mSeconds / std::max(1, result.mIterations),
+                        result.mIterations == 1 ? "" : "s", result.mSeconds, result.mSeconds / std::max(1, result.mIterations),
                         smallvcm::MeanValue(result.mImage), cl.mOutput.c_str());
-        if (result.mStopped) return 130;  // the conventional status of a program ended by SIGINT
+        // A signal that came while the image was written (held back until then) counts too.
+        if (gStopSignal.load() != 0) return 128 + gStopSignal.load();
     } catch (const Error& e) {
         std::fprintf(stderr, "smallvcm: %s\n", e.what());
+        return 1;
+    } catch (const std::bad_alloc&) {
+        std::fprintf(stderr, "smallvcm: out of memory (use fewer threads, a smaller resolution or a smaller scene)\n");
         return 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "smallvcm: unexpected error: %s\n", e.what());

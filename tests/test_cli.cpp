@@ -12,9 +12,13 @@
 
 #include <catch2/catch.hpp>
 
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -30,6 +34,7 @@ const char* const kProgram = "../build/smallvcm";
 using testutil::Quote;
 using testutil::ReadText;
 using testutil::TemporaryFolder;
+using testutil::ExitCode;
 
 struct Run {
     int mExitCode = -1;      // the program's exit code; 124 when it ran out of time
@@ -213,4 +218,155 @@ TEST_CASE("A tiny good run writes a PFM of the requested size", "[cli]") {
     for (const smallvcm::Vec3& pixel : image.mPixels) finite = finite && smallvcm::IsFinite(pixel);
     CHECK(finite);
     CHECK(smallvcm::MeanValue(image) > 0.0);
+}
+
+namespace {
+
+// build/smallvcm started in the background, its output streams in files of aFolder.
+struct Child {
+    pid_t mPid = -1;
+    std::string mStderrPath;
+};
+
+Child StartProgram(const std::vector<std::string>& aArguments, const TemporaryFolder& aFolder, const std::string& aName) {
+    Child child;
+    child.mStderrPath = aFolder / (aName + ".stderr");
+    const std::string stdoutPath = aFolder / (aName + ".stdout");
+    std::fflush(stdout);  // or the child would print the parent's buffered output again
+    std::fflush(stderr);
+    child.mPid = fork();
+    if (child.mPid == 0) {
+        std::freopen(stdoutPath.c_str(), "w", stdout);
+        std::freopen(child.mStderrPath.c_str(), "w", stderr);
+        std::vector<char*> argv{const_cast<char*>(kProgram)};
+        for (const std::string& argument : aArguments) argv.push_back(const_cast<char*>(argument.c_str()));
+        argv.push_back(nullptr);
+        execv(kProgram, argv.data());
+        _exit(127);
+    }
+    return child;
+}
+
+// Waits up to aSeconds for the child; returns its wait status, or -1 (then kills it).
+int WaitProgram(const Child& aChild, double aSeconds) {
+    for (int waited = 0; waited < int(aSeconds * 100); waited++) {
+        int status = 0;
+        if (waitpid(aChild.mPid, &status, WNOHANG) == aChild.mPid) return status;
+        usleep(10000);
+    }
+    kill(aChild.mPid, SIGKILL);
+    waitpid(aChild.mPid, nullptr, 0);
+    return -1;
+}
+
+std::vector<std::string> FolderEntries(const TemporaryFolder& aFolder) {
+    std::vector<std::string> names;
+    for (const auto& entry : fs::directory_iterator(aFolder.mPath)) names.push_back(entry.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+}
+
+bool AnyPartial(const TemporaryFolder& aFolder) {
+    for (const std::string& name : FolderEntries(aFolder))
+        if (name.find(".partial") != std::string::npos) return true;
+    return false;
+}
+
+} // namespace
+
+TEST_CASE("SIGTERM and SIGINT stop the render, write what was accumulated and exit 128 + the signal", "[cli][signals]") {
+    for (int signal : {SIGTERM, SIGINT}) {
+        TemporaryFolder folder;
+        const std::string output = folder / "interrupted.pfm";
+        const Child child = StartProgram({"-s", "2", "-a", "pt", "-t", "100", "-r", "32x32", "-j", "2", "-o", output}, folder, "run");
+        usleep(1500000);  // loading takes milliseconds, an iteration well under one
+        kill(child.mPid, signal);
+        const int status = WaitProgram(child, 20);
+        const std::string stderrText = ReadText(child.mStderrPath);
+        INFO("signal " << signal << ", stderr: " << stderrText);
+        REQUIRE(status != -1);
+        REQUIRE(WIFEXITED(status));
+        CHECK(WEXITSTATUS(status) == 128 + signal);
+        CHECK(StartsWith(stderrText, std::string("smallvcm: interrupted (") + (signal == SIGTERM ? "SIGTERM" : "SIGINT") +
+                                         "): writing the "));
+        const smallvcm::Image image = smallvcm::ReadPfm(output);
+        CHECK(image.mWidth == 32);
+        CHECK(smallvcm::MeanValue(image) > 0.0);
+        CHECK_FALSE(AnyPartial(folder));
+    }
+}
+
+TEST_CASE("A second signal ends the program at once and leaves no temporary file", "[cli][signals]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "never.png";
+    // One iteration of 2048x2048 takes seconds: the first signal waits for it, the second does not.
+    const Child child = StartProgram({"-s", "2", "-a", "pt", "-i", "4", "-r", "2048x2048", "-j", "1", "-o", output}, folder, "run");
+    usleep(500000);
+    kill(child.mPid, SIGINT);
+    usleep(200000);
+    kill(child.mPid, SIGINT);
+    const int status = WaitProgram(child, 5);
+    INFO("stderr: " << ReadText(child.mStderrPath));
+    REQUIRE(status != -1);
+    CHECK(WIFSIGNALED(status));
+    CHECK(WTERMSIG(status) == SIGINT);
+    CHECK_FALSE(fs::exists(output));
+    CHECK_FALSE(AnyPartial(folder));
+}
+
+TEST_CASE("Two renders writing the same output both finish with a valid image", "[cli]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "same.pfm";
+    const Child first = StartProgram({"-s", "2", "-a", "pt", "-i", "30", "-r", "48x48", "-j", "1", "-q", "-o", output}, folder, "first");
+    const Child second = StartProgram({"-s", "2", "-a", "pt", "-i", "30", "-r", "48x48", "-j", "1", "-q", "--seed", "9", "-o", output}, folder, "second");
+    const int firstStatus = WaitProgram(first, 60), secondStatus = WaitProgram(second, 60);
+    CHECK(ExitCode(firstStatus) == 0);
+    CHECK(ExitCode(secondStatus) == 0);
+    CHECK(smallvcm::ReadPfm(output).mWidth == 48);
+    CHECK_FALSE(AnyPartial(folder));
+}
+
+TEST_CASE("Hostile scene and output paths are refused before rendering, in time", "[cli]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "out.png";
+    SECTION("a FIFO as the scene") {
+        const std::string pipe = folder / "pipe.gltf";
+        REQUIRE(mkfifo(pipe.c_str(), 0600) == 0);
+        CheckFailure(RunProgram(Tiny(output) + " -s " + Quote(pipe), 10), 1, pipe, output);
+    }
+    SECTION("/dev/zero as the scene") {
+        CheckFailure(RunProgram(Tiny(output) + " -s /dev/zero", 10), 1, "/dev/zero", output);
+    }
+    SECTION("an output that is a directory, found before a 100-second render") {
+        const std::string directory = folder / "taken.png";
+        fs::create_directories(directory);
+        const Run run = RunProgram(Tiny(output) + " -s 2 -t 100 -i 100000000 -o " + Quote(directory), 20);
+        CheckFailure(run, 1, directory, directory + "/none");
+        CHECK(run.mStderr.find("is a directory") != std::string::npos);
+    }
+}
+
+TEST_CASE("Resource options beyond what the machine can do are refused with the reason", "[cli]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "out.png";
+    const Run threads = RunProgram(Tiny(output) + " -s 2 -j 1024");
+    CheckFailure(threads, 2, "-j", output);
+    CHECK(threads.mStderr.find("at most 4 threads per core") != std::string::npos);
+    const Run radius = RunProgram(Tiny(output) + " -s 2 --radius-factor 10");
+    CheckFailure(radius, 2, "--radius-factor", output);
+    CHECK(radius.mStderr.find("hundreds of times slower") != std::string::npos);
+    CheckFailure(RunProgram(Tiny(output) + " -s 2 --max-radius 10"), 2, "--max-radius", output);
+    // 2^28 pixels of VCM: refused before any allocation wherever it would not fit in 3/4
+    // of the memory (the estimate is the library's own, EstimateRenderBytes).
+    smallvcm::Camera camera;
+    camera.SetResolution(16384, 16384);
+    smallvcm::RenderOptions options;
+    options.mAlgorithm = smallvcm::Algorithm::kVertexConnectionMerging;
+    const uint64_t needed = smallvcm::EstimateRenderBytes(camera, options, 1);
+    CHECK(needed > uint64_t(16384) * 16384 * 24);  // at least the film
+    if (needed > smallvcm::PhysicalMemoryBytes() / 4 * 3) {
+        const Run big = RunProgram(Tiny(output) + " -s 2 -a vcm -r 16384x16384");
+        CheckFailure(big, 2, "-r", output);
+        CHECK(big.mStderr.find("needs about") != std::string::npos);
+    }
 }

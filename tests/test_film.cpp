@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <unistd.h>
@@ -22,6 +23,8 @@ namespace fs = std::filesystem;
 namespace {
 
 // A fresh folder for this test case's files, removed when the test case ends.
+using testutil::ReadText;
+
 class TempFolder {
 public:
     TempFolder() {
@@ -291,7 +294,7 @@ TEST_CASE("A failed write leaves an existing image untouched", "[film]") {
 TEST_CASE("An unknown image extension throws an Error and writes nothing", "[film]") {
     const TempFolder folder;
     const Image image = MakeGradient(2, 2);
-    for (const char* name : {"image.bmp", "image.PNG", "image", "image.pfm.txt"}) {
+    for (const char* name : {"image.bmp", "image", "image.pfm.txt", "png", "folder.png/image"}) {
         const std::string path = folder.File(name);
         INFO(path);
         REQUIRE_FALSE(IsSupportedImagePath(path));
@@ -317,4 +320,87 @@ TEST_CASE("ReadPfm rejects missing, foreign and truncated files with an Error na
     bytes.resize(bytes.size() - 7);
     std::ofstream(truncated, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(bytes.data()), long(bytes.size()));
     REQUIRE_THROWS_WITH(ReadPfm(truncated), Catch::Contains(truncated));
+}
+
+TEST_CASE("Image extensions are known in any case", "[film]") {
+    const TempFolder folder;
+    const Image image = MakeGradient(3, 2);
+    for (const char* name : {"upper.PNG", "mixed.Hdr", "upper.PFM"}) {
+        INFO(name);
+        REQUIRE(IsSupportedImagePath(name));
+        WriteImage(folder.File(name), image);
+    }
+    CHECK(ReadPfm(folder.File("upper.PFM")).mPixels == image.mPixels);
+    CHECK(ImageFormatOf("a.PNG") == ImageFormat::kPng);
+    CHECK(ImageFormatOf("dir.png/a") == ImageFormat::kUnknown);
+}
+
+TEST_CASE("A symlink planted at the old temporary name, or at the output, is never written through", "[film]") {
+    const TempFolder folder;
+    const std::string victim = folder.File("victim");
+    std::ofstream(victim) << "keep me";
+    const std::string path = folder.File("out.pfm");
+    fs::create_symlink(victim, path + ".partial");  // where earlier versions wrote
+    const Image image = MakeGradient(4, 4);
+    WriteImage(path, image);
+    CHECK(ReadText(victim) == "keep me");
+    CHECK(ReadPfm(path).mPixels == image.mPixels);
+    // The output name itself a symlink: the rename replaces the link, not its target.
+    const std::string linked = folder.File("linked.pfm");
+    fs::create_symlink(victim, linked);
+    WriteImage(linked, image);
+    CHECK(ReadText(victim) == "keep me");
+    CHECK_FALSE(fs::is_symlink(linked));
+    CHECK(ReadPfm(linked).mPixels == image.mPixels);
+    std::vector<std::string> entries = folder.Entries();
+    std::sort(entries.begin(), entries.end());
+    CHECK(entries == std::vector<std::string>{"linked.pfm", "out.pfm", "out.pfm.partial", "victim"});
+}
+
+TEST_CASE("Concurrent writers of one path each leave a whole image and no temporary file", "[film]") {
+    const TempFolder folder;
+    const std::string path = folder.File("shared.pfm");
+    const Image first = MakeGradient(16, 16);
+    Image second = first;
+    for (Vec3& p : second.mPixels) p += Vec3(1.f);
+    std::vector<std::thread> writers;
+    for (int w = 0; w < 4; w++)
+        writers.emplace_back([&, w] {
+            for (int i = 0; i < 50; i++) WriteImage(path, w % 2 ? first : second);
+        });
+    for (std::thread& writer : writers) writer.join();
+    const Image written = ReadPfm(path);
+    CHECK((written.mPixels == first.mPixels || written.mPixels == second.mPixels));
+    CHECK(folder.Entries() == std::vector<std::string>{"shared.pfm"});
+}
+
+TEST_CASE("CheckOutputPath finds output problems before rendering and leaves nothing behind", "[film]") {
+    const TempFolder folder;
+    fs::create_directories(folder.File("a folder.png"));
+    std::ofstream(folder.File("plain")) << "x";
+    const struct {
+        std::string mPath, mProblem;
+    } cases[] = {
+        {folder.File("a folder.png"), "is a directory"},
+        {folder.File("missing/out.png"), "the folder " + folder.File("missing") + " does not exist"},
+        {folder.File("plain/out.png"), folder.File("plain") + " is not a folder"},
+        {folder.File("out.jpg"), "unknown image format"},
+    };
+    for (const auto& c : cases) {
+        INFO(c.mPath);
+        REQUIRE_THROWS_WITH(CheckOutputPath(c.mPath), Catch::StartsWith(c.mPath + ": ") && Catch::Contains(c.mProblem));
+    }
+    REQUIRE_NOTHROW(CheckOutputPath(folder.File("fine.png")));
+    if (geteuid() != 0) {  // root may write anywhere: the permission case needs another user
+        const std::string locked = folder.File("locked");
+        fs::create_directories(locked);
+        fs::permissions(locked, fs::perms::owner_read | fs::perms::owner_exec);
+        REQUIRE_THROWS_WITH(CheckOutputPath(locked + "/out.png"), Catch::Contains("cannot write here"));
+        fs::permissions(locked, fs::perms::owner_all);
+    }
+    std::vector<std::string> entries = folder.Entries();
+    std::sort(entries.begin(), entries.end());
+    const bool onlyWhatWasThere =
+        entries == std::vector<std::string>{"a folder.png", "plain"} || entries == std::vector<std::string>{"a folder.png", "locked", "plain"};
+    CHECK(onlyWhatWasThere);
 }

@@ -287,7 +287,7 @@ TEST_CASE("Light tracing splats land in the pixels that see the lit surface, als
     // ~2500 photons on it, enough to reach each of its ~50 interior pixels many times.
     const Image lt = RenderWith(scene, Algorithm::kLightTracing, 1024).mImage;
     const Image eye = RenderWith(scene, Algorithm::kEyeLight, 16).mImage;
-    Vec2 cornerA, cornerC;
+    Vec2 cornerA(0.f), cornerC(0.f);
     REQUIRE(scene.mCamera.WorldToRaster(a, cornerA));
     REQUIRE(scene.mCamera.WorldToRaster(c, cornerC));
     int inside = 0, mismatched = 0;

@@ -191,7 +191,7 @@ bad("truncated.gltf", "a valid file cut in the middle of its JSON", "glTF parse 
     lambda: dumps(scene())[:len(dumps(scene())) // 2])
 bad("truncated.glb", "the first 20 bytes of a binary glTF", "glTF parse error: Invalid glTF binary")(
     lambda: make_glb(scene())[:20])
-bad("empty.gltf", "an empty file (0 bytes)", "File is empty")(lambda: "")
+bad("empty.gltf", "an empty file (0 bytes)", "the file is empty")(lambda: "")
 bad("directory.gltf", "a directory, not a file (holds a README.md)", "directory")(lambda: None)
 bad("json_array.gltf", "JSON, but an array, not a glTF object", "Root element is not a JSON object")(
     lambda: "[1, 2, 3]\n")
