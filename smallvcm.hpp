@@ -3434,6 +3434,10 @@ Image ReadPfm(const std::string& aPath);
 
 struct GltfLoadReport {
     int mSkippedDegenerateTriangles = 0;  // zero-area triangles, dropped
+    std::string mCamera;                  // which camera: "camera 0 'Name'", or "a default camera ..."
+    bool mDefaultCamera = false;          // the file has no camera: one frames the scene
+    bool mDefaultBackground = false;      // the file has no emitter: a white background was added
+    std::vector<std::string> mNotes;      // what was approximated, ignored or looks wrong, one line each
 };
 
 // What a scene file may make the loader read. A scene is an untrusted document: every
@@ -3444,6 +3448,17 @@ struct GltfLoadOptions {
     std::string mResourceRoot;                  // "" = the folder of the scene file
     uint64_t mMaxFileBytes = uint64_t(1) << 30;  // the scene file, and each file it names
     uint64_t mMaxTotalBytes = uint64_t(4) << 30; // the scene file and its files together
+    // Which camera: the N-th camera node met in the scene's depth-first walk (-1: the first,
+    // or, when the file has none, a default camera that frames the scene's bounding box
+    // from the front (+Z) and a little above, for images of mDefaultCameraAspect = W / H).
+    int mCamera = -1;
+    float mDefaultCameraAspect = 1.f;
+    // The background light: the file's (kFromFile: and, when the file has no emitter at
+    // all, a uniform white one, so a model without lights still renders), none, or
+    // mBackgroundRadiance replacing the file's.
+    enum class Background { kFromFile, kNone, kRadiance };
+    Background mBackground = Background::kFromFile;
+    Vec3 mBackgroundRadiance{1.f};
 };
 
 Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr, const GltfLoadOptions& aOptions = {});
@@ -3477,6 +3492,7 @@ Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr,
 #include <new>
 #include <set>
 #include <sstream>
+#include <unordered_map>
 
 #include <csignal>
 #include <fcntl.h>
@@ -3750,11 +3766,20 @@ public:
         if (mModel.scenes.empty()) Fail("the file has no scene");
         if (sceneIndex >= int(mModel.scenes.size())) Fail("the default scene " + std::to_string(sceneIndex) + " does not exist");
         for (int root : mModel.scenes[size_t(sceneIndex)].nodes) VisitNode(root, Mat4(1.0), 0);
-        ReadBackground();
-        if (!mHasCamera) Fail("the scene has no camera node (a perspective camera is required)");
+        ChooseBackground();
+        if (mOptions.mCamera >= 0 && !mHasCamera)
+            Fail("camera " + std::to_string(mOptions.mCamera) + " was asked for, but the scene has " + std::to_string(mCameraNodes) +
+                 " camera node(s)" + (mCameraNodes > 0 ? " (0.." + std::to_string(mCameraNodes - 1) + ")" : std::string()));
+        if (!mHasCamera) AddDefaultCamera();
         mScene.mName = mPath;
         mScene.Finalize();  // its Error messages start with the path too
-        if (oReport) oReport->mSkippedDegenerateTriangles = mSkippedTriangles;
+        mReport.mSkippedDegenerateTriangles = mSkippedTriangles;
+        if (!mIgnoredExtensions.empty()) {
+            std::string list;
+            for (const std::string& name : mIgnoredExtensions) list += (list.empty() ? "" : ", ") + Excerpt(name);
+            mReport.mNotes.push_back("ignored extensions (used by the file, not required, not modelled here): " + list);
+        }
+        if (oReport) *oReport = mReport;
         return std::move(mScene);
     }
 
@@ -3799,7 +3824,12 @@ private:
             }
         }
         CheckJsonNesting(bytes, jsonBegin, jsonEnd);
-        CheckDeclaredBuffers(bytes, jsonBegin, jsonEnd);
+        const nlohmann::json json = nlohmann::json::parse(bytes.begin() + std::ptrdiff_t(jsonBegin), bytes.begin() + std::ptrdiff_t(jsonEnd),
+                                                          nullptr, false);
+        if (json.is_object()) {  // otherwise tinygltf says what is wrong with it
+            CheckVersionAndExtensions(json);
+            CheckDeclaredBuffers(json);
+        }
 
         tinygltf::TinyGLTF gltf;
         // Images are not supported; the loader must not try to decode them. A model that
@@ -3862,15 +3892,54 @@ private:
         if (deepest > 512) Fail("the JSON is nested " + std::to_string(deepest) + " levels deep (at most 512 are read)");
     }
 
+    // The extensions this loader reads; any other required one is refused, any other used
+    // one is ignored and listed in a note.
+    static const std::set<std::string>& SupportedExtensions() {
+        static const std::set<std::string> kSupported = {
+            "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
+            "KHR_materials_ior", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
+        return kSupported;
+    }
+
+    // Before any buffer is read: a glTF 1.0 file, or an extension the file requires that
+    // is not modelled here (compressed meshes, KTX2 textures...), is named in one line
+    // that says how to get a file that loads.
+    void CheckVersionAndExtensions(const nlohmann::json& aJson) {
+        if (aJson.contains("asset") && aJson["asset"].is_object() && aJson["asset"].contains("version") &&
+            aJson["asset"]["version"].is_string()) {
+            const std::string& version = aJson["asset"]["version"].get_ref<const std::string&>();
+            if (version.compare(0, 2, "1.") == 0 || version == "1")
+                Fail("this is a glTF 1.0 file (asset.version \"" + Excerpt(version) + "\"); only glTF 2.0 is supported: convert it "
+                     "(e.g. import it into Blender and export glTF 2.0)");
+        }
+        static const std::pair<const char*, const char*> kHowToGetAPlainFile[] = {
+            {"KHR_draco_mesh_compression", "its meshes are Draco-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
+            {"EXT_meshopt_compression", "its buffers are meshopt-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
+            {"KHR_mesh_quantization", "its vertex attributes are quantized: dequantize the file first (e.g. `gltf-transform dequantize IN OUT`)"},
+            {"KHR_texture_basisu", "its textures are KTX2/Basis: convert them to PNG or JPEG first (e.g. re-export with PNG textures)"},
+            {"EXT_texture_webp", "its textures are WebP: convert them to PNG or JPEG first"},
+        };
+        if (aJson.contains("extensionsRequired") && aJson["extensionsRequired"].is_array())
+            for (const nlohmann::json& entry : aJson["extensionsRequired"]) {
+                if (!entry.is_string() || SupportedExtensions().count(entry.get<std::string>())) continue;
+                const std::string name = entry.get<std::string>();
+                for (const auto& known : kHowToGetAPlainFile)
+                    if (name == known.first) Fail("required extension " + name + " is not supported: " + known.second);
+                Fail("required extension '" + Excerpt(name) + "' is not supported");
+            }
+        if (aJson.contains("extensionsUsed") && aJson["extensionsUsed"].is_array())
+            for (const nlohmann::json& entry : aJson["extensionsUsed"])
+                if (entry.is_string() && !SupportedExtensions().count(entry.get<std::string>()) && mIgnoredExtensions.size() < 32)
+                    mIgnoredExtensions.insert(entry.get<std::string>());
+    }
+
     // The sizes the buffers declare, known before tinygltf reads or decodes a byte: a
     // file is read only if it is as long as some buffer says, and a data URI is decoded
     // only if its text is no longer than its byteLength needs. (tinygltf itself reads a
     // whole file, or decodes a whole URI, before it compares the size.)
-    void CheckDeclaredBuffers(const std::vector<unsigned char>& aBytes, size_t aBegin, size_t aEnd) {
-        const nlohmann::json json = nlohmann::json::parse(aBytes.begin() + std::ptrdiff_t(aBegin), aBytes.begin() + std::ptrdiff_t(aEnd),
-                                                          nullptr, false);
-        if (!json.is_object() || !json.contains("buffers") || !json["buffers"].is_array()) return;  // tinygltf says what is wrong
-        const nlohmann::json& buffers = json["buffers"];
+    void CheckDeclaredBuffers(const nlohmann::json& aJson) {
+        if (!aJson.contains("buffers") || !aJson["buffers"].is_array()) return;  // tinygltf says what is wrong
+        const nlohmann::json& buffers = aJson["buffers"];
         for (size_t b = 0; b < buffers.size(); b++) {
             const nlohmann::json& buffer = buffers[b];
             if (!buffer.is_object() || !buffer.contains("byteLength") || !buffer["byteLength"].is_number_unsigned()) continue;
@@ -3904,11 +3973,8 @@ private:
     }
 
     void CheckModelFeatures() {
-        static const std::set<std::string> kSupported = {
-            "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
-            "KHR_materials_ior", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
         for (const std::string& required : mModel.extensionsRequired)
-            if (!kSupported.count(required)) Fail("required extension '" + Excerpt(required) + "' is not supported");
+            if (!SupportedExtensions().count(required)) Fail("required extension '" + Excerpt(required) + "' is not supported");
         if (!mModel.skins.empty()) Fail("skins are not supported");
         for (const tinygltf::Accessor& accessor : mModel.accessors)
             if (accessor.sparse.isSparse) Fail("sparse accessors are not supported");
@@ -4221,7 +4287,42 @@ private:
             // An emissive primitive instance is one area light over all its triangles.
             if (!IsBlack(mMaterialEmission[size_t(material)]) && !triangleIds.empty())
                 mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)]);
+            if (LooksInsideOut(world, indices, flip) && mReport.mNotes.size() < 64)
+                mReport.mNotes.push_back(what + " looks inside-out: a closed mesh with negative volume (its triangles face "
+                                         "inwards; reflection is two-sided, but one-sided emission and glass work inside out)");
         }
+    }
+
+    // True for a closed mesh (every edge used once in each direction, so it bounds a
+    // volume) whose signed volume, sum of p0 . (p1 x p2) / 6, is negative: wound inwards.
+    // Vertices are matched by position, so meshes split at seams (or not indexed at all)
+    // are judged as the surface they form.
+    static bool LooksInsideOut(const std::vector<Vec3>& aWorld, const std::vector<double>& aIndices, bool aFlip) {
+        struct PositionHash {
+            size_t operator()(const Vec3& aP) const {
+                uint32_t bits[3];
+                std::memcpy(bits, &aP, sizeof(bits));
+                return size_t(SplitMix64((uint64_t(bits[0]) << 32) ^ (uint64_t(bits[1]) << 16) ^ bits[2]));
+            }
+        };
+        std::unordered_map<Vec3, uint64_t, PositionHash> weld;
+        std::unordered_map<uint64_t, int> directedEdges;
+        double volume = 0.0;
+        for (size_t t = 0; t + 2 < aIndices.size(); t += 3) {
+            size_t corner[3] = {size_t(aIndices[t]), size_t(aIndices[t + 1]), size_t(aIndices[t + 2])};
+            if (aFlip) std::swap(corner[1], corner[2]);
+            uint64_t v[3];
+            for (int k = 0; k < 3; k++) v[k] = weld.emplace(aWorld[corner[k]], weld.size()).first->second;
+            if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) continue;
+            for (int e = 0; e < 3; e++)
+                if (++directedEdges[(v[e] << 32) | v[(e + 1) % 3]] > 1) return false;  // not a closed 2-manifold
+            const glm::dvec3 p0(aWorld[corner[0]]), p1(aWorld[corner[1]]), p2(aWorld[corner[2]]);
+            volume += glm::dot(p0, glm::cross(p1, p2)) / 6.0;
+        }
+        if (directedEdges.empty()) return false;
+        for (const auto& edge : directedEdges)
+            if (!directedEdges.count((edge.first << 32) | (edge.first >> 32))) return false;  // an open border
+        return volume < 0.0;
     }
 
     void AddSphere(const tinygltf::Value& aSphere, const Mat4& aWorld, const std::string& aWhat) {
@@ -4268,7 +4369,9 @@ private:
     }
 
     void AddCamera(int aCameraIndex, const Mat4& aWorld, const std::string& aWhat) {
-        if (mHasCamera) return;  // the first camera in depth-first order is used
+        // The first camera in depth-first order is used, or the one GltfLoadOptions asks for.
+        const int order = mCameraNodes++;
+        if (mHasCamera || order != std::max(0, mOptions.mCamera)) return;
         if (aCameraIndex < 0 || aCameraIndex >= int(mModel.cameras.size())) Fail(aWhat + " refers to camera " + std::to_string(aCameraIndex) + ", which does not exist");
         const tinygltf::Camera& camera = mModel.cameras[size_t(aCameraIndex)];
         if (camera.type != "perspective") Fail("camera " + std::to_string(aCameraIndex) + ": type '" + Excerpt(camera.type) + "' is not supported (only perspective)");
@@ -4289,6 +4392,8 @@ private:
         mScene.mCamera.Setup(ToFloat(glm::dvec3(aWorld[3]), aWhat + ": the camera position"), Vec3(-back), Vec3(up),
                              float(horizontalFov * 180.0 / 3.14159265358979323846));
         mHasCamera = true;
+        mReport.mCamera = "camera node " + std::to_string(order) + " (" + aWhat + ", camera " + std::to_string(aCameraIndex) +
+                          (camera.name.empty() ? std::string() : " '" + Excerpt(camera.name) + "'") + ")";
     }
 
     void ReadBackground() {
@@ -4298,6 +4403,50 @@ private:
         if (radiance.x < 0.f && !background->second.Has("radiance")) Fail("SMALLVCM_background needs 'radiance'");
         CheckColor(radiance, "SMALLVCM_background: the radiance", false);
         mScene.AddBackgroundLight(radiance);
+    }
+
+    // The background by GltfLoadOptions::mBackground, after every node's lights are in.
+    void ChooseBackground() {
+        using Background = GltfLoadOptions::Background;
+        if (mOptions.mBackground == Background::kRadiance) {
+            CheckColor(mOptions.mBackgroundRadiance, "the background radiance", false);
+            mScene.AddBackgroundLight(mOptions.mBackgroundRadiance);
+            return;
+        }
+        if (mOptions.mBackground == Background::kNone) return;
+        ReadBackground();
+        if (!mScene.mLights.empty()) return;
+        // A model with no emitter (most real-world files): a uniform white sky, so that it
+        // renders at all, and one line that says so and how to change it.
+        mScene.AddBackgroundLight(Vec3(1.f));
+        mReport.mDefaultBackground = true;
+        mReport.mNotes.push_back("the scene has no light: added a uniform white background (radiance 1; "
+                                 "--background R,G,B or --background none changes it)");
+    }
+
+    // A camera for a file without one: it looks at the centre of the bounding box of all
+    // geometry from the front (+Z, glTF's front) and 15 degrees above, with a 40-degree
+    // vertical field of view, far enough that the box's bounding sphere fits the frame in
+    // both directions at the image's aspect ratio.
+    void AddDefaultCamera() {
+        Aabb box;
+        for (const Triangle& triangle : mScene.mTriangles) { box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2); }
+        for (const Sphere& sphere : mScene.mSpheres) { box.Extend(sphere.mCenter - Vec3(sphere.mRadius)); box.Extend(sphere.mCenter + Vec3(sphere.mRadius)); }
+        if (mScene.mTriangles.empty() && mScene.mSpheres.empty()) Fail("the scene has no geometry");
+        const float aspect = mOptions.mDefaultCameraAspect;
+        if (!(aspect > 0.f) || !std::isfinite(aspect)) Fail("the default camera's aspect ratio must be a positive number");
+        const glm::dvec3 center = 0.5 * (glm::dvec3(box.mMin) + glm::dvec3(box.mMax));
+        const double radius = std::max(0.5 * glm::length(glm::dvec3(box.mMax) - glm::dvec3(box.mMin)), 1e-6);
+        const double pi = 3.14159265358979323846;
+        const double verticalFov = 40.0 * pi / 180.0;
+        const double horizontalFov = 2.0 * std::atan(std::tan(0.5 * verticalFov) * double(aspect));
+        const double distance = radius / std::sin(0.5 * std::min(verticalFov, horizontalFov));
+        const double elevation = 15.0 * pi / 180.0;
+        const glm::dvec3 towardsCamera(0.0, std::sin(elevation), std::cos(elevation));
+        const Vec3 position = ToFloat(center + distance * towardsCamera, "the default camera's position");
+        mScene.mCamera.Setup(position, Vec3(-towardsCamera), Vec3(0.f, 1.f, 0.f), float(horizontalFov * 180.0 / pi));
+        mReport.mDefaultCamera = true;
+        mReport.mCamera = "a default camera (the file has none): front, 15 degrees above, 40-degree vertical field of view";
     }
 
     std::string mPath;
@@ -4312,6 +4461,9 @@ private:
     std::vector<Vec3> mMaterialEmission;  // per scene material
     int mDefaultMaterial = -1;
     bool mHasCamera = false;
+    int mCameraNodes = 0;                       // camera nodes met so far in the walk
+    GltfLoadReport mReport;
+    std::set<std::string> mIgnoredExtensions;   // used by the file, not required, not modelled
     int mSkippedTriangles = 0;
     static constexpr size_t kMaxTriangles = size_t(1) << 22;  // ~1 GB of scene and BVH; raise for big meshes
     size_t mTriangleCount = 0;  // triangles read so far, degenerate ones included

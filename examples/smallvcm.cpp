@@ -73,6 +73,11 @@ void PrintHelp() {
         "  --knn K             pm, pmfg: nearest photons per estimate (default 100)\n"
         "  --max-radius F      pm, pmfg: largest search radius, fraction of the scene radius (default 0.05, at most 1)\n"
         "  --layers            also write per-technique layers as FILE-stem.LAYER.ext\n"
+        "  --camera N          the N-th camera node of the file (default: the first; a file without\n"
+        "                        cameras gets one that frames the whole scene from the front)\n"
+        "  --background R,G,B  add (or replace the file's) uniform background of this linear radiance;\n"
+        "  --background none     none: no background. Default: the file's, and white (1,1,1) when the\n"
+        "                        file has no light at all\n"
         "  -q                  quiet: no summary line, no progress\n"
         "Ctrl-C or SIGTERM writes the iterations done so far (exit 130 or 143); a second one stops at once.\n"
         "  --help              this text\n");
@@ -119,7 +124,27 @@ struct CommandLine {
     bool mQuiet = false;
     bool mIterationsGiven = false;
     smallvcm::RenderOptions mOptions;
+    smallvcm::GltfLoadOptions mLoad;
 };
+
+// "R,G,B" (three finite numbers >= 0: linear radiance) or "none".
+void ParseBackground(const std::string& aText, smallvcm::GltfLoadOptions& oLoad) {
+    using Background = smallvcm::GltfLoadOptions::Background;
+    if (aText == "none") {
+        oLoad.mBackground = Background::kNone;
+        return;
+    }
+    const std::string range = "R,G,B (three numbers in [0, 1e30]: linear radiance) or none";
+    size_t begin = 0;
+    for (int c = 0; c < 3; c++) {
+        const size_t comma = aText.find(',', begin);
+        if ((c < 2) != (comma != std::string::npos)) throw Error("--background: '" + aText + "' is not " + range);
+        const std::string part = aText.substr(begin, c < 2 ? comma - begin : std::string::npos);
+        oLoad.mBackgroundRadiance[c] = ParseNumber<float>("--background", part, 0.f, 1e30f, range.c_str());
+        begin = comma + 1;
+    }
+    oLoad.mBackground = Background::kRadiance;
+}
 
 CommandLine Parse(int argc, char** argv) {
     CommandLine cl;
@@ -180,6 +205,8 @@ CommandLine Parse(int argc, char** argv) {
             cl.mOptions.mMaxPhotonRadiusFactor = ParseNumber<float>(arg, value(i), 1e-6f, smallvcm::kMaxPhotonRadiusFactor,
                 "a number in [1e-6, 1] (a search beyond the scene's radius finds nothing more)");
         else if (arg == "--layers") cl.mOptions.mTechniqueLayers = true;
+        else if (arg == "--camera") cl.mLoad.mCamera = ParseNumber<int>(arg, value(i), 0, 1000000, "a camera number in [0, 1e6]");
+        else if (arg == "--background") ParseBackground(value(i), cl.mLoad);
         else if (arg == "-q") cl.mQuiet = true;
         else throw Error(arg + ": unknown option (see --help)");
     }
@@ -208,10 +235,13 @@ int main(int argc, char** argv) {
         smallvcm::CheckOutputPath(cl.mOutput);  // before a long render, not after it
         const std::string& scenePath = cl.mScene;
         smallvcm::GltfLoadReport report;
-        smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath, &report);
+        cl.mLoad.mDefaultCameraAspect = float(cl.mWidth) / float(cl.mHeight);
+        smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath, &report, cl.mLoad);
         if (report.mSkippedDegenerateTriangles > 0)
             std::fprintf(stderr, "smallvcm: %s: note: skipped %d degenerate (zero-area) triangles\n", scenePath.c_str(),
                          report.mSkippedDegenerateTriangles);
+        if (!cl.mQuiet)
+            for (const std::string& note : report.mNotes) std::fprintf(stderr, "smallvcm: %s: note: %s\n", scenePath.c_str(), note.c_str());
         scene.mCamera.SetResolution(cl.mWidth, cl.mHeight);
         const int threads = cl.mOptions.mThreads > 0 ? cl.mOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));
         try {
@@ -236,10 +266,10 @@ int main(int argc, char** argv) {
         smallvcm::WriteImage(cl.mOutput, result.mImage);
         for (const auto& layer : result.mLayers) smallvcm::WriteImage(WithLayerName(cl.mOutput, layer.first), layer.second);
         if (!cl.mQuiet)
-            std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s\n", scenePath.c_str(),
+            std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s; %s\n", scenePath.c_str(),
                         smallvcm::AlgorithmShortName(cl.mOptions.mAlgorithm), cl.mWidth, cl.mHeight, result.mIterations,
                         result.mIterations == 1 ? "" : "s", result.mSeconds, result.mSeconds / std::max(1, result.mIterations),
-                        smallvcm::MeanValue(result.mImage), cl.mOutput.c_str());
+                        smallvcm::MeanValue(result.mImage), cl.mOutput.c_str(), report.mCamera.c_str());
         // A signal that came while the image was written (held back until then) counts too.
         if (gStopSignal.load() != 0) return 128 + gStopSignal.load();
     } catch (const Error& e) {

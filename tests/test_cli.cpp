@@ -136,7 +136,7 @@ TEST_CASE("A missing scene or an unwritable output exits with code 1 and one lin
         CHECK_FALSE(fs::exists(folder / "no_such_folder"));
     }
     SECTION("a scene of the bad-input corpus") {
-        CheckFailure(RunProgram(Tiny(output) + " -s data/bad/no_light.gltf"), 1, "data/bad/no_light.gltf", output);
+        CheckFailure(RunProgram(Tiny(output) + " -s data/bad/emission_negative.gltf"), 1, "data/bad/emission_negative.gltf", output);
     }
 }
 
@@ -153,7 +153,7 @@ TEST_CASE("A failed run leaves an existing output file as it was", "[cli]") {
     TemporaryFolder folder;
     const std::string output = folder / "out.png";
     std::ofstream(output) << "the previous image";
-    const Run run = RunProgram(Tiny(output) + " -s data/bad/camera_missing.gltf");
+    const Run run = RunProgram(Tiny(output) + " -s data/bad/mode_lines.gltf");
     INFO(run);
     CHECK(run.mExitCode == 1);
     CHECK(ReadText(output) == "the previous image");

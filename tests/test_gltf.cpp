@@ -595,3 +595,217 @@ TEST_CASE("A rotation quaternion with huge components turns a node like its norm
     CHECK_VEC3(scene.mTriangles[0].mNormal, Vec3(1, 0, 0), 1e-5f);
     CHECK_VEC3(scene.mTriangles[0].mP0, Vec3(0, -1, -1), 1e-5f);  // local (-1, -1, 0)
 }
+
+// ---------------------------------------------------------------------------------------
+// Real-world files: default camera and light, camera choice, extension refusals, notes.
+// ---------------------------------------------------------------------------------------
+namespace {
+
+std::string Base64(const std::string& aBytes) {
+    static const char* const kDigits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    std::string text;
+    for (size_t i = 0; i < aBytes.size(); i += 3) {
+        const size_t count = std::min<size_t>(3, aBytes.size() - i);  // bytes in this group
+        uint32_t group = 0;
+        for (size_t k = 0; k < 3; k++) group = (group << 8) | (k < count ? uint8_t(aBytes[i + k]) : 0u);
+        for (size_t k = 0; k < 4; k++) text += k <= count ? kDigits[(group >> (18 - 6 * k)) & 63] : '=';
+    }
+    return text;
+}
+
+// A glTF of one mesh (non-indexed triangles, 9 floats each) with aNodes spliced in
+// after the mesh node (node 0), and aTopLevel spliced into the top-level object.
+std::string MeshGltf(const std::vector<float>& aTriangles, const std::string& aNodes = "", const std::string& aTopLevel = "",
+                     const std::string& aMaterial = R"({"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1]}})") {
+    const std::string bytes(reinterpret_cast<const char*>(aTriangles.data()), aTriangles.size() * sizeof(float));
+    return R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+  "nodes": [{"mesh": 0)" + std::string(aNodes.empty() ? "" : ", \"children\": [1]") + "}" + aNodes + R"(],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+  "materials": [)" + aMaterial + R"(],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": )" + std::to_string(aTriangles.size() / 3) + R"(, "type": "VEC3"}],
+  "bufferViews": [{"buffer": 0, "byteLength": )" + std::to_string(bytes.size()) + R"(}],
+  "buffers": [{"byteLength": )" + std::to_string(bytes.size()) + R"(, "uri": "data:application/octet-stream;base64,)" + Base64(bytes) + "\"}]" +
+           aTopLevel + "}";
+}
+
+// A unit cube [-1, 1]^3 moved by aOffset, as 12 triangles wound outwards (or inwards).
+std::vector<float> Cube(const Vec3& aOffset, bool aInwards = false) {
+    const int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+    std::vector<float> triangles;
+    auto corner = [&](int aIndex) { return aOffset + Vec3(aIndex & 1 ? 1.f : -1.f, aIndex & 2 ? 1.f : -1.f, aIndex & 4 ? 1.f : -1.f); };
+    for (const auto& face : faces) {
+        const int order[2][3] = {{face[0], face[1], face[2]}, {face[0], face[2], face[3]}};
+        for (const auto& t : order)
+            for (int k = 0; k < 3; k++) {
+                const Vec3 p = corner(t[aInwards ? 2 - k : k]);
+                triangles.insert(triangles.end(), {p.x, p.y, p.z});
+            }
+    }
+    return triangles;
+}
+
+std::string WriteTemporary(const testutil::TemporaryFolder& aFolder, const std::string& aName, const std::string& aText) {
+    const std::string path = aFolder / aName;
+    std::ofstream(path) << aText;
+    return path;
+}
+
+std::string LoadError(const std::string& aPath, const GltfLoadOptions& aOptions = {}) {
+    try {
+        LoadGltfScene(aPath, nullptr, aOptions);
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+} // namespace
+
+TEST_CASE("The test cube is closed and wound outwards", "[gltf]") {
+    const std::vector<float> cube = Cube(Vec3(0.f));
+    REQUIRE(cube.size() == 12 * 9);
+    double volume = 0.0;
+    for (size_t t = 0; t < cube.size(); t += 9) {
+        const glm::dvec3 a(cube[t], cube[t + 1], cube[t + 2]), b(cube[t + 3], cube[t + 4], cube[t + 5]), c(cube[t + 6], cube[t + 7], cube[t + 8]);
+        volume += glm::dot(a, glm::cross(b, c)) / 6.0;
+    }
+    CHECK(volume == Approx(8.0));
+}
+
+TEST_CASE("A file without a camera gets one that frames every corner of the scene at the image's aspect", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    const Vec3 offset(3.f, -2.f, 5.f);  // the default camera must follow the geometry, not the origin
+    const std::string path = WriteTemporary(folder, "cube.gltf", MeshGltf(Cube(offset)));
+    for (const int width : {64, 128, 32}) {
+        INFO("aspect " << width << ":64");
+        GltfLoadOptions options;
+        options.mDefaultCameraAspect = float(width) / 64.f;
+        GltfLoadReport report;
+        Scene scene = LoadGltfScene(path, &report, options);
+        scene.mCamera.SetResolution(width, 64);
+        CHECK(report.mDefaultCamera);
+        CHECK_THAT(report.mCamera, Catch::StartsWith("a default camera"));
+        const Camera& camera = scene.mCamera;
+        const Vec3 toCenter = offset - camera.Position();
+        CHECK(glm::dot(glm::normalize(toCenter), camera.Forward()) == Approx(1.f).margin(1e-5));
+        CHECK(camera.Position().y > offset.y);  // a little above
+        CHECK(camera.Position().z > offset.z);  // in front: glTF's front is +Z
+        for (int c = 0; c < 8; c++) {
+            const Vec3 corner = offset + Vec3(c & 1 ? 1.f : -1.f, c & 2 ? 1.f : -1.f, c & 4 ? 1.f : -1.f);
+            Vec2 raster;
+            REQUIRE(camera.WorldToRaster(corner, raster));
+            CHECK(raster.x >= 0.f);
+            CHECK(raster.x <= float(width));
+            CHECK(raster.y >= 0.f);
+            CHECK(raster.y <= 64.f);
+        }
+    }
+}
+
+TEST_CASE("GltfLoadOptions::mCamera picks the N-th camera node and refuses one out of range", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    const std::string cameras = R"(, {"camera": 0, "translation": [0, 0, 10], "children": [2]}, {"camera": 1, "translation": [0, 0, 5]})";
+    const std::string path = WriteTemporary(folder, "two.gltf", MeshGltf(Cube(Vec3(0.f)), cameras, R"(, "cameras": [
+        {"type": "perspective", "name": "far", "perspective": {"yfov": 0.5, "znear": 0.1}},
+        {"type": "perspective", "name": "near", "perspective": {"yfov": 0.5, "znear": 0.1}}])"));
+    GltfLoadOptions options;
+    GltfLoadReport report;
+    CHECK(LoadGltfScene(path, &report, options).mCamera.Position().z == Approx(10.f));
+    CHECK_THAT(report.mCamera, Catch::StartsWith("camera node 0") && Catch::Contains("'far'"));
+    options.mCamera = 1;
+    // Node 2 is a child of node 1: its world position is 10 + 5.
+    CHECK(LoadGltfScene(path, &report, options).mCamera.Position().z == Approx(15.f));
+    CHECK_THAT(report.mCamera, Catch::StartsWith("camera node 1") && Catch::Contains("'near'"));
+    options.mCamera = 2;
+    CHECK(LoadError(path, options) == path + ": camera 2 was asked for, but the scene has 2 camera node(s) (0..1)");
+}
+
+TEST_CASE("A file without an emitter gets a white background, which the options replace or remove", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    const std::string path = WriteTemporary(folder, "unlit.gltf", MeshGltf(Cube(Vec3(0.f))));
+    GltfLoadReport report;
+    const Scene scene = LoadGltfScene(path, &report);
+    CHECK(report.mDefaultBackground);
+    REQUIRE(scene.mLights.size() == 1);
+    CHECK(scene.mLights[0].mType == LightType::kBackground);
+    CHECK(scene.mLights[0].mEmission == Vec3(1.f));
+    REQUIRE(report.mNotes.size() == 1);
+    CHECK_THAT(report.mNotes[0], Catch::Contains("no light") && Catch::Contains("--background"));
+
+    GltfLoadOptions options;
+    options.mBackground = GltfLoadOptions::Background::kNone;
+    CHECK(LoadError(path, options) == path + ": the scene has no light");
+    // Replacing the background of a scene that has one (Cornell scene 3), and adding one to
+    // a scene lit otherwise (Cornell scene 4: its ceiling light stays).
+    options.mBackground = GltfLoadOptions::Background::kRadiance;
+    options.mBackgroundRadiance = Vec3(0.25f, 0.5f, 2.f);
+    for (int cornell : {3, 4}) {
+        const size_t lightsInFile = LoadGltfScene(CornellPath(cornell)).mLights.size();
+        const Scene lit = LoadGltfScene(CornellPath(cornell), &report, options);
+        int backgrounds = 0;
+        for (const Light& light : lit.mLights)
+            if (light.mType == LightType::kBackground) {
+                backgrounds++;
+                CHECK(light.mEmission == options.mBackgroundRadiance);
+            }
+        CHECK(backgrounds == 1);
+        CHECK_FALSE(report.mDefaultBackground);
+        CHECK(lit.mLights.size() == (cornell == 3 ? lightsInFile : lightsInFile + 1));
+    }
+}
+
+TEST_CASE("Required extensions that are not modelled are refused before any buffer is read, with how to get a plain file", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    // The buffer names a file that does not exist: reading buffers first would report that.
+    const std::string base = R"({"asset": {"version": "2.0"}, "extensionsUsed": ["EXT"], "extensionsRequired": ["EXT"],
+        "buffers": [{"byteLength": 100, "uri": "missing.bin"}], "scenes": [{"nodes": []}]})";
+    const struct {
+        const char* mExtension;
+        const char* mAdvice;
+    } cases[] = {{"KHR_draco_mesh_compression", "Draco-compressed: decompress the file first"},
+                 {"EXT_meshopt_compression", "meshopt-compressed: decompress the file first"},
+                 {"KHR_mesh_quantization", "dequantize the file first"},
+                 {"KHR_texture_basisu", "KTX2/Basis: convert them to PNG or JPEG"}};
+    for (const auto& c : cases) {
+        std::string json = base;
+        for (size_t at; (at = json.find("\"EXT\"")) != std::string::npos;) json.replace(at, 5, std::string("\"") + c.mExtension + "\"");
+        const std::string path = WriteTemporary(folder, std::string(c.mExtension) + ".gltf", json);
+        CHECK_THAT(LoadError(path), Catch::StartsWith(path + ": required extension " + c.mExtension + " is not supported: "));
+        CHECK_THAT(LoadError(path), Catch::Contains(c.mAdvice));
+    }
+}
+
+TEST_CASE("Extensions used but not required and not modelled are listed in one note", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    const std::string path = WriteTemporary(folder, "used.gltf", MeshGltf(Cube(Vec3(0.f)), "",
+        R"(, "extensionsUsed": ["KHR_materials_clearcoat", "KHR_materials_sheen", "KHR_materials_emissive_strength"])"));
+    GltfLoadReport report;
+    LoadGltfScene(path, &report);
+    int listing = 0;
+    for (const std::string& note : report.mNotes)
+        if (note.find("ignored extensions") != std::string::npos) {
+            listing++;
+            CHECK_THAT(note, Catch::Contains("KHR_materials_clearcoat, KHR_materials_sheen"));
+            CHECK_THAT(note, !Catch::Contains("emissive_strength"));  // that one is modelled
+        }
+    CHECK(listing == 1);
+}
+
+TEST_CASE("A closed mesh wound inwards is noted as inside-out; outward and open meshes are not", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    std::vector<float> open = Cube(Vec3(0.f), true);
+    open.resize(open.size() - 9);  // one triangle less: a hole
+    const struct {
+        std::vector<float> mTriangles;
+        bool mInsideOut;
+    } cases[] = {{Cube(Vec3(0.f)), false}, {Cube(Vec3(0.f), true), true}, {open, false}};
+    int index = 0;
+    for (const auto& c : cases) {
+        const std::string path = WriteTemporary(folder, "mesh" + std::to_string(index++) + ".gltf", MeshGltf(c.mTriangles));
+        GltfLoadReport report;
+        LoadGltfScene(path, &report);
+        bool noted = false;
+        for (const std::string& note : report.mNotes) noted = noted || note.find("looks inside-out") != std::string::npos;
+        CHECK(noted == c.mInsideOut);
+    }
+}
