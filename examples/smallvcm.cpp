@@ -14,6 +14,7 @@
 #include "command_line.hpp"
 
 #include <atomic>
+#include <chrono>
 #include <charconv>
 #include <csignal>
 #include <cstdio>
@@ -236,7 +237,9 @@ int main(int argc, char** argv) {
         const std::string& scenePath = cl.mScene;
         smallvcm::GltfLoadReport report;
         cl.mLoad.mDefaultCameraAspect = float(cl.mWidth) / float(cl.mHeight);
-        smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath, &report, cl.mLoad);
+        const auto loadStart = std::chrono::steady_clock::now();
+        smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath, &report, cl.mLoad);  // parsing and the BVH build
+        const double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loadStart).count();
         if (report.mSkippedDegenerateTriangles > 0)
             std::fprintf(stderr, "smallvcm: %s: note: skipped %d degenerate (zero-area) triangles\n", scenePath.c_str(),
                          report.mSkippedDegenerateTriangles);
@@ -266,10 +269,12 @@ int main(int argc, char** argv) {
         smallvcm::WriteImage(cl.mOutput, result.mImage);
         for (const auto& layer : result.mLayers) smallvcm::WriteImage(WithLayerName(cl.mOutput, layer.first), layer.second);
         if (!cl.mQuiet)
-            std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s; %s\n", scenePath.c_str(),
+            std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s; %zu triangles and %zu "
+                        "spheres loaded in %.2f s; %s\n", scenePath.c_str(),
                         smallvcm::AlgorithmShortName(cl.mOptions.mAlgorithm), cl.mWidth, cl.mHeight, result.mIterations,
                         result.mIterations == 1 ? "" : "s", result.mSeconds, result.mSeconds / std::max(1, result.mIterations),
-                        smallvcm::MeanValue(result.mImage), cl.mOutput.c_str(), report.mCamera.c_str());
+                        smallvcm::MeanValue(result.mImage), cl.mOutput.c_str(), scene.mTriangles.size(), scene.mSpheres.size(),
+                        loadSeconds, report.mCamera.c_str());
         // A signal that came while the image was written (held back until then) counts too.
         if (gStopSignal.load() != 0) return 128 + gStopSignal.load();
     } catch (const Error& e) {

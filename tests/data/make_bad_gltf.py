@@ -391,6 +391,23 @@ bad("extension_required_unknown.gltf", "extensionsRequired names EXT_unknown_fea
     lambda: modified(lambda d: (d.update(extensionsRequired=["EXT_unknown_feature"]),
                                 d.update(extensionsUsed=sorted(d.get("extensionsUsed", []) +
                                                                ["EXT_unknown_feature"])))))
+
+
+def draco_compressed(d):
+    # As exporters write it: the primitive's attributes point at accessors without
+    # bufferViews, and the extension names the compressed bufferView (its bytes would be
+    # a Draco stream; the loader must refuse the file before reading any buffer).
+    floor = d["meshes"][0]["primitives"][0]
+    floor["extensions"] = {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}
+    d["buffers"].append({"byteLength": 1024, "uri": "floor_draco_stream_not_shipped.bin"})
+    d["extensionsUsed"] = sorted(d.get("extensionsUsed", []) + ["KHR_draco_mesh_compression"])
+    d["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+
+
+bad("extension_required_draco.gltf", "a Draco-compressed floor (KHR_draco_mesh_compression required; its "
+    "buffer file is absent, so reading buffers first would fail differently)",
+    "required extension KHR_draco_mesh_compression is not supported: its meshes are Draco-compressed: "
+    "decompress the file first")(lambda: modified(draco_compressed))
 bad("no_geometry.gltf", "a camera and a point light, nothing else", "the scene has no geometry")(
     lambda: no_geometry())
 bad("node_cycle.gltf", "the floor node is its own child", "cycle")(
