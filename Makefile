@@ -23,7 +23,7 @@ TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
 .PHONY: all deps demo test check fuzz convergence bench figures clean
 
-all: $(BUILD)/smallvcm $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
+all: $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
 # Installs what is missing, with sudo when not root; does nothing when all is there.
 deps:
@@ -50,6 +50,11 @@ $(BUILD)/%: $(BUILD)/%.o $(IMPL_OBJ)
 	$(CXX) $^ -o $@ $(LDFLAGS)
 
 .PRECIOUS: $(BUILD)/%.o
+
+# The header's first-screen example is a whole program: it defines SMALLVCM_IMPLEMENTATION
+# itself, so it is built alone, not linked with the implementation unit.
+$(BUILD)/minimal: examples/minimal.cpp $(HEADER) | $(BUILD)
+	$(CXX) $(CPPFLAGS) $(CXXFLAGS) $< -o $@ $(LDFLAGS)
 
 $(BUILD)/tests/catch_main.o: tests/catch_main.cpp | $(BUILD)/tests
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@

@@ -35,14 +35,26 @@
 //        -> two translation units define SMALLVCM_IMPLEMENTATION.
 //    "undefined reference to pthread_create"  -> link with -pthread.
 //
-//  A minimal program:
-//      smallvcm::Scene scene = smallvcm::LoadGltfScene("scenes/cornell_4_default.gltf");
-//      scene.mCamera.SetResolution(256, 256);
-//      smallvcm::RenderOptions options;
-//      options.algorithm  = smallvcm::Algorithm::kVertexConnectionMerging;
-//      options.iterations = 16;
-//      smallvcm::RenderResult result = smallvcm::Render(scene, options);
-//      smallvcm::WriteImage("vcm.png", result.mImage);
+//  A minimal program (examples/minimal.cpp is this, character for character; a test
+//  keeps the two the same, and `make` builds it: run it from the repository's folder):
+//      #define SMALLVCM_IMPLEMENTATION
+//      #include "smallvcm.hpp"
+//
+//      int main() {
+//          try {
+//              smallvcm::Scene scene = smallvcm::LoadGltfScene("scenes/cornell_4_default.gltf");
+//              scene.mCamera.SetResolution(256, 256);
+//              smallvcm::RenderOptions options;
+//              options.mAlgorithm = smallvcm::Algorithm::kVertexConnectionMerging;
+//              options.mIterations = 16;
+//              smallvcm::RenderResult result = smallvcm::Render(scene, options);
+//              smallvcm::WriteImage("vcm.png", result.mImage);
+//          } catch (const smallvcm::Error& e) {
+//              std::fprintf(stderr, "%s\n", e.what());
+//              return 1;
+//          }
+//          return 0;
+//      }
 //
 //  Errors: every problem with input (a scene file, an option, an image path) throws
 //  smallvcm::Error, whose what() is one line naming the file or option and the problem.
