@@ -4438,8 +4438,8 @@ private:
 
     // A camera for a file without one: it looks at the centre of the bounding box of all
     // geometry from the front (+Z, glTF's front) and 15 degrees above, with a 40-degree
-    // vertical field of view, far enough that the box's bounding sphere fits the frame in
-    // both directions at the image's aspect ratio.
+    // vertical field of view, just far enough (plus 5%) that all eight corners of the box
+    // lie inside the frame at the image's aspect ratio.
     void AddDefaultCamera() {
         Aabb box;
         for (const Triangle& triangle : mScene.mTriangles) { box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2); }
@@ -4447,18 +4447,29 @@ private:
         if (mScene.mTriangles.empty() && mScene.mSpheres.empty()) Fail("the scene has no geometry");
         const float aspect = mOptions.mDefaultCameraAspect;
         if (!(aspect > 0.f) || !std::isfinite(aspect)) Fail("the default camera's aspect ratio must be a positive number");
-        const glm::dvec3 center = 0.5 * (glm::dvec3(box.mMin) + glm::dvec3(box.mMax));
-        const double radius = std::max(0.5 * glm::length(glm::dvec3(box.mMax) - glm::dvec3(box.mMin)), 1e-6);
         const double pi = 3.14159265358979323846;
-        const double verticalFov = 40.0 * pi / 180.0;
-        const double horizontalFov = 2.0 * std::atan(std::tan(0.5 * verticalFov) * double(aspect));
-        const double distance = radius / std::sin(0.5 * std::min(verticalFov, horizontalFov));
+        const double tanHalfVertical = std::tan(0.5 * 40.0 * pi / 180.0);
+        const double tanHalfHorizontal = tanHalfVertical * double(aspect);
         const double elevation = 15.0 * pi / 180.0;
         const glm::dvec3 towardsCamera(0.0, std::sin(elevation), std::cos(elevation));
+        const glm::dvec3 forward = -towardsCamera, right(1.0, 0.0, 0.0), up = glm::cross(right, forward);
+        const glm::dvec3 center = 0.5 * (glm::dvec3(box.mMin) + glm::dvec3(box.mMax));
+        // The camera at center + d * towardsCamera sees corner X at depth dot(X - center,
+        // forward) + d; it is inside the frame when |x| <= tan(fov / 2) * depth on both axes.
+        double distance = 1e-6 * (1.0 + glm::length(center));
+        for (int c = 0; c < 8; c++) {
+            const glm::dvec3 corner(c & 1 ? box.mMax.x : box.mMin.x, c & 2 ? box.mMax.y : box.mMin.y, c & 4 ? box.mMax.z : box.mMin.z);
+            const glm::dvec3 relative = corner - center;
+            const double depthOffset = glm::dot(relative, forward);
+            distance = std::max({distance, std::abs(glm::dot(relative, right)) / tanHalfHorizontal - depthOffset,
+                                 std::abs(glm::dot(relative, up)) / tanHalfVertical - depthOffset});
+        }
+        distance *= 1.05;
         const Vec3 position = ToFloat(center + distance * towardsCamera, "the default camera's position");
-        mScene.mCamera.Setup(position, Vec3(-towardsCamera), Vec3(0.f, 1.f, 0.f), float(horizontalFov * 180.0 / pi));
+        const double horizontalFov = 2.0 * std::atan(tanHalfHorizontal);
+        mScene.mCamera.Setup(position, Vec3(forward), Vec3(0.f, 1.f, 0.f), float(horizontalFov * 180.0 / pi));
         mReport.mDefaultCamera = true;
-        mReport.mCamera = "a default camera (the file has none): front, 15 degrees above, 40-degree vertical field of view";
+        mReport.mCamera = "a default camera (the file has none): from the front, 15 degrees above, framing the whole scene";
     }
 
     std::string mPath;
