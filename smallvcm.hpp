@@ -142,6 +142,13 @@ public:
     explicit Error(const std::string& aMessage) : std::runtime_error(aMessage) {}
 };
 
+// A number as an error message shows it: three significant digits ("1e+30", "0.25").
+inline std::string ShortNumber(double aValue) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.3g", aValue);
+    return text;
+}
+
 // Numerical invariant checks, compiled in with SMALLVCM_CHECKS (see the manual above).
 #ifdef SMALLVCM_CHECKS
 #define SMALLVCM_CHECK(aCondition, aWhat)                                                        \
@@ -164,6 +171,17 @@ inline constexpr float kEpsPhong = 1e-3f;
 // radius. 4.51e-4 * 2.2170596 = 1e-3, SmallVCM's absolute EPS_RAY in its Cornell box;
 // making it relative keeps scenes of any scale working.
 inline constexpr float kRayEpsilonPerSceneRadius = 1e-3f / 2.2170596f;
+// A triangle whose edges make an angle with sine below this is a line or a point: its
+// normal would be rounding noise. Edges and cross product are computed in double from
+// float vertices (exact differences, products rounded at 1e-16), so anything above this
+// is a real, if thin, triangle.
+inline constexpr double kCollinearSine = 1e-12;
+// Limits on a light, so that the estimators' float arithmetic cannot overflow: the power
+// it emits (radiance x pi x area, intensity x 4 pi, ...) and 1 / its area (the area pdf).
+// Measured on the Cornell scenes at 16x16: every algorithm renders finite images with
+// power 1e30 and with a sphere light of area 1e-37; power 1e36 overflows light tracing.
+inline constexpr float kMaxLightPower = 1e30f;
+inline constexpr float kMinLightArea = 1e-30f;
 
 // =====================================================================================
 // [SECTION] Math
@@ -397,6 +415,22 @@ inline void EdgeFunctionsInDouble(float ax, float ay, float bx, float by, float 
     w = float(double(bx) * double(ay) - double(by) * double(ax));
 }
 
+// The unit normal of triangle (aP0, aP1, aP2) by its winding (counter-clockwise seen
+// from the front), computed in double so that long thin triangles keep an accurate normal.
+// Returns false for a degenerate triangle: a repeated vertex, collinear vertices (sine of
+// the angle between its edges below kCollinearSine), or coordinates so extreme that the
+// normal is not representable. Scene::Finalize and the loader share this one test.
+inline bool TriangleNormal(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, Vec3& oNormal) {
+    const glm::dvec3 edge1 = glm::dvec3(aP1) - glm::dvec3(aP0);
+    const glm::dvec3 edge2 = glm::dvec3(aP2) - glm::dvec3(aP0);
+    const glm::dvec3 cross = glm::cross(edge1, edge2);
+    const double doubleArea = glm::length(cross);
+    if (!std::isfinite(doubleArea) || !(doubleArea > kCollinearSine * glm::length(edge1) * glm::length(edge2)))
+        return false;
+    oNormal = Vec3(cross / doubleArea);
+    return std::isfinite(oNormal.x) && std::isfinite(oNormal.y) && std::isfinite(oNormal.z);
+}
+
 inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Ray& aRay,
                               const WatertightRay& aShear, float aTMin, float aTMax, float& oT) {
     const int kx = aShear.mKx, ky = aShear.mKy, kz = aShear.mKz;
@@ -474,6 +508,9 @@ struct PrimitiveSoup {
 // and the primitives are copied into leaf order, so a leaf reads consecutive records.
 // Traversal: a stack, nearer children first; a popped child whose box starts beyond the
 // nearest hit found meanwhile is skipped without another test.
+// Primitives that share one centroid (a mesh duplicated over itself) cannot be split and
+// stay one leaf: splitting them by count would leave boxes that all overlap, which every
+// ray enters anyway.
 class Bvh {
 public:
     static constexpr int kWidth = 4;
@@ -877,7 +914,10 @@ struct Triangle {
     Vec3 mNormal{0.f};   // set by Scene::Finalize from the winding
     int mMaterialId = 0;
     int mLightId = -1;
-    float Area() const { return 0.5f * glm::length(glm::cross(mP1 - mP0, mP2 - mP0)); }
+    // In double: a thin triangle's float cross product loses most of its digits.
+    float Area() const {
+        return float(0.5 * glm::length(glm::cross(glm::dvec3(mP1) - glm::dvec3(mP0), glm::dvec3(mP2) - glm::dvec3(mP0))));
+    }
 };
 
 struct Sphere {
@@ -896,6 +936,16 @@ struct SceneSphere {
 };
 
 enum class LightType { kArea, kSphere, kPoint, kDirectional, kBackground };
+inline const char* LightTypeName(LightType aType) {
+    switch (aType) {
+    case LightType::kArea: return "area";
+    case LightType::kSphere: return "sphere";
+    case LightType::kPoint: return "point";
+    case LightType::kDirectional: return "directional";
+    case LightType::kBackground: return "background";
+    }
+    return "unknown";
+}
 
 // Next-event estimation sample: a point on the light seen from a receiving point.
 struct LightSample {
@@ -1264,14 +1314,13 @@ public:
         if (backgrounds > 1) throw Error(where + ": more than one background light");
 
         Aabb box;
-        for (Triangle& triangle : mTriangles) {
+        for (size_t t = 0; t < mTriangles.size(); t++) {
+            Triangle& triangle = mTriangles[t];
             if (!IsFinite(triangle.mP0) || !IsFinite(triangle.mP1) || !IsFinite(triangle.mP2))
-                throw Error(where + ": a triangle has a non-finite vertex");
-            const Vec3 cross = glm::cross(triangle.mP1 - triangle.mP0, triangle.mP2 - triangle.mP0);
-            const float length = glm::length(cross);
-            if (!(length > 0.f) || !std::isfinite(length))
-                throw Error(where + ": a triangle is degenerate (zero area)");
-            triangle.mNormal = cross / length;
+                throw Error(where + ": triangle " + std::to_string(t) + " has a non-finite vertex");
+            if (!TriangleNormal(triangle.mP0, triangle.mP1, triangle.mP2, triangle.mNormal))
+                throw Error(where + ": triangle " + std::to_string(t) +
+                            " is degenerate (zero area: its vertices coincide or lie on a line)");
             CheckMaterial(where, triangle.mMaterialId);
             box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2);
         }
@@ -1320,9 +1369,11 @@ public:
             light.mSphereRadius = sphere.mRadius;
             light.mArea = 4.f * kPi * Sqr(sphere.mRadius);
         }
-        for (Light& light : mLights) {
+        for (size_t id = 0; id < mLights.size(); id++) {
+            Light& light = mLights[id];
             if ((light.mType == LightType::kArea || light.mType == LightType::kSphere) && !(light.mArea > 0.f))
                 throw Error(where + ": an area or sphere light has no surface");
+            CheckLightRange(where, id);
             for (float& c : light.mTriangleCdf) c /= light.mArea;
             if (!light.mTriangleCdf.empty()) light.mTriangleCdf.back() = 1.f;
         }
@@ -1388,6 +1439,27 @@ public:
     }
 
 private:
+    // Refuses a light whose power or area pdf would overflow float arithmetic in some
+    // estimator (kMaxLightPower, kMinLightArea); the scene sphere must be set.
+    void CheckLightRange(const std::string& aWhere, size_t aId) const {
+        const Light& light = mLights[aId];
+        const double brightest = std::max({double(light.mEmission.x), double(light.mEmission.y), double(light.mEmission.z)});
+        const double discArea = double(kPi) * Sqr(double(mSceneSphere.mRadius));
+        double power = 0.0;
+        switch (light.mType) {
+        case LightType::kArea: case LightType::kSphere: power = brightest * double(kPi) * double(light.mArea); break;
+        case LightType::kPoint: power = brightest * 4.0 * double(kPi); break;
+        case LightType::kDirectional: power = brightest * discArea; break;
+        case LightType::kBackground: power = brightest * 4.0 * double(kPi) * discArea; break;
+        }
+        const std::string which = aWhere + ": light " + std::to_string(aId) + " (" + LightTypeName(light.mType) + ")";
+        if (!(power <= double(kMaxLightPower)))
+            throw Error(which + " emits a power of " + ShortNumber(power) + ", above the " + ShortNumber(kMaxLightPower) +
+                        " single-precision arithmetic allows: scale its emission down");
+        if ((light.mType == LightType::kArea || light.mType == LightType::kSphere) && !(light.mArea >= kMinLightArea))
+            throw Error(which + " has an area of " + ShortNumber(light.mArea) + ", below the " + ShortNumber(kMinLightArea) +
+                        " whose inverse (its sampling pdf) single precision can hold: enlarge it or use a point light");
+    }
     void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
         if (aMaterialId < 0 || aMaterialId >= int(mMaterials.size()))
             throw Error(aWhere + ": a primitive refers to material " + std::to_string(aMaterialId) + ", which does not exist");
@@ -1984,9 +2056,10 @@ private:
     static constexpr const char* kLayerNames[5] = {"emitted", "direct_nonspecular", "direct_specular",
                                                    "indirect_nonspecular", "indirect_specular"};
 
+    // w = p^b / (p^b + q^b), written as 1 / (1 + (q/p)^b): squaring the pdfs of a small
+    // light seen from afar (1e17 and more) would overflow to inf / inf = NaN.
     float MisWeight(float aPdfOfThis, float aPdfOfOther) const {
-        const float mine = MisPower(mOptions.mMis, aPdfOfThis);
-        return mine / (mine + MisPower(mOptions.mMis, aPdfOfOther));
+        return 1.f / (1.f + MisPower(mOptions.mMis, aPdfOfOther / aPdfOfThis));
     }
     // The weights of the two direct-light techniques; with one technique switched off
     // the other gets weight 1 (and the path still scatters, for indirect light).
@@ -4291,9 +4364,8 @@ private:
                 if (i0 >= vertexCount || i1 >= vertexCount || i2 >= vertexCount)
                     Fail(what + ": index out of range in triangle " + std::to_string(t / 3) + " (vertex count " + std::to_string(vertexCount) + ")");
                 if (flip) std::swap(i1, i2);
-                const Vec3 cross = glm::cross(world[i1] - world[i0], world[i2] - world[i0]);
-                const float doubleArea = glm::length(cross);
-                if (!(doubleArea > 0.f) || !std::isfinite(doubleArea)) { mSkippedTriangles++; continue; }
+                Vec3 normal;
+                if (!TriangleNormal(world[i0], world[i1], world[i2], normal)) { mSkippedTriangles++; continue; }
                 triangleIds.push_back(mScene.AddTriangle(world[i0], world[i1], world[i2], material));
             }
             // An emissive primitive instance is one area light over all its triangles.

@@ -490,6 +490,99 @@ TEST_CASE("The BVH stays within its depth bound when centroids form geometric pr
     REQUIRE(CompareBvhWithBruteForce(primitives, bvh, 3000, 1.5f, 206) > 100);
 }
 
+TEST_CASE("The BVH over a million coincident triangles builds and finds the nearest of them and of the rest", "[geometry]") {
+    // 10^6 copies of one triangle (a mesh exported twice over itself, a hostile file):
+    // no split can separate them, so they form one leaf; the build must neither recurse
+    // without end nor lose the distinct triangles beside them. Rays through the stack hit
+    // it at its known distance; rays through the other triangles hit those.
+    Primitives primitives;
+    const Vec3 a(-1.f, -1.f, 0.f), b(1.f, -1.f, 0.f), c(0.f, 1.f, 0.f);
+    for (int i = 0; i < 1000000; i++) primitives.AddTriangle(a, b, c);
+    primitives.AddTriangle(Vec3(3.f, -1.f, 0.5f), Vec3(5.f, -1.f, 0.5f), Vec3(4.f, 1.f, 0.5f));  // beside the stack
+    primitives.AddTriangle(Vec3(-1.f, -1.f, 2.f), Vec3(0.f, 1.f, 2.f), Vec3(1.f, -1.f, 2.f));    // above it
+    Bvh bvh;
+    bvh.Build(primitives.Soup());
+    REQUIRE(bvh.PrimitiveCount() == 1000002);
+    REQUIRE(bvh.BuildDepth() <= 64);
+    const Vec3 down(0.f, 0.f, -1.f);
+    for (float x : {-0.3f, 0.f, 0.2f}) {
+        float t = 100.f;  // from z = 5 straight down: the triangle at z = 2 first
+        REQUIRE(bvh.Intersect(Ray{Vec3(x, -0.5f, 5.f), down}, 0.f, t) == 1000001);
+        CHECK(t == Approx(3.f));
+        t = 100.f;        // from z = 1: the stack at z = 0, one of its copies
+        const int hit = bvh.Intersect(Ray{Vec3(x, -0.5f, 1.f), down}, 0.f, t);
+        CHECK(hit >= 0);
+        CHECK(hit < 1000000);
+        CHECK(t == Approx(1.f));
+        CHECK(bvh.Occluded(Ray{Vec3(x, -0.5f, 1.f), down}, 0.f, 2.f));
+        CHECK_FALSE(bvh.Occluded(Ray{Vec3(x, -0.5f, 1.f), down}, 0.f, 0.99f));
+    }
+    float t = 100.f;
+    CHECK(bvh.Intersect(Ray{Vec3(4.f, 0.f, 5.f), down}, 0.f, t) == 1000000);
+    CHECK(t == Approx(4.5f));
+    t = 100.f;
+    CHECK(bvh.Intersect(Ray{Vec3(2.f, 0.f, 5.f), down}, 0.f, t) == -1);
+}
+
+TEST_CASE("TriangleNormal: unit normal by the winding in double precision, false for lines and points", "[geometry]") {
+    Vec3 n;
+    REQUIRE(TriangleNormal(Vec3(0.f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f), n));
+    CHECK(n == Vec3(0.f, 0.f, 1.f));
+    REQUIRE(TriangleNormal(Vec3(0.f), Vec3(0.f, 1.f, 0.f), Vec3(1.f, 0.f, 0.f), n));
+    CHECK(n == Vec3(0.f, 0.f, -1.f));
+    // A needle 1e6 long and 1e-3 wide, far from the origin: float's cross product of its
+    // edges keeps about one digit, double's all of them.
+    const Vec3 base(1e4f, 2e4f, 3e4f);
+    REQUIRE(TriangleNormal(base, base + Vec3(1e6f, 0.f, 0.f), base + Vec3(5e5f, 1e-3f, 0.f), n));
+    CHECK(std::abs(n.z - 1.f) < 1e-6f);
+    CHECK(std::abs(n.x) < 1e-6f);
+    CHECK(std::abs(n.y) < 1e-6f);
+    // Degenerate: a repeated vertex, three collinear points (also at large coordinates),
+    // a single point.
+    CHECK_FALSE(TriangleNormal(Vec3(1.f), Vec3(1.f), Vec3(2.f, 0.f, 0.f), n));
+    CHECK_FALSE(TriangleNormal(Vec3(0.f), Vec3(1.f, 2.f, 3.f), Vec3(2.f, 4.f, 6.f), n));
+    CHECK_FALSE(TriangleNormal(Vec3(1e7f, 1e7f, 0.f), Vec3(2e7f, 2e7f, 0.f), Vec3(4e7f, 4e7f, 0.f), n));
+    CHECK_FALSE(TriangleNormal(Vec3(0.5f), Vec3(0.5f), Vec3(0.5f), n));
+    // Edges longer than float's range are still exact in double: a valid normal.
+    REQUIRE(TriangleNormal(Vec3(-3e38f, 0.f, 0.f), Vec3(3e38f, 0.f, 0.f), Vec3(0.f, 3e38f, 0.f), n));
+    CHECK(n == Vec3(0.f, 0.f, 1.f));
+}
+
+TEST_CASE("Scene::Finalize names a degenerate triangle by index", "[geometry]") {
+    Scene scene;
+    scene.mName = "hand-made";
+    const int material = scene.AddMaterial(Material{});
+    scene.AddTriangle(Vec3(0.f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f), material);
+    scene.AddTriangle(Vec3(0.f), Vec3(1.f, 1.f, 1.f), Vec3(3.f, 3.f, 3.f), material);
+    scene.AddPointLight(Vec3(0.f, 0.f, 1.f), Vec3(1.f));
+    REQUIRE_THROWS_WITH(scene.Finalize(), "hand-made: triangle 1 is degenerate (zero area: its vertices coincide or lie on a line)");
+}
+
+TEST_CASE("Scene::Finalize refuses lights whose power or area pdf would overflow single precision", "[geometry]") {
+    // The bounds (kMaxLightPower, kMinLightArea) leave headroom that test_stability
+    // measures: all estimators stay finite just inside them.
+    auto scene = [](float aRadiance, float aSphereRadius) {
+        Scene s;
+        s.mName = "lights";
+        const int material = s.AddMaterial(Material{});
+        s.AddTriangle(Vec3(-1.f, -1.f, 0.f), Vec3(1.f, -1.f, 0.f), Vec3(0.f, 1.f, 0.f), material);
+        s.AddSphereLight(s.AddSphere(Vec3(0.f, 0.f, 0.5f), aSphereRadius, material), Vec3(aRadiance));
+        return s;
+    };
+    // Radius 0.1: area 0.126, power = pi * area * L = 0.395 L.
+    REQUIRE_NOTHROW(scene(2e30f, 0.1f).Finalize());
+    REQUIRE_THROWS_WITH(scene(3e30f, 0.1f).Finalize(), Catch::Contains("lights: light 0 (sphere) emits a power of 1.18e+30") &&
+                                                       Catch::Contains("scale its emission down"));
+    REQUIRE_NOTHROW(scene(1.f, 3e-16f).Finalize());  // area 1.13e-30
+    REQUIRE_THROWS_WITH(scene(1.f, 2e-16f).Finalize(), Catch::Contains("light 0 (sphere) has an area of 5.03e-31") &&
+                                                       Catch::Contains("use a point light"));
+    Scene point = scene(1.f, 0.1f);
+    point.mLights.clear();
+    point.mSpheres[0].mLightId = -1;
+    point.AddPointLight(Vec3(0.f, 0.f, 1.f), Vec3(1e29f));  // power 4 pi 1e29 = 1.26e30
+    REQUIRE_THROWS_WITH(point.Finalize(), Catch::Contains("light 0 (point) emits a power of 1.26e+30"));
+}
+
 TEST_CASE("A BVH over a single triangle or a single sphere is one leaf and finds it", "[geometry]") {
     Primitives oneTriangle;
     oneTriangle.AddTriangle(Vec3(0.f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f));

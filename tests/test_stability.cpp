@@ -142,3 +142,40 @@ TEST_CASE("Lights touching walls stay finite", "[stability]") {
     scene.Finalize();
     CheckEveryAlgorithm(scene, "lights touching walls", 4);
 }
+
+TEST_CASE("Lights at the limits Scene::Finalize allows render finite images with every estimator", "[stability]") {
+    // Finalize refuses a light emitting more than kMaxLightPower or smaller than
+    // kMinLightArea. Just inside those limits every estimator, with either MIS heuristic,
+    // must stay finite (measured before the limits existed: power 1e36 overflowed light
+    // tracing on the background scene, area 1e-39 the path tracer).
+    auto checkAll = [](const Scene& aScene, const std::string& aWhat) {
+        for (Algorithm algorithm : kAll)
+            for (MisHeuristic heuristic : {MisHeuristic::kBalance, MisHeuristic::kPower}) {
+                RenderOptions options = Options(algorithm, 2);
+                options.mMis = heuristic;
+                INFO(aWhat << ", " << AlgorithmShortName(algorithm) << (heuristic == MisHeuristic::kPower ? ", power" : ", balance"));
+                CHECK(BadPixels(Render(aScene, options).mImage) == 0);
+            }
+    };
+    for (int cornell = 0; cornell < 5; cornell++) {
+        // Double every emission until Finalize refuses, and render the last accepted scene:
+        // within a factor of 2 of the power limit.
+        Scene scene = LoadCornell(cornell, 12, 12);
+        int doublings = 0;
+        for (;; doublings++) {
+            Scene brighter = scene;
+            for (Light& light : brighter.mLights) light.mEmission *= 2.f;
+            try { brighter.Finalize(); } catch (const Error&) { break; }
+            scene = brighter;
+        }
+        REQUIRE(doublings > 50);
+        checkAll(scene, "Cornell " + std::to_string(cornell) + " at the power limit");
+    }
+    // A sphere light of area 1.01e-30 (radius 2.835e-16) below the ceiling of scene 4.
+    Scene tiny = LoadCornell(4, 12, 12);
+    tiny.mLights.clear();
+    for (Triangle& triangle : tiny.mTriangles) triangle.mLightId = -1;
+    tiny.AddSphereLight(tiny.AddSphere(Vec3(0.f, 0.f, 1.f), 2.835e-16f, tiny.AddMaterial(Material{})), Vec3(1e3f));
+    REQUIRE_NOTHROW(tiny.Finalize());
+    checkAll(tiny, "sphere light of area 1e-30");
+}

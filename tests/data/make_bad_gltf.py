@@ -311,6 +311,10 @@ bad("emission_strength_nan.gltf", "emissiveStrength is the string \"NaN\" (JSON 
 bad("emission_strength_infinite.gltf", "emissiveStrength 1e999 (too large for a double)",
     "1e999")(
     lambda: dumps(scene()).replace('"emissiveStrength": 10.0', '"emissiveStrength": 1e999'))
+bad("emission_power_overflow.gltf", "emissiveStrength 1e38: finite, but the light's power overflows "
+    "single-precision arithmetic", "emits a power of")(
+    lambda: modified(lambda d: d["materials"][1]["extensions"]["KHR_materials_emissive_strength"].update(
+        emissiveStrength=1e38)))
 
 # --- lights -----------------------------------------------------------------
 POINT_LIGHT_NODE = {"name": "point light", "translation": [0, 0, 0.5],
@@ -384,6 +388,9 @@ bad("sphere_material_out_of_range.gltf", "SMALLVCM_sphere material 7 (there are 
 bad("sphere_material_negative.gltf", "SMALLVCM_sphere material -1 (not an index)",
     "material -1")(
     lambda: modified(with_sphere({"radius": 0.2, "material": -1})))
+bad("sphere_light_tiny.gltf", "an emissive SMALLVCM_sphere of radius 1e-20: its area pdf overflows single "
+    "precision", "has an area of")(
+    lambda: modified(with_sphere({"radius": 1e-20, "material": 1})))
 
 # --- extensions and nodes -------------------------------------------------------
 bad("extension_required_unknown.gltf", "extensionsRequired names EXT_unknown_feature",
