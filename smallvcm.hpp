@@ -508,9 +508,9 @@ struct PrimitiveSoup {
 // and the primitives are copied into leaf order, so a leaf reads consecutive records.
 // Traversal: a stack, nearer children first; a popped child whose box starts beyond the
 // nearest hit found meanwhile is skipped without another test.
-// Primitives that share one centroid (a mesh duplicated over itself) cannot be split and
-// stay one leaf: splitting them by count would leave boxes that all overlap, which every
-// ray enters anyway.
+// Primitives that share one centroid cannot be split and stay one leaf (splitting them by
+// count would leave boxes that all overlap, which every ray enters anyway); identical
+// copies in such a leaf (a mesh duplicated over itself) are kept once.
 class Bvh {
 public:
     static constexpr int kWidth = 4;
@@ -531,6 +531,8 @@ public:
         mRoot = ChildRef{};
         mLeafCount = 0;
         mBuildDepth = 0;
+        mLargestLeaf = 0;
+        mBuildSoup = &aSoup;
         const int count = aSoup.Count();
         mPrimitiveCount = count;
         std::vector<uint32_t> order(count);
@@ -545,6 +547,7 @@ public:
         std::vector<BinaryNode> binary;
         binary.reserve(size_t(count));
         const ChildRef binaryRoot = BuildBinary(bounds, centroids, order, 0, uint32_t(count), 0, binary);
+        mBuildSoup = nullptr;
         mNodes.reserve(binary.size() / 2 + 1);
         mRoot = Collapse(binary, binaryRoot);
         // The primitives in leaf order, triangles as vertices, spheres as centre and radius.
@@ -646,6 +649,9 @@ public:
     // Levels of the 4-wide tree a ray walks, and of the binary tree it was collapsed from.
     int Depth() const { return mRecords.empty() ? 0 : DepthOf(mRoot.mIndex, mRoot.mCount); }
     int BuildDepth() const { return mBuildDepth; }
+    // Primitives in the largest leaf (at most kMaxLeafSize unless distinct primitives
+    // share one centroid).
+    uint32_t LargestLeaf() const { return mLargestLeaf; }
 
 private:
     // A primitive as the traversal reads it (40 bytes): a triangle's three vertices, or a
@@ -762,7 +768,8 @@ private:
         const uint32_t count = aEnd - aBegin;
         auto makeLeaf = [&] {
             result.mIndex = aBegin;
-            result.mCount = count;
+            result.mCount = count > kMaxLeafSize ? KeepDistinct(ioOrder, aBegin, aEnd) : count;
+            mLargestLeaf = std::max(mLargestLeaf, result.mCount);
             return result;
         };
 
@@ -830,6 +837,35 @@ private:
         return result;
     }
 
+    // A leaf that no split could bring down to kMaxLeafSize (its primitives share one
+    // centroid, or the depth cap was reached) keeps one of each group of identical
+    // primitives: a copy is never nearer than its original, and a mesh duplicated a
+    // million times over itself would otherwise cost every ray that enters the leaf a
+    // million tests. Sorts ioOrder[aBegin, aEnd) so the distinct ones come first and
+    // returns their count; the copies stay in the order, referenced by no leaf.
+    uint32_t KeepDistinct(std::vector<uint32_t>& ioOrder, uint32_t aBegin, uint32_t aEnd) const {
+        const PrimitiveSoup& soup = *mBuildSoup;
+        const auto key = [&](uint32_t aPrimitive) {
+            std::array<float, 10> k{};
+            const size_t p = aPrimitive;
+            if (int(p) < soup.TriangleCount()) {
+                const Vec3 v[3] = {soup.mTriangleP0[p], soup.mTriangleP1[p], soup.mTriangleP2[p]};
+                for (int i = 0; i < 9; i++) k[size_t(i) + 1] = v[i / 3][i % 3];
+            } else {
+                const size_t sphere = p - size_t(soup.TriangleCount());
+                k[0] = 1.f;
+                for (int i = 0; i < 3; i++) k[size_t(i) + 1] = soup.mSphereCenter[sphere][i];
+                k[4] = soup.mSphereRadius[sphere];
+            }
+            return k;
+        };
+        uint32_t* first = ioOrder.data() + aBegin;
+        uint32_t* last = ioOrder.data() + aEnd;
+        std::sort(first, last, [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
+        const uint32_t* distinctEnd = std::unique(first, last, [&](uint32_t a, uint32_t b) { return key(a) == key(b); });
+        return uint32_t(distinctEnd - first);
+    }
+
     // Turns the binary subtree aSubtree into 4-wide nodes (depth-first, a node before
     // its children) and returns it as its parent sees it.
     ChildRef Collapse(const std::vector<BinaryNode>& aBinary, const ChildRef& aSubtree) {
@@ -875,6 +911,8 @@ private:
     size_t mLeafCount = 0;
     int mPrimitiveCount = 0;
     int mBuildDepth = 0;
+    uint32_t mLargestLeaf = 0;
+    const PrimitiveSoup* mBuildSoup = nullptr;  // during Build only
 };
 
 // =====================================================================================
