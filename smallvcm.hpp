@@ -355,6 +355,7 @@ struct Hit {
     int mMaterialId = -1;
     int mLightId = -1;      // >= 0 when the primitive emits
     Vec3 mNormal{0.f};      // geometric, unit length
+    Vec2 mUv{0.f};          // texture coordinates (set when the hit's material has a texture)
     bool IsValid() const { return mPrimitiveId >= 0; }
 };
 
@@ -924,6 +925,53 @@ private:
 // Relies on: Geometry. Invariant after Scene::Finalize(): every triangle has a valid
 // unit normal, every light's sampling data is built, the BVH is current.
 
+// How texture coordinates outside [0, 1] map into the image (glTF sampler wrap modes).
+enum class TextureWrap { kRepeat, kClampToEdge, kMirroredRepeat };
+
+// An RGB image in linear colour, filtered bilinearly. glTF conventions: uv (0, 0) is the
+// top-left corner of the image (row 0), texel centres lie at ((i + 0.5) / width, ...).
+struct Texture {
+    int mWidth = 0, mHeight = 0;
+    std::vector<Vec3> mTexels;  // row by row from the top
+    TextureWrap mWrapU = TextureWrap::kRepeat, mWrapV = TextureWrap::kRepeat;
+
+    Vec3 Lookup(const Vec2& aUv) const {
+        const float x = Reduce(aUv.x, mWrapU) * float(mWidth) - 0.5f;
+        const float y = Reduce(aUv.y, mWrapV) * float(mHeight) - 0.5f;
+        const float fx = std::floor(x), fy = std::floor(y);
+        const float tx = x - fx, ty = y - fy;
+        const int x0 = int(fx), y0 = int(fy);
+        const auto at = [&](int aX, int aY) {
+            return mTexels[size_t(Wrap(aY, mHeight, mWrapV)) * size_t(mWidth) + size_t(Wrap(aX, mWidth, mWrapU))];
+        };
+        return (1.f - ty) * ((1.f - tx) * at(x0, y0) + tx * at(x0 + 1, y0)) +
+               ty * ((1.f - tx) * at(x0, y0 + 1) + tx * at(x0 + 1, y0 + 1));
+    }
+
+private:
+    // A coordinate brought into [0, 1] (repeat: [0, 1), its period) before it is scaled
+    // to texels, so that huge coordinates cannot overflow an int. Not finite: 0.
+    static float Reduce(float aCoordinate, TextureWrap aWrap) {
+        if (!std::isfinite(aCoordinate)) return 0.f;
+        switch (aWrap) {
+        case TextureWrap::kRepeat: return aCoordinate - std::floor(aCoordinate);
+        case TextureWrap::kClampToEdge: return std::min(std::max(aCoordinate, 0.f), 1.f);
+        case TextureWrap::kMirroredRepeat: {
+            const float t = aCoordinate - 2.f * std::floor(0.5f * aCoordinate);  // [0, 2)
+            return t <= 1.f ? t : 2.f - t;
+        }
+        }
+        return 0.f;
+    }
+    // A texel index one step outside [0, aSize) (the bilinear neighbour) brought back in.
+    static int Wrap(int aIndex, int aSize, TextureWrap aWrap) {
+        if (aWrap == TextureWrap::kClampToEdge) return std::min(std::max(aIndex, 0), aSize - 1);
+        const int period = aWrap == TextureWrap::kRepeat ? aSize : 2 * aSize;
+        const int m = ((aIndex % period) + period) % period;
+        return m < aSize ? m : period - 1 - m;
+    }
+};
+
 struct Material {
     std::string mName;
     Vec3 mDiffuseReflectance{0.f};
@@ -932,6 +980,12 @@ struct Material {
     Vec3 mMirrorReflectance{0.f};
     float mIor = -1.f;        // < 0: no refraction; > 0: glass, mirror part Fresnel-weighted
     bool mTwoSided = false;   // diffuse and Phong reflect on both sides (glTF doubleSided)
+    // Base-colour texture (index into Scene::mTextures, -1 for none). Its texel multiplies
+    // the diffuse reflectance and tints the Phong and mirror parts above mSpecularUntinted,
+    // the share no base colour reaches (glTF: specular = 0.04 (1 - metallic) + metallic x
+    // base colour, so mSpecularUntinted = 0.04 (1 - metallic)).
+    int mBaseColorTexture = -1;
+    Vec3 mSpecularUntinted{0.f};
 
     bool HasNonSpecular() const { return !IsBlack(mDiffuseReflectance) || !IsBlack(mPhongReflectance); }
     bool HasSpecular() const { return !IsBlack(mMirrorReflectance) || mIor > 0.f; }
@@ -952,6 +1006,7 @@ struct Triangle {
     Vec3 mNormal{0.f};   // set by Scene::Finalize from the winding
     int mMaterialId = 0;
     int mLightId = -1;
+    Vec2 mUv0{0.f}, mUv1{0.f}, mUv2{0.f};  // texture coordinates (glTF TEXCOORD_0)
     // In double: a thin triangle's float cross product loses most of its digits.
     float Area() const {
         return float(0.5 * glm::length(glm::cross(glm::dvec3(mP1) - glm::dvec3(mP0), glm::dvec3(mP2) - glm::dvec3(mP0))));
@@ -1278,6 +1333,7 @@ public:
     std::vector<Triangle> mTriangles;
     std::vector<Sphere> mSpheres;
     std::vector<Light> mLights;
+    std::vector<Texture> mTextures;
     Camera mCamera;
 
     // --- building ----------------------------------------------------------------
@@ -1454,6 +1510,8 @@ public:
             oHit.mMaterialId = triangle.mMaterialId;
             oHit.mLightId = triangle.mLightId;
             oHit.mNormal = triangle.mNormal;
+            if (mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0)
+                oHit.mUv = TriangleUv(triangle, aRay.mOrigin + tMax * aRay.mDirection);
         } else {
             const Sphere& sphere = mSpheres[size_t(primitive - triangleCount)];
             oHit.mMaterialId = sphere.mMaterialId;
@@ -1471,12 +1529,32 @@ public:
         return mBvh.Occluded(ray, 0.f, aDistance - 2.f * mRayEpsilon);
     }
 
+    // The base-colour texel at a hit (white for untextured materials).
+    Vec3 BaseColorTexel(const Hit& aHit) const {
+        const int texture = mMaterials[size_t(aHit.mMaterialId)].mBaseColorTexture;
+        return texture < 0 ? Vec3(1.f) : mTextures[size_t(texture)].Lookup(aHit.mUv);
+    }
+
     // Ray leaving a surface point: the origin moves off the surface along the direction.
     Ray SpawnRay(const Vec3& aPoint, const Vec3& aDirection) const {
         return Ray{aPoint + aDirection * mRayEpsilon, aDirection};
     }
 
 private:
+    // Texture coordinates at aPoint of aTriangle, interpolated with the barycentric
+    // coordinates of the point's projection onto the triangle's plane (Ericson,
+    // Real-Time Collision Detection, 3.4), in double for thin triangles.
+    static Vec2 TriangleUv(const Triangle& aTriangle, const Vec3& aPoint) {
+        const glm::dvec3 p0(aTriangle.mP0), e1 = glm::dvec3(aTriangle.mP1) - p0, e2 = glm::dvec3(aTriangle.mP2) - p0;
+        const glm::dvec3 toPoint = glm::dvec3(aPoint) - p0;
+        const double d11 = glm::dot(e1, e1), d12 = glm::dot(e1, e2), d22 = glm::dot(e2, e2);
+        const double dp1 = glm::dot(toPoint, e1), dp2 = glm::dot(toPoint, e2);
+        const double denominator = d11 * d22 - d12 * d12;
+        if (!(denominator > 0.0)) return aTriangle.mUv0;
+        const double b1 = (d22 * dp1 - d12 * dp2) / denominator, b2 = (d11 * dp2 - d12 * dp1) / denominator;
+        return Vec2(glm::dvec2(aTriangle.mUv0) * (1.0 - b1 - b2) + glm::dvec2(aTriangle.mUv1) * b1 + glm::dvec2(aTriangle.mUv2) * b2);
+    }
+
     // Refuses a light whose power or area pdf would overflow float arithmetic in some
     // estimator (kMaxLightPower, kMinLightArea); the scene sphere must be set.
     void CheckLightRange(const std::string& aWhere, size_t aId) const {
@@ -1499,6 +1577,14 @@ private:
                         " whose inverse (its sampling pdf) single precision can hold: enlarge it or use a point light");
     }
     void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
+        if (aMaterialId >= 0 && size_t(aMaterialId) < mMaterials.size()) {
+            const int texture = mMaterials[size_t(aMaterialId)].mBaseColorTexture;
+            if (texture >= int(mTextures.size()) ||
+                (texture >= 0 && (mTextures[size_t(texture)].mWidth <= 0 || mTextures[size_t(texture)].mHeight <= 0 ||
+                                  mTextures[size_t(texture)].mTexels.size() !=
+                                      size_t(mTextures[size_t(texture)].mWidth) * size_t(mTextures[size_t(texture)].mHeight))))
+                throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " refers to a missing or empty texture");
+        }
         if (aMaterialId < 0 || aMaterialId >= int(mMaterials.size()))
             throw Error(aWhere + ": a primitive refers to material " + std::to_string(aMaterialId) + ", which does not exist");
     }
@@ -1555,14 +1641,30 @@ public:
     // aRay is the ray that found aHit (its direction points into the surface).
     // aFixIsLight: true on light sub-paths.
     void Setup(const Ray& aRay, const Hit& aHit, const Scene& aScene, bool aFixIsLight) {
-        Setup(-aRay.mDirection, aHit.mNormal, aScene.GetMaterial(aHit.mMaterialId), aFixIsLight);
+        const Material& material = aScene.GetMaterial(aHit.mMaterialId);
+        if (material.mBaseColorTexture < 0) Setup(-aRay.mDirection, aHit.mNormal, material, aFixIsLight);
+        else {
+            const Vec3 texel = aScene.BaseColorTexel(aHit);
+            Setup(-aRay.mDirection, aHit.mNormal, material, aFixIsLight, &texel);
+        }
     }
     // The same from explicit data (what tests use): aWorldDirFix points away from the surface.
     // The Bsdf keeps a pointer to aMaterial, which must outlive it (a temporary is refused).
     void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material&& aMaterial, bool aFixIsLight) = delete;
-    void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material& aMaterial, bool aFixIsLight) {
+    // aBaseColorTexel: the material's texture at this point (see Material::mBaseColorTexture).
+    void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material& aMaterial, bool aFixIsLight,
+               const Vec3* aBaseColorTexel = nullptr) {
         mMaterial = &aMaterial;
         mFixIsLight = aFixIsLight;
+        mReflectance = Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance};
+        if (aBaseColorTexel) {
+            const Vec3& texel = *aBaseColorTexel;
+            mReflectance.mDiffuse *= texel;
+            if (!IsBlack(mReflectance.mPhong))
+                mReflectance.mPhong = aMaterial.mSpecularUntinted + (mReflectance.mPhong - aMaterial.mSpecularUntinted) * texel;
+            if (!IsBlack(mReflectance.mMirror))
+                mReflectance.mMirror = aMaterial.mSpecularUntinted + (mReflectance.mMirror - aMaterial.mSpecularUntinted) * texel;
+        }
         mFrame.SetFromZ(aNormal);
         mLocalDirFix = mFrame.ToLocal(aWorldDirFix);
         // A two-sided non-glass material turns its frame towards whoever looks at it.
@@ -1573,7 +1675,7 @@ public:
         mValid = false;
         if (std::abs(mLocalDirFix.z) < kEpsCosine) return;  // grazing: nothing reliable here
         mFresnel = FresnelDielectric(mLocalDirFix.z, aMaterial.mIor);
-        mProbabilities = ComponentProbabilities(aMaterial, mLocalDirFix.z, mFresnel);
+        mProbabilities = ComponentProbabilities(mReflectance, aMaterial.mIor, mLocalDirFix.z, mFresnel);
         const float total = mProbabilities[0] + mProbabilities[1] + mProbabilities[2] + mProbabilities[3];
         if (!(total > 0.f)) return;  // black, or a one-sided surface seen from behind
         for (float& p : mProbabilities) p /= total;
@@ -1643,7 +1745,7 @@ public:
             oCosThetaGen = std::abs(localDirGen.z);
             oWorldDirGen = mFrame.ToWorld(localDirGen);
             if (oSampledEvent) *oSampledEvent = event;
-            return mFresnel * mMaterial->mMirrorReflectance / oCosThetaGen;
+            return mFresnel * mReflectance.mMirror / oCosThetaGen;
         } else {
             event = kEventRefract;
             float etaFixOverEtaGen;
@@ -1675,6 +1777,8 @@ public:
 
 private:
     enum Component { kDiffuse = 0, kPhong = 1, kReflect = 2, kRefract = 3 };
+    // The reflectances of the components at this point.
+    struct Reflectances { Vec3 mDiffuse{0.f}, mPhong{0.f}, mMirror{0.f}; };
 
     static Vec3 ReflectLocal(const Vec3& aLocal) { return Vec3(-aLocal.x, -aLocal.y, aLocal.z); }
 
@@ -1692,15 +1796,16 @@ private:
 
     // Un-normalised selection weights of the components for a fixed direction whose local
     // cosine is aCosFix (the Fresnel term, and one-sidedness, depend on it).
-    static std::array<float, 4> ComponentProbabilities(const Material& aMaterial, float aCosFix, float aFresnel) {
+    static std::array<float, 4> ComponentProbabilities(const Reflectances& aReflectance, float aIor, float aCosFix,
+                                                       float aFresnel) {
         std::array<float, 4> p{};
         const bool frontSide = aCosFix > 0.f;  // two-sided materials were already flipped
         if (frontSide) {
-            p[kDiffuse] = Luminance(aMaterial.mDiffuseReflectance);
-            p[kPhong] = Luminance(aMaterial.mPhongReflectance);
+            p[kDiffuse] = Luminance(aReflectance.mDiffuse);
+            p[kPhong] = Luminance(aReflectance.mPhong);
         }
-        p[kReflect] = aFresnel * Luminance(aMaterial.mMirrorReflectance);
-        p[kRefract] = aMaterial.mIor > 0.f ? 1.f - aFresnel : 0.f;
+        p[kReflect] = aFresnel * Luminance(aReflectance.mMirror);
+        p[kRefract] = aIor > 0.f ? 1.f - aFresnel : 0.f;
         return p;
     }
 
@@ -1713,12 +1818,13 @@ private:
         // only through the Fresnel term of glass, which then has to be recomputed.
         std::array<float, 4> reverse = mProbabilities;
         if (mMaterial->mIor > 0.f) {
-            reverse = ComponentProbabilities(*mMaterial, aLocalDirGen.z, FresnelDielectric(aLocalDirGen.z, mMaterial->mIor));
+            reverse = ComponentProbabilities(mReflectance, mMaterial->mIor, aLocalDirGen.z,
+                                             FresnelDielectric(aLocalDirGen.z, mMaterial->mIor));
             const float total = reverse[0] + reverse[1] + reverse[2] + reverse[3];
             for (float& p : reverse) p /= total;
         }
         if (mProbabilities[kDiffuse] > 0.f) {
-            oF += mMaterial->mDiffuseReflectance * kInvPi;
+            oF += mReflectance.mDiffuse * kInvPi;
             oDirectPdfW += mProbabilities[kDiffuse] * CosHemispherePdfW(aLocalDirGen);
             oReversePdfW += reverse[kDiffuse] * CosHemispherePdfW(mLocalDirFix);
         }
@@ -1729,7 +1835,7 @@ private:
             if (cosR > kEpsPhong) {
                 const float n = mMaterial->mPhongExponent;
                 const float lobe = std::pow(cosR, n);
-                oF += mMaterial->mPhongReflectance * ((n + 2.f) * 0.5f * kInvPi * lobe);
+                oF += mReflectance.mPhong * ((n + 2.f) * 0.5f * kInvPi * lobe);
                 const float lobePdfW = (n + 1.f) * 0.5f * kInvPi * lobe;
                 oDirectPdfW += mProbabilities[kPhong] * lobePdfW;
                 oReversePdfW += reverse[kPhong] * lobePdfW;
@@ -1740,6 +1846,7 @@ private:
     Frame mFrame;
     Vec3 mLocalDirFix{0.f};
     const Material* mMaterial = nullptr;
+    Reflectances mReflectance;  // the material's, textured at this point
     std::array<float, 4> mProbabilities{};
     float mFresnel = 1.f;
     float mContinuationProb = 0.f;
@@ -3607,11 +3714,18 @@ Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr,
 #define STB_IMAGE_WRITE_STATIC
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #include <stb/stb_image_write.h>
+#define STB_IMAGE_STATIC
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_ONLY_PNG   // the two image formats glTF 2.0 allows
+#define STBI_ONLY_JPEG
+#include <stb/stb_image.h>
 
+#include <cctype>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <new>
 #include <set>
 #include <sstream>
@@ -3885,6 +3999,7 @@ public:
         ParseFile();
         CheckModelFeatures();
         ConvertMaterials();
+        NoteApproximations();
         const int sceneIndex = mModel.defaultScene >= 0 ? mModel.defaultScene : 0;
         if (mModel.scenes.empty()) Fail("the file has no scene");
         if (sceneIndex >= int(mModel.scenes.size())) Fail("the default scene " + std::to_string(sceneIndex) + " does not exist");
@@ -3955,10 +4070,15 @@ private:
         }
 
         tinygltf::TinyGLTF gltf;
-        // Images are not supported; the loader must not try to decode them. A model that
-        // uses one is rejected by CheckModelFeatures with a clear message.
-        gltf.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
-                               const unsigned char*, int, void*) { return true; }, nullptr);
+        // Images in buffer views and data URIs arrive here still encoded; they are kept so
+        // and decoded only if a material uses them (DecodeImage). External image files
+        // are not read by tinygltf at all (TINYGLTF_NO_EXTERNAL_IMAGE) but by DecodeImage.
+        gltf.SetImageLoader([](tinygltf::Image* aImage, const int, std::string*, std::string*, int, int,
+                               const unsigned char* aBytes, int aSize, void*) {
+            aImage->image.assign(aBytes, aBytes + std::max(aSize, 0));
+            aImage->as_is = true;
+            return true;
+        }, nullptr);
         // Every file a URI names is read by ReadBufferFile. FileExists says yes without
         // looking, so tinygltf never falls back to its second search path, the current
         // directory, and never probes the file system itself.
@@ -4126,20 +4246,119 @@ private:
         if (aAtMostOne && MaxComponent(aColor) > 1.f) Fail(aWhat + " must not exceed 1 (it would create energy)");
     }
 
+    // One note lists every approximated feature once, with how many times it occurs.
+    void Approximated(const std::string& aFeature) { mApproximated[aFeature]++; }
+    void NoteApproximations() {
+        if (mApproximated.empty()) return;
+        std::string note = "approximated (not modelled):";
+        for (const auto& [feature, count] : mApproximated)
+            note += " " + feature + (count > 1 ? " x" + std::to_string(count) : "") + ";";
+        note.pop_back();
+        mReport.mNotes.push_back(note);
+    }
+
+    // The scene texture for glTF texture aTexture (decoded once, however many materials use it).
+    int TextureIndex(int aTexture, int aTexCoord, const std::string& aWhat) {
+        if (aTexCoord != 0)
+            Fail(aWhat + ": its baseColorTexture uses TEXCOORD_" + std::to_string(aTexCoord) + "; only TEXCOORD_0 is supported");
+        if (aTexture < 0 || aTexture >= int(mModel.textures.size()))
+            Fail(aWhat + " refers to texture " + std::to_string(aTexture) + ", which does not exist");
+        auto known = mTextureIndex.find(aTexture);
+        if (known != mTextureIndex.end()) return known->second;
+        const tinygltf::Texture& texture = mModel.textures[size_t(aTexture)];
+        const std::string what = "texture " + std::to_string(aTexture);
+        if (texture.source < 0 || texture.source >= int(mModel.images.size()))
+            Fail(what + " has no image (source " + std::to_string(texture.source) + "; PNG or JPEG images are supported)");
+        Texture result = DecodeImage(texture.source);
+        if (texture.sampler >= 0) {
+            if (texture.sampler >= int(mModel.samplers.size()))
+                Fail(what + " refers to sampler " + std::to_string(texture.sampler) + ", which does not exist");
+            const tinygltf::Sampler& sampler = mModel.samplers[size_t(texture.sampler)];
+            result.mWrapU = WrapMode(sampler.wrapS, what);
+            result.mWrapV = WrapMode(sampler.wrapT, what);
+        }
+        mScene.mTextures.push_back(std::move(result));
+        const int index = int(mScene.mTextures.size()) - 1;
+        mTextureIndex[aTexture] = index;
+        return index;
+    }
+    TextureWrap WrapMode(int aGltfWrap, const std::string& aWhat) const {
+        switch (aGltfWrap) {
+        case TINYGLTF_TEXTURE_WRAP_REPEAT: return TextureWrap::kRepeat;
+        case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE: return TextureWrap::kClampToEdge;
+        case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT: return TextureWrap::kMirroredRepeat;
+        default: Fail(aWhat + ": unknown sampler wrap mode " + std::to_string(aGltfWrap));
+        }
+    }
+
+    // An image's pixels, sRGB-decoded to linear (glTF: base colour textures are sRGB).
+    // Bytes come from a buffer view or data URI (kept by the image loader above) or from
+    // a file inside the scene's folder, read like a buffer file: regular files only,
+    // confined, size-checked before reading. The size in pixels is checked before decoding.
+    Texture DecodeImage(int aImage) {
+        tinygltf::Image& image = mModel.images[size_t(aImage)];
+        const std::string what = "image " + std::to_string(aImage) + (image.uri.empty() || image.uri.compare(0, 5, "data:") == 0
+                                                                          ? std::string() : " '" + Excerpt(image.uri) + "'");
+        std::vector<unsigned char> fileBytes;
+        const std::vector<unsigned char>* bytes = &image.image;
+        if (image.image.empty()) {
+            if (image.uri.empty()) Fail(what + " has neither a URI nor a buffer view");
+            const std::string problem = ReadUntrustedFile(mFolder + "/" + PercentDecoded(image.uri), mRoot,
+                                                          [&](uint64_t aSize) { return SizeProblem(aSize); }, fileBytes);
+            if (!problem.empty()) Fail(what + ": " + problem);
+            bytes = &fileBytes;
+        }
+        if (bytes->empty() || bytes->size() > size_t(std::numeric_limits<int>::max())) Fail(what + ": the image is empty or too large");
+        int width = 0, height = 0, channels = 0;
+        if (!stbi_info_from_memory(bytes->data(), int(bytes->size()), &width, &height, &channels))
+            Fail(what + ": not a PNG or JPEG image that can be decoded (" + Excerpt(stbi_failure_reason()) + ")");
+        if (width <= 0 || height <= 0 || uint64_t(width) * uint64_t(height) > kMaxTexturePixels)
+            Fail(what + ": " + std::to_string(width) + "x" + std::to_string(height) + " pixels, more than the loader's limit of " +
+                 std::to_string(kMaxTexturePixels) + " per texture");
+        unsigned char* pixels = stbi_load_from_memory(bytes->data(), int(bytes->size()), &width, &height, &channels, 3);
+        if (!pixels) Fail(what + ": decoding failed (" + Excerpt(stbi_failure_reason()) + ")");
+        Texture texture;
+        texture.mWidth = width;
+        texture.mHeight = height;
+        texture.mTexels.resize(size_t(width) * size_t(height));
+        float srgbToLinear[256];
+        for (int v = 0; v < 256; v++) srgbToLinear[v] = SrgbToLinear(float(v) / 255.f);
+        for (size_t i = 0; i < texture.mTexels.size(); i++)
+            texture.mTexels[i] = Vec3(srgbToLinear[pixels[3 * i]], srgbToLinear[pixels[3 * i + 1]], srgbToLinear[pixels[3 * i + 2]]);
+        stbi_image_free(pixels);
+        image.image.clear();
+        image.image.shrink_to_fit();
+        return texture;
+    }
+    // The inverse sRGB transfer function (IEC 61966-2-1).
+    static float SrgbToLinear(float aEncoded) {
+        return aEncoded <= 0.04045f ? aEncoded / 12.92f : std::pow((aEncoded + 0.055f) / 1.055f, 2.4f);
+    }
+    // RFC 3986 percent-decoding of a relative URI ("my%20image.png"); a bad escape stays as is.
+    static std::string PercentDecoded(const std::string& aUri) {
+        std::string decoded;
+        for (size_t i = 0; i < aUri.size(); i++) {
+            if (aUri[i] == '%' && i + 2 < aUri.size() && std::isxdigit((unsigned char)aUri[i + 1]) && std::isxdigit((unsigned char)aUri[i + 2])) {
+                decoded += char(std::stoi(aUri.substr(i + 1, 2), nullptr, 16));
+                i += 2;
+            } else {
+                decoded += aUri[i];
+            }
+        }
+        return decoded;
+    }
+
     void ConvertMaterials() {
         for (size_t m = 0; m < mModel.materials.size(); m++) {
             const tinygltf::Material& source = mModel.materials[m];
             const std::string what = "material " + std::to_string(m) + (source.name.empty() ? "" : " '" + Excerpt(source.name) + "'");
             const auto& pbr = source.pbrMetallicRoughness;
-            auto textureUsed = [&](int aIndex, const char* aName) {
-                if (aIndex >= 0) Fail(what + " uses a texture (" + aName + "); textures are not supported");
-            };
-            textureUsed(pbr.baseColorTexture.index, "baseColorTexture");
-            textureUsed(pbr.metallicRoughnessTexture.index, "metallicRoughnessTexture");
-            textureUsed(source.normalTexture.index, "normalTexture");
-            textureUsed(source.occlusionTexture.index, "occlusionTexture");
-            textureUsed(source.emissiveTexture.index, "emissiveTexture");
-            if (source.alphaMode != "OPAQUE") Fail(what + " has alphaMode " + Excerpt(source.alphaMode) + "; only OPAQUE is supported");
+            // What the header does not model is approximated and listed in one note.
+            if (pbr.metallicRoughnessTexture.index >= 0) Approximated("metallicRoughnessTexture (the factors are used)");
+            if (source.normalTexture.index >= 0) Approximated("normalTexture (geometric normals are used)");
+            if (source.occlusionTexture.index >= 0) Approximated("occlusionTexture (occlusion is computed, not baked)");
+            if (source.emissiveTexture.index >= 0) Approximated("emissiveTexture (emission is the uniform emissiveFactor)");
+            if (source.alphaMode != "OPAQUE") Approximated("alphaMode " + Excerpt(source.alphaMode) + " (rendered opaque)");
 
             Material material;
             material.mName = source.name;
@@ -4153,6 +4372,7 @@ private:
                 material.mMirrorReflectance = ColorOr(e, "mirror", Vec3(0.f), what);
                 material.mPhongExponent = float(NumberOr(e, "phongExponent", 1.0));
                 material.mIor = float(NumberOr(e, "ior", -1.0));
+                if (pbr.baseColorTexture.index >= 0) Approximated("baseColorTexture with SMALLVCM_material (its colours are used)");
             } else {
                 // The documented mapping of pbrMetallicRoughness (docs/scene_format.md).
                 Vec3 baseColor(1.f);
@@ -4166,12 +4386,17 @@ private:
                 const double transmissionFactor = transmission != source.extensions.end()
                     ? NumberOr(transmission->second, "transmissionFactor", 0.0) : 0.0;
                 if (transmissionFactor > 0.0) {
+                    if (pbr.baseColorTexture.index >= 0) Approximated("baseColorTexture on glass (clear glass is used)");
                     auto ior = source.extensions.find("KHR_materials_ior");
                     material.mMirrorReflectance = Vec3(1.f);
                     material.mIor = float(ior != source.extensions.end() ? NumberOr(ior->second, "ior", 1.5) : 1.5);
                 } else {
                     const Vec3 specular = glm::mix(Vec3(0.04f), baseColor, metallic);
                     material.mDiffuseReflectance = (1.f - metallic) * 0.96f * baseColor;
+                    if (pbr.baseColorTexture.index >= 0) {
+                        material.mBaseColorTexture = TextureIndex(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord, what);
+                        material.mSpecularUntinted = Vec3(0.04f * (1.f - metallic));
+                    }
                     if (roughness == 0.f) {
                         material.mMirrorReflectance = specular;
                     } else {
@@ -4308,11 +4533,14 @@ private:
 
     // Reads an accessor as aComponents-wide rows of doubles, after checking its type,
     // component type and that every byte it names lies inside its buffer.
-    std::vector<double> ReadAccessor(int aIndex, int aType, bool aIndices, const std::string& aWhat) const {
+    enum class AccessorKind { kIndices, kPositions, kTexcoords };
+    std::vector<double> ReadAccessor(int aIndex, int aType, AccessorKind aKind, const std::string& aWhat) const {
+        const bool aIndices = aKind == AccessorKind::kIndices;
         if (aIndex < 0 || aIndex >= int(mModel.accessors.size())) Fail(aWhat + " refers to accessor " + std::to_string(aIndex) + ", which does not exist");
         const tinygltf::Accessor& accessor = mModel.accessors[size_t(aIndex)];
         const std::string where = aWhat + " (accessor " + std::to_string(aIndex) + ")";
-        if (accessor.type != aType) Fail(where + ": wrong type (" + (aIndices ? "SCALAR" : "VEC3") + " expected)");
+        if (accessor.type != aType)
+            Fail(where + ": wrong type (" + (aIndices ? "SCALAR" : aKind == AccessorKind::kTexcoords ? "VEC2" : "VEC3") + " expected)");
         const int componentType = accessor.componentType;
         size_t componentSize;
         if (aIndices) {
@@ -4320,11 +4548,18 @@ private:
             else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) componentSize = 2;
             else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) componentSize = 4;
             else Fail(where + ": indices must be unsigned byte, short or int");
+        } else if (aKind == AccessorKind::kTexcoords) {  // glTF: float, or normalised unsigned byte/short
+            if (componentType == TINYGLTF_COMPONENT_TYPE_FLOAT) componentSize = 4;
+            else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && accessor.normalized) componentSize = 1;
+            else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT && accessor.normalized) componentSize = 2;
+            else Fail(where + ": texture coordinates must be FLOAT or normalised unsigned byte or short");
         } else {
             if (componentType != TINYGLTF_COMPONENT_TYPE_FLOAT) Fail(where + ": positions must be FLOAT");
             componentSize = 4;
         }
-        const size_t components = aIndices ? 1 : 3;
+        const size_t components = aIndices ? 1 : aKind == AccessorKind::kTexcoords ? 2 : 3;
+        const double normalisation = aKind != AccessorKind::kTexcoords || componentSize == 4 ? 1.0
+                                     : componentSize == 1 ? 1.0 / 255.0 : 1.0 / 65535.0;
         if (accessor.bufferView < 0 || accessor.bufferView >= int(mModel.bufferViews.size()))
             Fail(where + ": missing or invalid bufferView");
         const tinygltf::BufferView& view = mModel.bufferViews[size_t(accessor.bufferView)];
@@ -4353,7 +4588,7 @@ private:
                 else if (componentSize == 2) { uint16_t v; std::memcpy(&v, p, 2); value = v; }
                 else if (aIndices) { uint32_t v; std::memcpy(&v, p, 4); value = v; }
                 else { float v; std::memcpy(&v, p, 4); value = v; }
-                values[i * components + c] = value;
+                values[i * components + c] = value * normalisation;
             }
         }
         return values;
@@ -4372,11 +4607,11 @@ private:
             if (!primitive.targets.empty()) Fail(what + ": morph targets are not supported");
             auto position = primitive.attributes.find("POSITION");
             if (position == primitive.attributes.end()) Fail(what + ": has no POSITION attribute");
-            const std::vector<double> positions = ReadAccessor(position->second, TINYGLTF_TYPE_VEC3, false, what + " POSITION");
+            const std::vector<double> positions = ReadAccessor(position->second, TINYGLTF_TYPE_VEC3, AccessorKind::kPositions, what + " POSITION");
             const size_t vertexCount = positions.size() / 3;
             std::vector<double> indices;
             if (primitive.indices != -1) {
-                indices = ReadAccessor(primitive.indices, TINYGLTF_TYPE_SCALAR, true, what + " indices");
+                indices = ReadAccessor(primitive.indices, TINYGLTF_TYPE_SCALAR, AccessorKind::kIndices, what + " indices");
             } else {
                 indices.resize(vertexCount);
                 for (size_t i = 0; i < vertexCount; i++) indices[i] = double(i);
@@ -4396,6 +4631,18 @@ private:
                 world[v] = Vec3(w);
             }
             const int material = MaterialIndex(primitive.material, what);
+            // Texture coordinates, read only for textured materials (and then required).
+            std::vector<double> uvs;
+            if (mScene.mMaterials[size_t(material)].mBaseColorTexture >= 0) {
+                auto texcoord = primitive.attributes.find("TEXCOORD_0");
+                if (texcoord == primitive.attributes.end())
+                    Fail(what + ": its material has a baseColorTexture but the primitive has no TEXCOORD_0");
+                uvs = ReadAccessor(texcoord->second, TINYGLTF_TYPE_VEC2, AccessorKind::kTexcoords, what + " TEXCOORD_0");
+                if (uvs.size() != 2 * vertexCount) Fail(what + ": TEXCOORD_0 and POSITION have different counts");
+                for (size_t v = 0; v < uvs.size(); v++)
+                    if (!std::isfinite(uvs[v]) || !std::isfinite(float(uvs[v])))
+                        Fail(what + ": TEXCOORD_0 of vertex " + std::to_string(v / 2) + " is not finite (NaN or infinity)");
+            }
             std::vector<int> triangleIds;
             for (size_t t = 0; t + 2 < indices.size(); t += 3) {
                 size_t i0 = size_t(indices[t]), i1 = size_t(indices[t + 1]), i2 = size_t(indices[t + 2]);
@@ -4405,6 +4652,12 @@ private:
                 Vec3 normal;
                 if (!TriangleNormal(world[i0], world[i1], world[i2], normal)) { mSkippedTriangles++; continue; }
                 triangleIds.push_back(mScene.AddTriangle(world[i0], world[i1], world[i2], material));
+                if (!uvs.empty()) {
+                    Triangle& added = mScene.mTriangles.back();
+                    added.mUv0 = Vec2(float(uvs[2 * i0]), float(uvs[2 * i0 + 1]));
+                    added.mUv1 = Vec2(float(uvs[2 * i1]), float(uvs[2 * i1 + 1]));
+                    added.mUv2 = Vec2(float(uvs[2 * i2]), float(uvs[2 * i2 + 1]));
+                }
             }
             // An emissive primitive instance is one area light over all its triangles.
             if (!IsBlack(mMaterialEmission[size_t(material)]) && !triangleIds.empty())
@@ -4592,6 +4845,9 @@ private:
     tinygltf::Model mModel;
     Scene mScene;
     std::vector<Vec3> mMaterialEmission;  // per scene material
+    std::map<std::string, int> mApproximated;  // feature -> occurrences, for one note
+    std::unordered_map<int, int> mTextureIndex;  // glTF texture -> scene texture
+    static constexpr uint64_t kMaxTexturePixels = uint64_t(1) << 26;  // 64 Mpixel: 768 MB of linear texels
     int mDefaultMaterial = -1;
     bool mHasCamera = false;
     int mCameraNodes = 0;                       // camera nodes met so far in the walk

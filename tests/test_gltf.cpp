@@ -19,6 +19,8 @@ namespace {
 
 using namespace smallvcm;
 using testutil::CornellPath;
+using testutil::ReadText;
+using testutil::TemporaryFolder;
 
 std::string Str(const Vec3& aV) {
     std::ostringstream out;
@@ -808,4 +810,155 @@ TEST_CASE("A closed mesh wound inwards is noted as inside-out; outward and open 
         for (const std::string& note : report.mNotes) noted = noted || note.find("looks inside-out") != std::string::npos;
         CHECK(noted == c.mInsideOut);
     }
+}
+
+// ---------------------------------------------------------------------------------
+// Textures
+// ---------------------------------------------------------------------------------
+
+namespace {
+
+// A 2x1 texture: red on the left (u < 0.5), blue on the right.
+Texture RedBlue(TextureWrap aWrap) {
+    Texture t;
+    t.mWidth = 2;
+    t.mHeight = 1;
+    t.mTexels = {Vec3(1.f, 0.f, 0.f), Vec3(0.f, 0.f, 1.f)};
+    t.mWrapU = t.mWrapV = aWrap;
+    return t;
+}
+
+// A textured unit floor (z = 0, [0,1]^2, uv = (x, 1 - y): glTF's v runs down the image)
+// under a background, written to aFolder as floor.gltf + floor.bin + the PNG aImage
+// (through the renderer's own PNG writer: linear in, sRGB out), with the given wrap mode
+// and the floor's uv scaled by aUvScale.
+std::string WriteTexturedFloor(const TemporaryFolder& aFolder, const Image& aImage, int aGltfWrap, float aUvScale) {
+    WriteImage(aFolder / "base colour.png", aImage);
+    const float positions[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    const float uvs[8] = {0, aUvScale, aUvScale, aUvScale, aUvScale, 0, 0, 0};
+    const uint32_t indices[6] = {0, 1, 2, 2, 3, 0};
+    std::string bin(reinterpret_cast<const char*>(positions), sizeof positions);
+    bin.append(reinterpret_cast<const char*>(uvs), sizeof uvs);
+    bin.append(reinterpret_cast<const char*>(indices), sizeof indices);
+    std::ofstream(aFolder / "floor.bin", std::ios::binary) << bin;
+    std::ostringstream json;
+    json << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
+      "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 1, 1, 1], "metallicFactor": 0,
+                     "roughnessFactor": 1, "baseColorTexture": {"index": 0}}}],
+      "textures": [{"source": 0, "sampler": 0}], "images": [{"uri": "base%20colour.png"}],
+      "samplers": [{"wrapS": )" << aGltfWrap << R"(, "wrapT": )" << aGltfWrap << R"(}],
+      "buffers": [{"uri": "floor.bin", "byteLength": )" << bin.size() << R"(}],
+      "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                      {"buffer": 0, "byteOffset": 80, "byteLength": 24}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                    {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+                    {"bufferView": 2, "componentType": 5125, "count": 6, "type": "SCALAR"}]})";
+    std::ofstream(aFolder / "floor.gltf") << json.str();
+    return aFolder / "floor.gltf";
+}
+
+// The base-colour texel the scene finds at (x, y) on the floor, seen from above.
+Vec3 TexelAt(const Scene& aScene, float aX, float aY) {
+    Hit hit;
+    REQUIRE(aScene.Intersect(Ray{Vec3(aX, aY, 1.f), Vec3(0.f, 0.f, -1.f)}, hit));
+    return aScene.BaseColorTexel(hit);
+}
+
+} // namespace
+
+TEST_CASE("Texture lookup: bilinear between texel centres, and each wrap mode outside [0, 1]", "[gltf][textures]") {
+    const Vec3 red(1.f, 0.f, 0.f), blue(0.f, 0.f, 1.f), half(0.5f, 0.f, 0.5f);
+    for (TextureWrap wrap : {TextureWrap::kRepeat, TextureWrap::kClampToEdge, TextureWrap::kMirroredRepeat}) {
+        const Texture t = RedBlue(wrap);
+        CHECK(t.Lookup(Vec2(0.25f, 0.5f)) == red);   // texel centres
+        CHECK(t.Lookup(Vec2(0.75f, 0.5f)) == blue);
+        CHECK(t.Lookup(Vec2(0.5f, 0.5f)) == half);   // halfway between them
+        const Vec3 extreme = t.Lookup(Vec2(1e30f, std::numeric_limits<float>::quiet_NaN()));
+        CHECK(IsFinite(extreme));
+    }
+    // At u = 0 the left neighbour is the wrapped texel: blue for repeat, red otherwise.
+    CHECK(RedBlue(TextureWrap::kRepeat).Lookup(Vec2(0.f, 0.5f)) == half);
+    CHECK(RedBlue(TextureWrap::kClampToEdge).Lookup(Vec2(0.f, 0.5f)) == red);
+    CHECK(RedBlue(TextureWrap::kMirroredRepeat).Lookup(Vec2(0.f, 0.5f)) == red);
+    // Beyond 1: repeat starts over (1.25 = 0.25: red), clamp stays at the edge (blue),
+    // mirrored runs back (1.25 -> 0.75: blue), and two periods on, mirrored is red again.
+    CHECK(RedBlue(TextureWrap::kRepeat).Lookup(Vec2(1.25f, 0.5f)) == red);
+    CHECK(RedBlue(TextureWrap::kClampToEdge).Lookup(Vec2(1.25f, 0.5f)) == blue);
+    CHECK(RedBlue(TextureWrap::kMirroredRepeat).Lookup(Vec2(1.25f, 0.5f)) == blue);
+    CHECK(RedBlue(TextureWrap::kMirroredRepeat).Lookup(Vec2(2.25f, 0.5f)) == red);
+    CHECK(RedBlue(TextureWrap::kRepeat).Lookup(Vec2(-0.75f, 0.5f)) == red);
+}
+
+TEST_CASE("A glTF base-colour texture is read from a PNG file, sRGB-decoded and mapped by TEXCOORD_0", "[gltf][textures]") {
+    TemporaryFolder folder;
+    // 2x2 image, linear colours: top row red and 0.2 grey, bottom row blue and white.
+    Image image(2, 2);
+    image.mPixels = {Vec3(1.f, 0.f, 0.f), Vec3(0.2f), Vec3(0.f, 0.f, 1.f), Vec3(1.f)};
+    const std::string path = WriteTexturedFloor(folder, image, 33071 /* clamp */, 1.f);
+    GltfLoadReport report;
+    const Scene scene = LoadGltfScene(path, &report);
+    REQUIRE(scene.mTextures.size() == 1);
+    // uv = (x, 1 - y): the top row of the image is at y near 1. Texel centres: x, y in {0.25, 0.75}.
+    CHECK(TexelAt(scene, 0.25f, 0.75f) == Vec3(1.f, 0.f, 0.f));
+    CHECK(TexelAt(scene, 0.25f, 0.25f) == Vec3(0.f, 0.f, 1.f));
+    CHECK(TexelAt(scene, 0.75f, 0.25f) == Vec3(1.f));
+    // 0.2 linear is stored as sRGB 124/255 (0.2 -> 0.4845 -> 124); decoding gives 0.2016.
+    const Vec3 grey = TexelAt(scene, 0.75f, 0.75f);
+    CHECK(grey.x == Approx(0.2016f).epsilon(1e-3));
+    CHECK(grey.x == grey.y);
+    // The BSDF sees base colour x texel: diffuse = 0.96 x (0.5, 1, 1) x texel / pi, plus
+    // the untinted dielectric specular of metallic 0 (0.04, Phong exponent 0 at roughness
+    // 1: 0.04 (0 + 2) / (2 pi) = 0.04 / pi), which the texel does not colour.
+    Hit hit;
+    const Ray down{Vec3(0.25f, 0.75f, 1.f), Vec3(0.f, 0.f, -1.f)};
+    REQUIRE(scene.Intersect(down, hit));
+    Bsdf bsdf;
+    bsdf.Setup(down, hit, scene, false);
+    float cosGen;
+    const Vec3 f = bsdf.Evaluate(Vec3(0.f, 0.f, 1.f), cosGen);
+    CHECK(f.x == Approx((0.96f * 0.5f + 0.04f) / kPi));
+    CHECK(f.y == Approx(0.04f / kPi));
+    CHECK(f.z == Approx(0.04f / kPi));
+    // The file has no light and no camera: both are made up, and the report says so.
+    CHECK(report.mDefaultBackground);
+}
+
+TEST_CASE("The sampler's wrap mode applies to texture coordinates beyond 1", "[gltf][textures]") {
+    // uv scaled by 3 across the floor: at x = 0.5, u = 1.5; 1.5 repeat -> 0.5 (half and
+    // half, also in v), clamp -> 1 (the bottom-right texel), mirrored -> 0.5.
+    Image image(2, 2);
+    image.mPixels = {Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f), Vec3(0.f, 0.f, 1.f), Vec3(1.f)};
+    const Vec3 average = 0.25f * (image.mPixels[0] + image.mPixels[1] + image.mPixels[2] + image.mPixels[3]);
+    // u = 3x, v = 3 (1 - y); at (x, y) = (0.5, 0.5): u = v = 1.5.
+    const struct { int gltf; Vec3 expected; } cases[] = {{10497, average}, {33071, Vec3(1.f)}, {33648, average}};
+    for (const auto& c : cases) {
+        TemporaryFolder folder;
+        const Scene scene = LoadGltfScene(WriteTexturedFloor(folder, image, c.gltf, 3.f));
+        INFO("wrap mode " << c.gltf);
+        const Vec3 texel = TexelAt(scene, 0.5f, 0.5f);
+        for (int k = 0; k < 3; k++) CHECK(texel[k] == Approx(c.expected[k]).margin(1e-5));
+    }
+    // At u = v = 3 * 0.1 = 0.3 inside the first period all three agree with no wrapping.
+}
+
+TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][textures]") {
+    TemporaryFolder folder;
+    Image image(1, 1);
+    image.mPixels = {Vec3(0.5f)};
+    std::string text = ReadText(WriteTexturedFloor(folder, image, 10497, 1.f));
+    const std::string material = R"("materials": [{)";
+    text.replace(text.find(material), material.size(),
+                 material + R"("alphaMode": "BLEND", "normalTexture": {"index": 0}, "emissiveTexture": {"index": 0}, )");
+    std::ofstream(folder / "floor.gltf") << text;
+    GltfLoadReport report;
+    LoadGltfScene(folder / "floor.gltf", &report);
+    int notes = 0;
+    for (const std::string& note : report.mNotes) {
+        if (note.find("approximated (not modelled)") == std::string::npos) continue;
+        notes++;
+        CHECK_THAT(note, Catch::Contains("alphaMode BLEND (rendered opaque)") && Catch::Contains("normalTexture") &&
+                         Catch::Contains("emissiveTexture (emission is the uniform emissiveFactor)"));
+    }
+    CHECK(notes == 1);
 }

@@ -29,6 +29,19 @@ GOOD = os.path.join(HERE, "gltf")
 HOSTILE = os.path.join(HERE, "hostile")
 
 FLOAT, UBYTE, USHORT, UINT = 5126, 5121, 5123, 5125
+
+
+def png_bytes(width, height, rgb):
+    """An 8-bit RGB PNG (rgb: a list of (r, g, b) tuples, row by row from the top)."""
+    import struct, zlib
+    raw = b"".join(b"\x00" + bytes(c for p in rgb[y * width:(y + 1) * width] for c in p) for y in range(height))
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) +
+            chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+
+
+TINY_PNG_BASE64 = __import__("base64").b64encode(png_bytes(2, 1, [(255, 0, 0), (0, 0, 255)])).decode()
 NAN_BITS, INF_BITS = 0x7FC00000, 0x7F800000
 
 FLOOR = [(-1.0, -1.0, 0.0), (1.0, -1.0, 0.0), (1.0, 1.0, 0.0), (-1.0, 1.0, 0.0)]
@@ -286,15 +299,38 @@ bad("mesh_out_of_range.gltf", "a node refers to mesh 4 (there are 2)", "refers t
 bad("material_out_of_range.gltf", "the floor primitive refers to material 5 (there are 2)",
     "refers to material 5, which does not exist")(
     lambda: modified(lambda d: d["meshes"][0]["primitives"][0].update(material=5)))
-bad("texture_base_color.gltf", "pbrMetallicRoughness.baseColorTexture", "baseColorTexture")(
-    lambda: modified(lambda d: (d.update(textures=[{}]), d["materials"][0]["pbrMetallicRoughness"].update(
-        baseColorTexture={"index": 0}))))
-bad("texture_normal.gltf", "normalTexture", "normalTexture")(
-    lambda: modified(lambda d: (d.update(textures=[{}]), d["materials"][0].update(normalTexture={"index": 0}))))
-bad("texture_emissive.gltf", "emissiveTexture on the emitter", "emissiveTexture")(
-    lambda: modified(lambda d: (d.update(textures=[{}]), d["materials"][1].update(emissiveTexture={"index": 0}))))
-bad("alpha_blend.gltf", "alphaMode BLEND", "alphaMode BLEND; only OPAQUE is supported")(
-    lambda: modified(lambda d: d["materials"][0].update(alphaMode="BLEND")))
+PBR_TEXTURED = {"name": "textured", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                                                           "metallicFactor": 0.0, "roughnessFactor": 1.0,
+                                                           "baseColorTexture": {"index": 0}}}
+
+
+def textured(image):
+    def change(d):
+        d["materials"][0] = PBR_TEXTURED
+        d["images"] = [image]
+        d["textures"] = [{"source": 0}]
+    return change
+
+
+bad("texture_without_image.gltf", "a baseColorTexture whose texture has no image source",
+    "texture 0 has no image")(
+    lambda: modified(lambda d: (textured({"uri": "x.png"})(d), d.update(textures=[{}]))))
+bad("texture_image_missing.gltf", "the base colour image is a file that does not exist",
+    "image 0 'texture_does_not_exist.png': no readable file of that name inside the scene's folder")(
+    lambda: modified(textured({"uri": "texture_does_not_exist.png"})))
+bad("texture_image_outside_folder.gltf", "the base colour image URI leaves the scene's folder",
+    "image 0 '../hostile/README.md': no readable file of that name inside the scene's folder")(
+    lambda: modified(textured({"uri": "../hostile/README.md"})))
+bad("texture_image_not_png.gltf", "the base colour image is a data URI holding text, not PNG or JPEG",
+    "image 0: not a PNG or JPEG image that can be decoded")(
+    lambda: modified(textured({"uri": "data:image/png;base64,aGVsbG8gd29ybGQ=", "mimeType": "image/png"})))
+bad("texture_no_texcoord.gltf", "a textured floor whose primitive has no TEXCOORD_0",
+    "its material has a baseColorTexture but the primitive has no TEXCOORD_0")(
+    lambda: modified(textured({"uri": "data:image/png;base64," + TINY_PNG_BASE64, "mimeType": "image/png"})))
+bad("texture_texcoord_1.gltf", "a baseColorTexture that uses TEXCOORD_1",
+    "only TEXCOORD_0 is supported")(
+    lambda: modified(lambda d: (textured({"uri": "x.png"})(d),
+                                d["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"].update(texCoord=1))))
 bad("diffuse_above_one.gltf", "SMALLVCM_material diffuse (1.2, 0.5, 0.5)", "must not exceed 1")(
     lambda: modified(lambda d: d["materials"][0]["extensions"]["SMALLVCM_material"].update(
         diffuse=[1.2, 0.5, 0.5])))
