@@ -938,8 +938,14 @@ TEST_CASE("The sampler's wrap mode applies to texture coordinates beyond 1", "[g
         INFO("wrap mode " << c.gltf);
         const Vec3 texel = TexelAt(scene, 0.5f, 0.5f);
         for (int k = 0; k < 3; k++) CHECK(texel[k] == Approx(c.expected[k]).margin(1e-5));
+        // Inside the first period no wrap mode changes anything: at (x, y) = (0.1, 0.9),
+        // u = v = 0.3, bilinear weights 0.9 and 0.1 on texels 0 and 1 of each axis, wholly
+        // inside the image (texel centres 0.25 and 0.75).
+        const Vec3 inside = TexelAt(scene, 0.1f, 0.9f);
+        const Vec3 expected = 0.9f * (0.9f * image.mPixels[0] + 0.1f * image.mPixels[1]) +
+                              0.1f * (0.9f * image.mPixels[2] + 0.1f * image.mPixels[3]);
+        for (int k = 0; k < 3; k++) CHECK(inside[k] == Approx(expected[k]).margin(1e-5));
     }
-    // At u = v = 3 * 0.1 = 0.3 inside the first period all three agree with no wrapping.
 }
 
 TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][textures]") {
