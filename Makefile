@@ -21,7 +21,7 @@ IMPL_OBJ := $(BUILD)/smallvcm_impl.o
 TEST_SRC := $(filter-out tests/catch_main.cpp,$(wildcard tests/*.cpp))
 TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
-.PHONY: all deps demo test unit check fuzz convergence bench figures clean
+.PHONY: all deps demo test unit check fuzz convergence bench figures clean exercise grade compare
 
 all: $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
@@ -162,6 +162,20 @@ convergence: deps $(BUILD)/convergence
 	$(BUILD)/convergence --make-references --reference-iterations 2048 --max-iterations 4096 \
 	    --max-seconds 10 --clock cpu --out docs/performance/convergence.csv
 	/usr/bin/python3 docs/plot_convergence.py docs/performance/convergence.csv
+
+# The coursework kit (docs/exercises/README.md): tools/exercises/kit.py, Python 3 only.
+#   make exercise NAME=<name>|all [OUT=dir]  a student copy of the header with that exercise's
+#       marked code replaced by its stub, into build/exercise/<name>/ or OUT (NAME=a,b works)
+#   make grade STUDENT=path/to/smallvcm.hpp [EXERCISE=<name>]  builds the graders (the tests
+#       tagged [ex:<name>]) against that copy and prints a score and diagnoses per exercise
+#   make compare STUDENT=... ARGS='-s 4 -a pt -i 16'  renders with that copy and with the
+#       reference, side by side, into build/compare/compare.png
+exercise:
+	@/usr/bin/python3 tools/exercises/kit.py cut "$(NAME)" $(if $(OUT),--out "$(OUT)")
+grade:
+	@/usr/bin/python3 tools/exercises/kit.py grade $(if $(EXERCISE),--exercise "$(EXERCISE)") "$(STUDENT)"
+compare:
+	@/usr/bin/python3 tools/exercises/kit.py compare "$(STUDENT)" -- $(ARGS)
 
 clean:
 	rm -rf $(BUILD)

@@ -264,6 +264,7 @@ private:
 };
 
 // --- Cosine-weighted hemisphere around +z: pdf = cos(theta) / pi -------------------
+// BEGIN EXERCISE cosine_hemisphere
 inline Vec3 SampleCosHemisphereW(const Vec2& aSamples, float* oPdfW = nullptr) {
     const float term1 = 2.f * kPi * aSamples.x;
     const float term2 = std::sqrt(1.f - aSamples.y);
@@ -274,8 +275,10 @@ inline Vec3 SampleCosHemisphereW(const Vec2& aSamples, float* oPdfW = nullptr) {
 inline float CosHemispherePdfW(const Vec3& aLocalDirection) {
     return std::max(0.f, aLocalDirection.z) * kInvPi;
 }
+// END EXERCISE cosine_hemisphere
 
 // --- Power-cosine lobe around +z (the Phong lobe): pdf = (n+1)/(2 pi) cos^n ---------
+// BEGIN EXERCISE phong_bsdf/lobe
 inline Vec3 SamplePowerCosHemisphereW(const Vec2& aSamples, float aPower, float* oPdfW = nullptr) {
     const float term1 = 2.f * kPi * aSamples.x;
     const float cosTheta = std::pow(1.f - aSamples.y, 1.f / (aPower + 1.f));
@@ -287,6 +290,7 @@ inline float PowerCosHemispherePdfW(const Vec3& aLocalDirection, float aPower) {
     if (!(aLocalDirection.z > 0.f)) return 0.f;  // pow(0, 0) = 1 would leave exponent 0 mass below
     return (aPower + 1.f) * std::pow(aLocalDirection.z, aPower) * (0.5f * kInvPi);
 }
+// END EXERCISE phong_bsdf/lobe
 
 // --- Uniform sphere: pdf = 1 / (4 pi) ----------------------------------------------
 inline Vec3 SampleUniformSphereW(const Vec2& aSamples, float* oPdfW = nullptr) {
@@ -1735,8 +1739,10 @@ public:
             if (mLocalDirFix.z < 0.f) return Vec3(0.f);
         } else if (aRnd.z < p[kDiffuse] + p[kPhong]) {
             event = kEventPhong;
+            // BEGIN EXERCISE phong_bsdf/sample
             const Vec3 lobe = SamplePowerCosHemisphereW(Vec2(aRnd), mMaterial->mPhongExponent);
             localDirGen = Frame(ReflectLocal(mLocalDirFix)).ToWorld(lobe);
+            // END EXERCISE phong_bsdf/sample
         } else if (aRnd.z < p[kDiffuse] + p[kPhong] + p[kReflect]) {
             event = kEventReflect;
             localDirGen = ReflectLocal(mLocalDirFix);
@@ -1828,6 +1834,7 @@ private:
             oDirectPdfW += mProbabilities[kDiffuse] * CosHemispherePdfW(aLocalDirGen);
             oReversePdfW += reverse[kDiffuse] * CosHemispherePdfW(mLocalDirFix);
         }
+        // BEGIN EXERCISE phong_bsdf/evaluate
         if (mProbabilities[kPhong] > 0.f) {
             // cos(R, gen) = cos(R', fix) with R' the reflection of gen: one value serves
             // both directions.
@@ -1841,6 +1848,7 @@ private:
                 oReversePdfW += reverse[kPhong] * lobePdfW;
             }
         }
+        // END EXERCISE phong_bsdf/evaluate
     }
 
     Frame mFrame;
@@ -2165,6 +2173,7 @@ public:
                 bsdf.Setup(ray, hit, mScene, false);
                 if (!bsdf.IsValid() || pathLength >= mOptions.mMaxPathLength) break;
 
+                // BEGIN EXERCISE pt_nee_mis
                 // Next-event estimation: one light picked uniformly, one point on it.
                 if (!bsdf.IsDelta() && pathLength + 1 >= mOptions.mMinPathLength &&
                     mOptions.mDirectLight != DirectLightSampling::kBsdfOnly) {
@@ -2184,6 +2193,7 @@ public:
                         }
                     }
                 }
+                // END EXERCISE pt_nee_mis
 
                 // Continue the path by sampling the BSDF, then Russian roulette.
                 ScatterSample scatter;
@@ -2702,12 +2712,16 @@ struct VcmMisConstants {
         c.mUseVM = aUseVM;
         c.mLightPathCount = aLightPathCount;
         c.mMergeRadius = aRadius;
+        // BEGIN EXERCISE vcm_mis/eta
         // eta_VCM = (n_VM / n_VC) pi r^2 with n_VC = 1, n_VM = N_L [tech. rep. (20)].
         const float etaVCM = kPi * Sqr(aRadius) * aLightPathCount;
         c.mInvEtaWeight = c.Mis(1.f / etaVCM);
         c.mVmWeightFactor = aUseVM ? c.Mis(etaVCM) : 0.f;
         c.mVcWeightFactor = aUseVC ? c.mInvEtaWeight : 0.f;
+        // END EXERCISE vcm_mis/eta
+        // BEGIN EXERCISE ppm_merging/kernel
         c.mVmNormalization = 1.f / (kPi * Sqr(aRadius) * aLightPathCount);
+        // END EXERCISE ppm_merging/kernel
         return c;
     }
 };
@@ -2726,13 +2740,17 @@ namespace VcmMis {
 inline SubpathMis AtLightEmission(const VcmMisConstants& c, float aDirectPdfA, float aEmissionPdfW,
                                   float aCosAtLight, bool aIsDeltaLight, bool aIsFiniteLight) {
     SubpathMis m;
+    // BEGIN EXERCISE bpt_mis/emission
     m.dVCM = c.Mis(aDirectPdfA / aEmissionPdfW);                                       // (31)
     // A delta light cannot be hit by a camera path: the unidirectional technique has
     // pdf 0 there [tech. rep. (48)-(50)]; lights at infinity have no cosine (sec. 5.1).
     m.dVC = aIsDeltaLight ? 0.f : c.Mis((aIsFiniteLight ? aCosAtLight : 1.f) / aEmissionPdfW);  // (32)
+    // END EXERCISE bpt_mis/emission
+    // BEGIN EXERCISE vcm_mis/emission
     // (33): dVM = dVC / eta. Not gated by mUseVC: the technique it stands for is the
     // unidirectional one, which every algorithm with camera paths has.
     m.dVM = m.dVC * c.mInvEtaWeight;                                                   // (33)
+    // END EXERCISE vcm_mis/emission
     return m;
 }
 
@@ -2741,7 +2759,9 @@ inline SubpathMis AtLightEmission(const VcmMisConstants& c, float aDirectPdfA, f
 // aCameraPdfW: pdf of the primary ray per unit solid angle (per pixel area).
 inline SubpathMis AtCameraStart(const VcmMisConstants& c, float aCameraPdfW) {
     SubpathMis m;
+    // BEGIN EXERCISE bpt_mis/camera_start
     m.dVCM = c.Mis(c.mLightPathCount / aCameraPdfW);
+    // END EXERCISE bpt_mis/camera_start
     return m;
 }
 
@@ -2749,11 +2769,13 @@ inline SubpathMis AtCameraStart(const VcmMisConstants& c, float aCameraPdfW) {
 // [tech. rep. (34)-(36), the part applied at the hit]. The distance is not applied on
 // the first segment from a light at infinity, whose "area" pdf is a solid-angle pdf.
 inline void AfterSegment(const VcmMisConstants& c, SubpathMis& m, float aDistance, float aCosAtHit, bool aApplyDistance) {
+    // BEGIN EXERCISE bpt_mis/segment
     if (aApplyDistance) m.dVCM *= c.Mis(Sqr(aDistance));
     const float invCos = 1.f / c.Mis(std::abs(aCosAtHit));
     m.dVCM *= invCos;
     m.dVC *= invCos;
     m.dVM *= invCos;
+    // END EXERCISE bpt_mis/segment
     SMALLVCM_CHECK(std::isfinite(m.dVCM) && std::isfinite(m.dVC) && std::isfinite(m.dVM) && m.dVCM >= 0.f &&
                    m.dVC >= 0.f && m.dVM >= 0.f, "an MIS quantity is not finite after a segment");
 }
@@ -2762,6 +2784,7 @@ inline void AfterSegment(const VcmMisConstants& c, SubpathMis& m, float aDistanc
 // include the continuation probability [tech. rep. (34)-(36); specular (53)-(55)].
 inline void AfterScatter(const VcmMisConstants& c, SubpathMis& m, float aCosOut, float aDirPdfW,
                          float aRevPdfW, bool aSpecular) {
+    // BEGIN EXERCISE bpt_mis/scatter
     if (aSpecular) {
         // A delta vertex can neither connect nor merge, and its forward and reverse pdfs
         // are equal and cancel: only the cosine of the new direction remains.
@@ -2775,10 +2798,15 @@ inline void AfterScatter(const VcmMisConstants& c, SubpathMis& m, float aCosOut,
     // mVmWeightFactor term for merging here; dVC * Mis(rev) for everything before.
     const float connectHere = c.mUseVC ? m.dVCM : 0.f;
     const float newDVC = scale * (m.dVC * c.Mis(aRevPdfW) + connectHere + c.mVmWeightFactor);    // (35)
+    // END EXERCISE bpt_mis/scatter
+    // BEGIN EXERCISE vcm_mis/scatter
     const float newDVM = scale * (m.dVM * c.Mis(aRevPdfW) + m.dVCM * c.mVcWeightFactor + 1.f);  // (36)
+    // END EXERCISE vcm_mis/scatter
     m.dVC = newDVC;
     m.dVM = newDVM;
+    // BEGIN EXERCISE bpt_mis/scatter_dvcm
     m.dVCM = c.Mis(1.f / aDirPdfW);                                                             // (34)
+    // END EXERCISE bpt_mis/scatter_dvcm
     SMALLVCM_CHECK(std::isfinite(m.dVCM) && std::isfinite(m.dVC) && std::isfinite(m.dVM),
                    "an MIS quantity is not finite after a scatter");
 }
@@ -2788,9 +2816,11 @@ inline void AfterScatter(const VcmMisConstants& c, SubpathMis& m, float aCosOut,
 // aEmissionPdfW the emission pdf of the point and the reversed ray direction.
 inline float WeightCameraHitsLight(const VcmMisConstants& c, const SubpathMis& aCamera, float aDirectPdfA,
                                    float aEmissionPdfW) {
+    // BEGIN EXERCISE bpt_mis/weight_camera_hits_light
     const float nextEvent = c.mUseVC ? c.Mis(aDirectPdfA) * aCamera.dVCM : 0.f;
     const float wCamera = nextEvent + c.Mis(aEmissionPdfW) * aCamera.dVC;
     return 1.f / (1.f + wCamera);
+    // END EXERCISE bpt_mis/weight_camera_hits_light
 }
 
 // Next-event estimation (s = 1) [tech. rep. (44), (45)]. aBsdfDirPdfW / aBsdfRevPdfW: the
@@ -2799,11 +2829,13 @@ inline float WeightCameraHitsLight(const VcmMisConstants& c, const SubpathMis& a
 inline float WeightNextEvent(const VcmMisConstants& c, const SubpathMis& aCamera, float aBsdfDirPdfW,
                              float aBsdfRevPdfW, float aDirectPdfW, float aEmissionPdfW, float aCosToLight,
                              float aCosAtLight, bool aIsDeltaLight) {
+    // BEGIN EXERCISE bpt_mis/weight_next_event
     // The unidirectional technique that would hit the same light point; none for delta lights.
     const float wLight = aIsDeltaLight ? 0.f : c.Mis(aBsdfDirPdfW / aDirectPdfW);
     const float wCamera = c.Mis(aEmissionPdfW * aCosToLight / (aDirectPdfW * aCosAtLight)) *
                           (c.mVmWeightFactor + aCamera.dVCM + aCamera.dVC * c.Mis(aBsdfRevPdfW));
     return 1.f / (wLight + 1.f + wCamera);
+    // END EXERCISE bpt_mis/weight_next_event
 }
 
 // Light tracing: a light vertex connected to the camera (t = 1) [tech. rep. (46), (47)].
@@ -2811,9 +2843,11 @@ inline float WeightNextEvent(const VcmMisConstants& c, const SubpathMis& aCamera
 // measure); aBsdfRevPdfW: the light vertex's BSDF pdf towards its predecessor.
 inline float WeightLightTracing(const VcmMisConstants& c, const SubpathMis& aLight, float aCameraPdfA,
                                 float aBsdfRevPdfW) {
+    // BEGIN EXERCISE bpt_mis/weight_light_tracing
     const float wLight = c.Mis(aCameraPdfA / c.mLightPathCount) *
                          (c.mVmWeightFactor + aLight.dVCM + aLight.dVC * c.Mis(aBsdfRevPdfW));
     return 1.f / (wLight + 1.f);
+    // END EXERCISE bpt_mis/weight_light_tracing
 }
 
 // Vertex connection of a light vertex y and a camera vertex z [tech. rep. (40), (41)].
@@ -2822,11 +2856,13 @@ inline float WeightLightTracing(const VcmMisConstants& c, const SubpathMis& aLig
 inline float WeightConnection(const VcmMisConstants& c, const SubpathMis& aLight, const SubpathMis& aCamera,
                               float aCameraBsdfDirPdfA, float aCameraBsdfRevPdfW,
                               float aLightBsdfDirPdfA, float aLightBsdfRevPdfW) {
+    // BEGIN EXERCISE bpt_mis/weight_connection
     const float wLight = c.Mis(aCameraBsdfDirPdfA) *
                          (c.mVmWeightFactor + aLight.dVCM + aLight.dVC * c.Mis(aLightBsdfRevPdfW));
     const float wCamera = c.Mis(aLightBsdfDirPdfA) *
                           (c.mVmWeightFactor + aCamera.dVCM + aCamera.dVC * c.Mis(aCameraBsdfRevPdfW));
     return 1.f / (wLight + 1.f + wCamera);
+    // END EXERCISE bpt_mis/weight_connection
 }
 
 // Vertex merging of a light vertex y with a camera vertex z [tech. rep. (38), (39)].
@@ -2834,9 +2870,11 @@ inline float WeightConnection(const VcmMisConstants& c, const SubpathMis& aLight
 // "towards the light" direction); aCameraBsdfRevPdfW: of z's own incoming direction.
 inline float WeightMerge(const VcmMisConstants& c, const SubpathMis& aLight, const SubpathMis& aCamera,
                          float aCameraBsdfDirPdfW, float aCameraBsdfRevPdfW) {
+    // BEGIN EXERCISE vcm_mis/merge_weight
     const float wLight = aLight.dVCM * c.mVcWeightFactor + aLight.dVM * c.Mis(aCameraBsdfDirPdfW);
     const float wCamera = aCamera.dVCM * c.mVcWeightFactor + aCamera.dVM * c.Mis(aCameraBsdfRevPdfW);
     return 1.f / (wLight + 1.f + wCamera);
+    // END EXERCISE vcm_mis/merge_weight
 }
 
 } // namespace VcmMis
@@ -2969,8 +3007,10 @@ public:
     // The merging radius of iteration aIteration: r_i = r_0 (i+1)^((alpha-1)/2), the
     // progressive photon mapping schedule in SmallVCM's form (alpha = 1: fixed radius).
     float MergeRadius(int aIteration) const {
+        // BEGIN EXERCISE ppm_merging/radius
         const float radius = mBaseRadius * std::pow(float(aIteration) + 1.f, 0.5f * (mOptions.mRadiusAlpha - 1.f));
         return std::max(radius, 1e-7f);
+        // END EXERCISE ppm_merging/radius
     }
 
     void RunIteration(int aIteration, Rng& aRng) override {
@@ -3183,14 +3223,17 @@ private:
     // factor that turns a point's area measure into image-plane area (pixels), i.e. the
     // camera's pdf of generating that point (SmallVCM's imageToSurfaceFactor).
     float CameraPdfA(const Vec3& aDirToCamera, float aDistance, float aCosAtPoint) const {
+        // BEGIN EXERCISE lt_camera/camera_pdf
         const Camera& camera = mScene.mCamera;
         const float cosAtCamera = glm::dot(camera.Forward(), -aDirToCamera);
         const float imagePointToCameraDist = camera.ImagePlaneDist() / cosAtCamera;
         const float imageToSolidAngleFactor = Sqr(imagePointToCameraDist) / cosAtCamera;
         return imageToSolidAngleFactor * std::abs(aCosAtPoint) / Sqr(aDistance);
+        // END EXERCISE lt_camera/camera_pdf
     }
 
     void ConnectToCamera(const SubPathState& aLight, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+        // BEGIN EXERCISE lt_camera/connect
         const Camera& camera = mScene.mCamera;
         Vec3 dirToCamera = camera.Position() - aHitPoint;
         if (glm::dot(camera.Forward(), -dirToCamera) <= 0.f) return;  // behind the camera
@@ -3210,6 +3253,7 @@ private:
         const int pixel = camera.RasterToIndex(raster);
         mFilm.AddColor(pixel, unweighted * weight);
         RecordTechnique(kLightTracing, pixel, aLight.mPathLength + 1, aLight.mPathLength + 1, unweighted, weight);
+        // END EXERCISE lt_camera/connect
     }
 
     void SplatEmitterPoint(const Light& aLight, const LightEmission& aEmission, float aLightPickProb) {
@@ -3318,6 +3362,7 @@ private:
     // Vertex merging: the light vertices within the radius, density-estimated with a
     // constant kernel 1 / (pi r^2) over N_L light sub-paths [tech. rep. (11)].
     void MergeWithLightVertices(int aPixel, const SubPathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+        // BEGIN EXERCISE ppm_merging/merge
         Vec3 sum(0.f);
         mGrid.Process(aHitPoint, [&](uint32_t i) {
             const LightVertex& vertex = mLightVertices[i];
@@ -3336,6 +3381,7 @@ private:
         const Vec3 contribution = aCamera.mThroughput * sum * mMis.mVmNormalization;
         mFilm.AddColor(aPixel, contribution);
         RecordTechnique(kMerging, aPixel, -1, -1, contribution, 1.f);
+        // END EXERCISE ppm_merging/merge
     }
 
     // Writes a contribution into the technique layers, when they were asked for.

@@ -1126,3 +1126,101 @@ TEST_CASE("Degenerate paths and pdfs give finite weights in [0, 1], never NaN", 
         CHECK(chains > 0);
     }
 }
+
+// =======================================================================================
+// The graders of the coursework kit's MIS exercises (docs/exercises/06-bpt-mis.md and
+// 07-vcm-mis.md): the same brute-force comparison as above, split by algorithm, with a
+// diagnosis a student can act on. BPT's weights use no merging quantity, so exercise 06
+// is graded by BPT alone; VCM and BPM build on exercise 06's dVCM and dVC.
+// =======================================================================================
+
+// A check whose failure message is the diagnosis `make grade` shows to the student.
+#define GRADE_MIS(aDiagnosis)                          \
+    do {                                               \
+        if ((aDiagnosis).empty()) SUCCEED();           \
+        else FAIL_CHECK(aDiagnosis);                   \
+    } while (false)
+
+namespace {
+
+// Every path of the five Cornell scenes under one MIS case; "" when every weight equals
+// the brute force (same tolerances as above) and every path's weights sum to one,
+// otherwise what is wrong, worst path first.
+std::string DiagnoseMis(const MisCase& aCase) {
+    int paths = 0, wrongPaths = 0;
+    double worstSumError = -1.0, worstSum = 0.0;
+    std::string worstSumPath, worstTechnique;
+    double worstRelError = -1.0;
+    for (int s = 0; s < kSceneCount; s++) {
+        const Scene& scene = CornellScene(s);
+        const VcmMisConstants mis = MakeConstants(scene, aCase);
+        const double lightPathCount = double(scene.mCamera.PixelCount());
+        const double radius = double(aCase.radiusFactor) * double(scene.GetSceneSphere().mRadius);
+        const double eta = 3.14159265358979323846 * radius * radius * lightPathCount;
+        for (const FullPath& path : CornellPaths(s).paths) {
+            const std::vector<Technique> techniques = Techniques(path, aCase.useVC, aCase.useVM);
+            PathBsdfs bsdfs;
+            BruteForcePdfs pdfs;
+            if (techniques.empty() || !SetupBsdfs(scene, path, bsdfs) || !ComputeBruteForcePdfs(scene, path, bsdfs, pdfs)) continue;
+            const std::vector<double> expected = BruteForceWeights(pdfs, techniques, path.K(), aCase.heuristic, lightPathCount, eta);
+            const RecursiveWeights recursive(scene, path, bsdfs, mis);
+            paths++;
+            double sum = 0.0;
+            bool wrong = false;
+            for (size_t t = 0; t < techniques.size(); t++) {
+                const double w = double(recursive.Weight(techniques[t]));
+                sum += w;
+                const double diff = std::abs(w - expected[t]);
+                const bool ok = std::isfinite(w) && w >= 0.0 && w <= 1.0 + 1e-6 && diff <= kRelTolerance * expected[t] + kAbsTolerance;
+                if (ok) continue;
+                wrong = true;
+                const double relError = expected[t] > 0.0 ? diff / expected[t] : 1.0;
+                if (!(relError <= worstRelError)) {
+                    worstRelError = relError;
+                    std::ostringstream out;
+                    out << TechniqueName(techniques[t]) << " has weight " << w << ", brute force " << expected[t] << " (scene "
+                        << kSceneNames[s] << ", " << DescribePath(scene, path) << ")";
+                    worstTechnique = out.str();
+                }
+            }
+            const double sumError = std::isfinite(sum) ? std::abs(sum - 1.0) : std::numeric_limits<double>::infinity();
+            if (sumError > 1e-4) wrong = true;
+            if (wrong) wrongPaths++;
+            if (sumError > worstSumError) {
+                worstSumError = sumError;
+                worstSum = sum;
+                std::ostringstream out;
+                out << "a length-" << path.K() << " path with " << techniques.size() << " techniques (scene " << kSceneNames[s]
+                    << ", " << DescribePath(scene, path) << ")";
+                worstSumPath = out.str();
+            }
+        }
+    }
+    if (wrongPaths == 0 && paths >= 1000) return "";
+    std::ostringstream out;
+    out << aCase.name << ": " << wrongPaths << " of " << paths << " paths have wrong weights; the MIS weights of "
+        << worstSumPath << " sum to " << worstSum << ", expected 1";
+    if (!worstTechnique.empty()) out << "; e.g. " << worstTechnique;
+    if (paths < 1000) out << "; only " << paths << " valid paths (expected >= 1000)";
+    return out.str();
+}
+
+} // namespace
+
+TEST_CASE("Exercise 06: the recursive BPT weights (balance and power) equal the brute-force heuristics and sum to one",
+          "[exercise][ex:bpt_mis]") {
+    for (const MisCase& misCase : kMisCases) {
+        if (misCase.useVM) continue;
+        const std::string diagnosis = DiagnoseMis(misCase);
+        GRADE_MIS(diagnosis);
+    }
+}
+
+TEST_CASE("Exercise 07: the recursive VCM and BPM weights (with merging) equal the brute-force heuristics and sum to one",
+          "[exercise][ex:vcm_mis]") {
+    for (const MisCase& misCase : kMisCases) {
+        if (!misCase.useVM) continue;
+        const std::string diagnosis = DiagnoseMis(misCase);
+        GRADE_MIS(diagnosis);
+    }
+}
