@@ -21,7 +21,7 @@ IMPL_OBJ := $(BUILD)/smallvcm_impl.o
 TEST_SRC := $(filter-out tests/catch_main.cpp,$(wildcard tests/*.cpp))
 TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
-.PHONY: all deps demo test unit check fuzz convergence bench figures clean exercise grade compare
+.PHONY: all deps demo test unit check fuzz convergence bench figures clean exercise grade compare student-figures
 
 all: $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
@@ -92,14 +92,16 @@ $(BUILD)/check/tests/run_tests: $(BUILD)/check/tests/catch_main.o $(SAN_TEST_OBJ
 
 # make test: the Catch2 suite (tests tagged [.] are slow and run only when asked for),
 # then the sanitizer smoke stage: the sanitized command line renders every algorithm on
-# every Cornell scene and is fed every bad scene file, then every figure program runs at
-# quick settings and the gallery check passes (tests/run_suite.sh says how each run
-# counts). Ends with the plain line "tests: N passed, N failed" that CI reads.
+# every Cornell scene and is fed every bad scene file, then the coursework kit's proof
+# (tools/exercises/kit.py prove: every exercise cut from the header compiles, fails its
+# own grader and passes the others'), then every figure program runs at quick settings
+# and the gallery check passes (tests/run_suite.sh says how each run counts). Ends with
+# the plain line "tests: N passed, N failed" that CI reads.
 test: deps
 	$(MAKE) -j$(JOBS) --no-print-directory all $(BUILD)/check/smallvcm $(FIGURE_PROGRAMS:%=$(BUILD)/%)
 	@$(ENSURE_MATPLOTLIB)
 	@tests/run_suite.sh --catch ../$(BUILD)/tests/run_tests $(TEST_ARGS) -- --smoke ../$(BUILD)/check/smallvcm \
-	    --figures $(FIGURE_PROGRAMS:%=../$(BUILD)/%)
+	    --exercises --figures $(FIGURE_PROGRAMS:%=../$(BUILD)/%)
 
 # make unit: the fast loop while changing the header: the Catch2 tests that render no
 # whole scenes statistically (sampling, BSDF, geometry, camera, film, loading, untrusted
@@ -170,12 +172,16 @@ convergence: deps $(BUILD)/convergence
 #       tagged [ex:<name>]) against that copy and prints a score and diagnoses per exercise
 #   make compare STUDENT=... ARGS='-s 4 -a pt -i 16'  renders with that copy and with the
 #       reference, side by side, into build/compare/compare.png
+#   make student-figures STUDENT=... [QUICK=1] [ONLY=fig_mis,...]  the course figures built
+#       with that copy into build/student-figures/ (docs/exercises/README.md says how)
 exercise:
 	@/usr/bin/python3 tools/exercises/kit.py cut "$(NAME)" $(if $(OUT),--out "$(OUT)")
 grade:
 	@/usr/bin/python3 tools/exercises/kit.py grade $(if $(EXERCISE),--exercise "$(EXERCISE)") "$(STUDENT)"
 compare:
 	@/usr/bin/python3 tools/exercises/kit.py compare "$(STUDENT)" -- $(ARGS)
+student-figures:
+	@/usr/bin/python3 tools/exercises/kit.py figures "$(STUDENT)" $(if $(QUICK),--quick) $(if $(ONLY),--only "$(ONLY)")
 
 clean:
 	rm -rf $(BUILD)

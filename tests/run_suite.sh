@@ -2,7 +2,7 @@
 # Runs the test stages of `make test` / `make check` and ends with the one line CI reads:
 #   tests: N passed, N failed
 # Usage: tests/run_suite.sh [--catch BINARY [CATCH ARGS...] --] [--smoke SMALLVCM_BINARY]
-#                           [--figures PROGRAM...]
+#                           [--exercises] [--figures PROGRAM...]
 #   --catch   a Catch2 test binary, run from tests/; its summary counts test cases
 #   --smoke   a smallvcm binary (the sanitized build): every algorithm on every Cornell
 #             scene (16x16, 2 iterations) and every rejected file of tests/data/bad run
@@ -12,6 +12,10 @@
 #             their fix, tests/test_gltf.cpp checks which), and no run may
 #             print a sanitizer report (AddressSanitizer / UndefinedBehaviorSanitizer) or
 #             fail a SMALLVCM_CHECKS invariant.
+#   --exercises the coursework kit's proof (tools/exercises/kit.py prove): the markers
+#             pair up, bad input is refused as documented, and every exercise cut from the
+#             header compiles, fails its own grader and passes the others' (each check
+#             one test; about 50 s on 2 cores, most of it compiling the graders per cut)
 #   --figures the figure programs (build/fig_*), run with --quick into a temporary folder
 #             (each run one test: exit 0), then docs/plot_figures.py and
 #             docs/make_gallery.py on that folder (one test each: the gallery fails when
@@ -100,6 +104,20 @@ OPTIONS
   echo "smoke stage with $binary: $((passed)) passed so far, $failed failed so far"
   rm -rf "$out"
   shift 2
+fi
+
+if [ "${1:-}" = "--exercises" ]; then
+  shift
+  log=$(mktemp)
+  /usr/bin/python3 ../tools/exercises/kit.py prove 2>&1 | tee "$log"
+  code=${PIPESTATUS[0]}
+  ok=$(sed -nE 's/^prove: ([0-9]+) passed, ([0-9]+) failed.*/\1/p' "$log" | tail -n 1)
+  bad=$(sed -nE 's/^prove: ([0-9]+) passed, ([0-9]+) failed.*/\2/p' "$log" | tail -n 1)
+  ok=${ok:-0}; bad=${bad:-0}
+  if [ "$code" != 0 ] && [ "$bad" = 0 ]; then bad=1; fi
+  passed=$((passed + ok)); failed=$((failed + bad))
+  [ "$code" != 0 ] && status=1
+  rm -f "$log"
 fi
 
 if [ "${1:-}" = "--figures" ]; then

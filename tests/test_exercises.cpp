@@ -503,7 +503,7 @@ TEST_CASE("Exercise 04: light tracing's direct light matches the analytic value 
     std::vector<int> wall;
     std::vector<double> analytic;
     AnalyticDirectLight(scene, wall, analytic);
-    const std::vector<Image> images = IndependentRenders(scene, Options(Algorithm::kLightTracing, 4, 2), 8, 401);
+    const std::vector<Image> images = IndependentRenders(scene, Options(Algorithm::kLightTracing, 16, 2), 8, 401);
     for (int w = 0; w < 5; w++) {
         double expected = 0.0;
         int pixels = 0;

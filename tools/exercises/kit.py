@@ -10,6 +10,10 @@
     kit.py compare STUDENT -- SMALLVCM ARGS
                                          render with the student's copy and the reference,
                                          side by side in build/compare/compare.png
+    kit.py figures STUDENT [--quick] [--only PROGRAM,...]
+                                         the course figures (examples/fig_*) built with the
+                                         student's copy, measured against the reference's
+                                         reference images, with their gallery
     kit.py prove                         the kit's own test (make test runs it)
 
 The header marks each exercise's code with comment lines
@@ -519,6 +523,54 @@ def command_compare(student, args):
           f"mean pixel value yours {s:.4g}, reference {mean:.4g} ({100 * (s / mean - 1):+.1f} %)")
 
 
+FIGURE_PROGRAMS = ["fig_path_tracing", "fig_mis", "fig_bidirectional", "fig_photon_mapping", "fig_vcm",
+                   "fig_convergence", "fig_report"]
+
+
+def command_figures(student, quick, only):
+    """The course figures rendered with a student's copy, against the reference's
+    reference images, into build/student-figures/<quick|full>/student/, with the gallery
+    (docs/make_gallery.py) saying which course claims hold."""
+    student = resolve_student(student)
+    programs = [p for p in FIGURE_PROGRAMS if not only or p in only.split(",")]
+    if not programs:
+        raise KitError(f"make student-figures: ONLY={only}: no such figure program; known: {', '.join(FIGURE_PROGRAMS)}")
+    out = os.path.join(BUILD, "student-figures", "quick" if quick else "full")
+    student_out, reference_out = os.path.join(out, "student"), os.path.join(out, "reference")
+    flag = ["--quick"] if quick else []
+    # The reference images every figure measures against must come from the reference
+    # renderer: the committed ones at full settings, a reference run at quick settings.
+    subprocess.check_call(["make", "--no-print-directory", f"-j{2}"] + [f"build/{p}" for p in programs], cwd=ROOT)
+    if quick:
+        for program in programs:
+            subprocess.check_call([os.path.join(BUILD, program), "--out", reference_out] + flag, cwd=ROOT)
+        source = os.path.join(reference_out, "references")
+    else:
+        source = os.path.join(ROOT, "docs", "figures", "references")
+    if os.path.isdir(source):
+        shutil.copytree(source, os.path.join(student_out, "references"), dirs_exist_ok=True)
+    work = os.path.join(out, "obj")
+    include = os.path.join(work, "include")
+    os.makedirs(include, exist_ok=True)
+    shutil.copyfile(student, os.path.join(include, "smallvcm.hpp"))
+    flags = CXXFLAGS + ["-I" + include, "-I" + ROOT]
+    jobs = [([CXX] + flags + ["-c", f"examples/{p}.cpp", "-o", os.path.join(work, p + ".o")], os.path.join(work, p + ".log"))
+            for p in programs + ["smallvcm_impl"]]
+    print(f"student-figures: compiling {len(jobs)} units against {rel(student)}")
+    failed = run_jobs(jobs, 2)
+    if failed:
+        raise KitError(f"student-figures: {rel(student)} does not compile; see {rel(failed[0][1])}", 1)
+    for program in programs:
+        binary = os.path.join(work, program)
+        subprocess.check_call([CXX, os.path.join(work, program + ".o"), os.path.join(work, "smallvcm_impl.o"),
+                               "-o", binary, "-pthread"], cwd=ROOT)
+        code = subprocess.call([binary, "--out", student_out] + flag, cwd=ROOT)
+        print(f"student-figures: {program} exited with {code}")
+    subprocess.call(["/usr/bin/python3", "docs/make_gallery.py", student_out, os.path.join(student_out, "figures.md")], cwd=ROOT)
+    print(f"student-figures: the student's figures and gallery are in {rel(student_out)}"
+          + (f", the reference's in {rel(reference_out)}" if quick else ", the reference's in docs/figures/"))
+
+
 # ---------------------------------------------------------------------------------------
 # The kit's own test
 # ---------------------------------------------------------------------------------------
@@ -658,10 +710,15 @@ def main(argv):
                 raise KitError("make compare: give the render's options, e.g. make compare STUDENT=... ARGS='-s 4 -a pt -i 16'")
             i = args.index("--")
             command_compare(args[0] if i > 0 else None, args[i + 1:])
+        elif command == "figures":
+            quick = "--quick" in args
+            only = option("--only")
+            args = [a for a in args if a != "--quick"]
+            command_figures(args[0] if args else None, quick, only)
         elif command == "prove":
             return command_prove()
         else:
-            raise KitError(f"kit.py: unknown command '{command}' (list, check, cut, grade, compare, prove)")
+            raise KitError(f"kit.py: unknown command '{command}' (list, check, cut, grade, compare, figures, prove)")
     except KitError as e:
         print(str(e), file=sys.stderr)
         return e.status
