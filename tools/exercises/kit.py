@@ -67,7 +67,12 @@ BY_NAME = {e[1]: e for e in EXERCISES}
 # The graders: test files compiled against a student copy (tags [ex:<name>] inside).
 GRADE_SOURCES = ["tests/test_exercises.cpp", "tests/test_vcm_mis.cpp"]
 CXX = os.environ.get("CXX", "g++")
-CXXFLAGS = os.environ.get("CXXFLAGS", "-std=c++17 -O2 -g -Wall -Wextra -Wpedantic -Wshadow").split()
+# The graders compile at -O1 without debug information: half the compile time of the
+# suite's -O2 -g (measured: 7 s instead of 13 s of CPU per cut for the two grader files),
+# and they still run in well under a second.
+CXXFLAGS = os.environ.get("GRADE_CXXFLAGS", "-std=c++17 -O1 -Wall -Wextra -Wpedantic -Wshadow").split()
+# What renders (make compare, make student-figures) compile with: the Makefile's flags.
+RENDER_CXXFLAGS = ["-std=c++17", "-O2", "-Wall", "-Wextra", "-Wpedantic", "-Wshadow"]
 
 MARKER = re.compile(r"^(\s*)// (BEGIN|END) EXERCISE ([a-z0-9_]+)(?:/([a-z0-9_]+))?\s*$")
 LOOSE_MARKER = re.compile(r"//.*\b(BEGIN|END)\s+EXERCISE\b")
@@ -348,6 +353,14 @@ def build_grader(student, work, reuse_impl, parallel=2):
     impl_reused = reuse_impl and reference_impl_is_safe()
     ensure_reference_objects(impl_reused)
     flags = CXXFLAGS + ["-I" + include, "-I" + ROOT]
+    # Objects made with other flags are not reused.
+    stamp = os.path.join(work, "flags.txt")
+    if not os.path.exists(stamp) or open(stamp).read() != " ".join(flags):
+        for name in os.listdir(work):
+            if name.endswith(".o"):
+                os.remove(os.path.join(work, name))
+        with open(stamp, "w") as f:
+            f.write(" ".join(flags))
     helpers = [os.path.join(ROOT, "tests", h) for h in os.listdir(os.path.join(ROOT, "tests")) if h.endswith(".hpp")]
     objects, jobs = [], []
     sources = list(GRADE_SOURCES) + ([] if impl_reused else ["examples/smallvcm_impl.cpp"])
@@ -492,7 +505,7 @@ def command_compare(student, args):
     program = os.path.join(work, "smallvcm_student")
     subprocess.check_call(["make", "--no-print-directory", "-s", "build/smallvcm"], cwd=ROOT)
     print(f"compare: building the command line against {rel(student)} (about 25 s)")
-    code = subprocess.call([CXX] + CXXFLAGS + ["-I" + include, "-I" + ROOT, "examples/smallvcm.cpp",
+    code = subprocess.call([CXX] + RENDER_CXXFLAGS + ["-I" + include, "-I" + ROOT, "examples/smallvcm.cpp",
                             "examples/smallvcm_impl.cpp", "-o", program, "-pthread"], cwd=ROOT)
     if code != 0:
         raise KitError(f"compare: {rel(student)} does not compile", 1)
@@ -553,7 +566,7 @@ def command_figures(student, quick, only):
     include = os.path.join(work, "include")
     os.makedirs(include, exist_ok=True)
     shutil.copyfile(student, os.path.join(include, "smallvcm.hpp"))
-    flags = CXXFLAGS + ["-I" + include, "-I" + ROOT]
+    flags = RENDER_CXXFLAGS + ["-I" + include, "-I" + ROOT]
     jobs = [([CXX] + flags + ["-c", f"examples/{p}.cpp", "-o", os.path.join(work, p + ".o")], os.path.join(work, p + ".log"))
             for p in programs + ["smallvcm_impl"]]
     print(f"student-figures: compiling {len(jobs)} units against {rel(student)}")
