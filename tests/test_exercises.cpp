@@ -134,8 +134,9 @@ std::string RenderVerdict(const std::string& aWhat, const MeanAndError& aMeasure
     std::ostringstream out;
     out.precision(4);
     out << aWhat << " renders " << aMeasured.mean << " +- " << aMeasured.standardError << ", analytic " << aExpected << ": "
-        << Percent(aMeasured.mean, aExpected) << " (" << std::abs(aMeasured.mean - aExpected) / aMeasured.standardError
-        << " standard errors)";
+        << Percent(aMeasured.mean, aExpected);
+    if (aMeasured.standardError > 0.0)
+        out << " (" << std::abs(aMeasured.mean - aExpected) / aMeasured.standardError << " standard errors)";
     return out.str();
 }
 
@@ -244,7 +245,7 @@ TEST_CASE("Exercise 01: SampleCosHemisphereW returns unit directions above the h
     Rng rng(101, 1);
     int bad = 0;
     std::string first;
-    for (int i = 0; i < 20000 && bad < 1000; i++) {
+    for (int i = 0; i < 20000; i++) {
         const Vec2 u = rng.GetVec2();
         float pdf = -1.f;
         const Vec3 d = SampleCosHemisphereW(u, &pdf);
@@ -297,7 +298,7 @@ TEST_CASE("Exercise 02: the path tracer renders the emissive furnace's analytic 
     const double expected = emitted * (1.0 - std::pow(albedo, maxPathLength)) / (1.0 - albedo);
     const Scene scene = MakeTwoLightFurnace(albedo, emitted, 16, 16);
     struct Mode { const char* name; DirectLightSampling sampling; MisHeuristic heuristic; };
-    const Mode modes[] = {{"light sampling alone (--direct light)", DirectLightSampling::kLightOnly, MisHeuristic::kBalance},
+    const Mode modes[] = {{"light sampling alone", DirectLightSampling::kLightOnly, MisHeuristic::kBalance},
                           {"MIS, balance heuristic", DirectLightSampling::kMis, MisHeuristic::kBalance},
                           {"MIS, power heuristic", DirectLightSampling::kMis, MisHeuristic::kPower}};
     for (const Mode& mode : modes) {
@@ -306,8 +307,11 @@ TEST_CASE("Exercise 02: the path tracer renders the emissive furnace's analytic 
         options.mMis = mode.heuristic;
         const MeanAndError measured = ImageMean(IndependentRenders(scene, options, 8, 201));
         std::string hint;
-        if (measured.mean < 0.95 * expected && mode.sampling == DirectLightSampling::kLightOnly)
-            hint = "; light sampling alone must find all but the directly seen light: is next-event estimation's contribution added?";
+        if (measured.mean < 0.6 * expected && mode.sampling == DirectLightSampling::kLightOnly)
+            hint = "; only the light seen directly arrives: light sampling alone must find all the rest, is next-event estimation's contribution added?";
+        else if (mode.sampling == DirectLightSampling::kLightOnly)
+            hint = "; light sampling alone is wrong: check the light pick probability (1 / light count), that Illuminate's pdf is per "
+                   "unit solid angle, the cosine at the vertex and the shadow ray";
         else if (measured.mean > 1.02 * expected && mode.sampling == DirectLightSampling::kMis)
             hint = "; too bright with MIS: is the light counted by both techniques without weights that sum to 1?";
         else if (measured.mean < 0.98 * expected && mode.sampling == DirectLightSampling::kMis)

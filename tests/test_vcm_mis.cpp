@@ -1198,9 +1198,10 @@ std::string DiagnoseMis(const MisCase& aCase) {
     }
     if (wrongPaths == 0 && paths >= 1000) return "";
     std::ostringstream out;
-    out << aCase.name << ": " << wrongPaths << " of " << paths << " paths have wrong weights; the MIS weights of "
-        << worstSumPath << " sum to " << worstSum << ", expected 1";
+    out << aCase.name << ": " << wrongPaths << " of " << paths << " paths have wrong weights";
     if (!worstTechnique.empty()) out << "; e.g. " << worstTechnique;
+    if (worstSumError > 1e-4) out << "; the MIS weights of " << worstSumPath << " sum to " << worstSum << ", expected 1";
+    else out << "; every path's weights sum to one, but they are not the heuristic's";
     if (paths < 1000) out << "; only " << paths << " valid paths (expected >= 1000)";
     return out.str();
 }

@@ -644,6 +644,16 @@ def command_prove():
     report(compile_all.returncode == 0, "the copy with every exercise cut compiles without a warning" +
            ("" if compile_all.returncode == 0 else ":\n" + compile_all.stderr[:3000]))
 
+    # The reference passes every grader: the suite's own binary holds them all.
+    if subprocess.call(["make", "--no-print-directory", "-s", "build/tests/run_tests"], cwd=ROOT) == 0:
+        results = run_graders(os.path.join(BUILD, "tests", "run_tests"), NAMES, os.path.join(work, "reference.xml"))
+        for name in NAMES:
+            p, t, diagnoses = results[name]
+            report(t > 0 and p == t, f"the reference passes grader {name} ({p}/{t})" +
+                   ("" if p == t else ": " + "; ".join(diagnoses[:2])[:400]))
+    else:
+        report(False, "the reference's test binary build/tests/run_tests does not build")
+
     # One grader binary per cut, built two at a time (each build uses one core).
     copies = {}
     for name in NAMES:
