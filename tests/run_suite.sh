@@ -15,7 +15,7 @@
 #   --exercises the coursework kit's proof (tools/exercises/kit.py prove): the markers
 #             pair up, bad input is refused as documented, and every exercise cut from the
 #             header compiles, fails its own grader and passes the others' (each check
-#             one test; 64 tests, 57 s of CPU, most of it compiling the graders per cut)
+#             one test; 72 tests, 40-57 s of CPU, most of it compiling the graders per cut)
 #   --figures the figure programs (build/fig_*), run with --quick into a temporary folder
 #             (each run one test: exit 0), then docs/plot_figures.py and
 #             docs/make_gallery.py on that folder (one test each: the gallery fails when

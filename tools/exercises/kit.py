@@ -62,6 +62,9 @@ EXERCISES = [
     ("07", "vcm_mis", "VCM: merging in the same MIS (eta_VCM, dVM, the merge weight)", "07-vcm-mis.md", []),
 ]
 NAMES = [e[1] for e in EXERCISES]
+# Not an exercise: the test tagged [ex:safety] renders every algorithm on every Cornell
+# scene and fails on NaN, infinite or negative pixels; every grading run includes it.
+SAFETY = "safety"
 BY_NAME = {e[1]: e for e in EXERCISES}
 
 # The graders: test files compiled against a student copy (tags [ex:<name>] inside).
@@ -441,8 +444,9 @@ def grade(student, names, reuse_impl=False, quiet=False, work=None, parallel=2):
         if not quiet:
             print(f"grade: {rel(student)} does not compile with the graders:")
             print("\n".join(errors.splitlines()[:40]))
-        return {name: (0, 1, ["the student copy does not compile"]) for name in names}, None
-    results = run_graders(binary, names, os.path.join(work, "graders.xml"))
+        return {name: (0, 1, ["the student copy does not compile"]) for name in names + [SAFETY]}, None
+    results = run_graders(binary, names + [SAFETY], os.path.join(work, "graders.xml"))
+    safety = results.pop(SAFETY)
     if not quiet:
         print(f"grade: {rel(student)} (graders built and run in {time.time() - start:.0f} s; "
               f"log {rel(os.path.join(work, 'graders.xml'))})")
@@ -455,8 +459,13 @@ def grade(student, names, reuse_impl=False, quiet=False, work=None, parallel=2):
                 print(f"       - {diagnosis}")
             if verdict == "FAIL":
                 print(f"       handout: docs/exercises/{handout}")
+        safe = safety[1] > 0 and safety[0] == safety[1]
+        print(f"  every algorithm on every Cornell scene renders finite, non-negative images: {'yes' if safe else 'NO'}")
+        for diagnosis in safety[2][:6]:
+            print(f"       - {diagnosis}")
         done = sum(1 for n in names if results[n][0] == results[n][1] and results[n][1] > 0)
         print(f"grade: {done} of {len(names)} exercises pass")
+    results[SAFETY] = safety
     return results, binary
 
 
@@ -646,8 +655,8 @@ def command_prove():
 
     # The reference passes every grader: the suite's own binary holds them all.
     if subprocess.call(["make", "--no-print-directory", "-s", "build/tests/run_tests"], cwd=ROOT) == 0:
-        results = run_graders(os.path.join(BUILD, "tests", "run_tests"), NAMES, os.path.join(work, "reference.xml"))
-        for name in NAMES:
+        results = run_graders(os.path.join(BUILD, "tests", "run_tests"), NAMES + [SAFETY], os.path.join(work, "reference.xml"))
+        for name in NAMES + [SAFETY]:
             p, t, diagnoses = results[name]
             report(t > 0 and p == t, f"the reference passes grader {name} ({p}/{t})" +
                    ("" if p == t else ": " + "; ".join(diagnoses[:2])[:400]))
@@ -678,6 +687,9 @@ def command_prove():
             t.join()
     for name in NAMES:
         results = outcomes[name]
+        safety = results[SAFETY]
+        report(safety[1] > 0 and safety[0] == safety[1], f"cut {name}: every algorithm renders finite, non-negative images" +
+               ("" if safety[0] == safety[1] else ": " + "; ".join(safety[2][:2])[:400]))
         own = results[name]
         report(own[1] > 0 and own[0] < own[1],
                f"cut {name}: its grader fails ({own[0]}/{own[1]} tests pass): " + "; ".join(own[2][:2])[:400])
