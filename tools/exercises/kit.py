@@ -442,8 +442,10 @@ def grade(student, names, reuse_impl=False, quiet=False, work=None, parallel=2):
     binary, errors = build_grader(student, work, reuse_impl, parallel)
     if not binary:
         if not quiet:
+            copy = os.path.join(work, "include", "smallvcm.hpp")
             print(f"grade: {rel(student)} does not compile with the graders:")
-            print("\n".join(errors.splitlines()[:40]))
+            print("\n".join(errors.replace(copy, rel(student)).splitlines()[:40]))
+            print(f"grade: 0 of {len(names)} exercises pass: fix the first error above (its line numbers are your copy's)")
         return {name: (0, 1, ["the student copy does not compile"]) for name in names + [SAFETY]}, None
     results = run_graders(binary, names + [SAFETY], os.path.join(work, "graders.xml"))
     safety = results.pop(SAFETY)
