@@ -390,48 +390,45 @@ def build_grader(student, work, reuse_impl, parallel=2):
 
 
 def run_graders(binary, names, log):
-    """Runs the tests tagged for the named exercises once; {name: (passed, total, [diagnoses])}."""
-    spec = ",".join(f"[ex:{name}]" for name in names)
+    """Runs the tests tagged for each named exercise, one process per exercise (a crash in
+    one cannot hide another's result); {name: (passed, total, [diagnoses])}. `log` names
+    the XML logs: <log>.<name>.xml."""
+    return {name: run_one_grader(binary, name, f"{log}.{name}.xml") for name in names}
+
+
+def run_one_grader(binary, name, log):
     with open(log, "w") as out:
-        code = subprocess.call([binary, spec, "-r", "xml", "--order", "decl"], cwd=os.path.join(ROOT, "tests"),
+        code = subprocess.call([binary, f"[ex:{name}]", "-r", "xml", "--order", "decl"], cwd=os.path.join(ROOT, "tests"),
                                stdout=out, stderr=subprocess.STDOUT)
-    results = {name: [0, 0, []] for name in names}
     with open(log, encoding="utf-8", errors="replace") as f:
         text = f.read()
-    cases = re.findall(r"<TestCase [^>]*>.*?</TestCase>", text, re.S)
-    for case in cases:
+    passed, total, diagnoses = 0, 0, []
+    for case in re.findall(r"<TestCase [^>]*>.*?</TestCase>", text, re.S):
         try:
             node = ET.fromstring(case)
         except ET.ParseError:
             continue
-        tags = re.findall(r"\[ex:([a-z0-9_]+)\]", node.get("tags", ""))
+        total += 1
         overall = node.find("OverallResult")
-        ok = overall is not None and overall.get("success") == "true"
-        for name in tags:
-            if name not in results:
-                continue
-            results[name][1] += 1
-            if ok:
-                results[name][0] += 1
-            else:
-                found = [" ".join((f.text or "").split()) for f in node.iter("Failure")]
-                found += ["an exception: " + " ".join((f.text or "").split()) for f in node.iter("Exception")]
-                found += ["a failed check at " + os.path.basename(e.get("filename", "")) + ":" + e.get("line", "")
-                          for e in node.iter("Expression") if e.get("success") == "false"]
-                results[name][2].extend(found or ["test case '" + node.get("name", "") + "' failed"])
-    # A crash ends the XML early: the case it was in never closes.
-    opened = re.findall(r'<TestCase name="([^"]*)" tags="([^"]*)"', text)
-    closed = len(cases)
-    if code != 0 and len(opened) > closed:
-        name_crashed, tags = opened[closed]
-        for name in re.findall(r"\[ex:([a-z0-9_]+)\]", tags):
-            if name in results:
-                results[name][1] += 1
-                results[name][2].append(f"the test '{name_crashed}' crashed (exit status {code}); see {rel(log)}")
-    for name in names:
-        if results[name][1] == 0:
-            results[name][2].append(f"no grader ran (exit status {code}); see {rel(log)}")
-    return {name: tuple(v) for name, v in results.items()}
+        if overall is not None and overall.get("success") == "true":
+            passed += 1
+            continue
+        found = [" ".join((f.text or "").split()) for f in node.iter("Failure")]
+        found += [f"it crashed ({' '.join((f.text or '').split())}) in '{node.get('name', '')}'"
+                  for f in node.iter("FatalErrorCondition")]
+        found += ["an exception: " + " ".join((f.text or "").split()) for f in node.iter("Exception")]
+        if not found:
+            found = ["a failed check at " + os.path.basename(e.get("filename", "")) + ":" + e.get("line", "")
+                     for e in node.iter("Expression") if e.get("success") == "false"]
+        diagnoses.extend(found or ["test case '" + node.get("name", "") + "' failed"])
+    # A crash Catch2 could not report ends the XML inside the case it was in.
+    opened = re.findall(r'<TestCase name="([^"]*)"', text)
+    if code != 0 and len(opened) > total:
+        total += 1
+        diagnoses.append(f"the test '{opened[total - 1]}' crashed (exit status {code}); see {rel(log)}")
+    if total == 0:
+        diagnoses.append(f"no grader ran (exit status {code}); see {rel(log)}")
+    return passed, max(total, 1), diagnoses
 
 
 def grade(student, names, reuse_impl=False, quiet=False, work=None, parallel=2):
@@ -447,11 +444,11 @@ def grade(student, names, reuse_impl=False, quiet=False, work=None, parallel=2):
             print("\n".join(errors.replace(copy, rel(student)).splitlines()[:40]))
             print(f"grade: 0 of {len(names)} exercises pass: fix the first error above (its line numbers are your copy's)")
         return {name: (0, 1, ["the student copy does not compile"]) for name in names + [SAFETY]}, None
-    results = run_graders(binary, names + [SAFETY], os.path.join(work, "graders.xml"))
+    results = run_graders(binary, names + [SAFETY], os.path.join(work, "graders"))
     safety = results.pop(SAFETY)
     if not quiet:
         print(f"grade: {rel(student)} (graders built and run in {time.time() - start:.0f} s; "
-              f"log {rel(os.path.join(work, 'graders.xml'))})")
+              f"logs {rel(os.path.join(work, 'graders'))}.<name>.xml)")
         for name in names:
             passed, total, diagnoses = results[name]
             number, _, title, handout, _ = BY_NAME[name]
@@ -657,7 +654,7 @@ def command_prove():
 
     # The reference passes every grader: the suite's own binary holds them all.
     if subprocess.call(["make", "--no-print-directory", "-s", "build/tests/run_tests"], cwd=ROOT) == 0:
-        results = run_graders(os.path.join(BUILD, "tests", "run_tests"), NAMES + [SAFETY], os.path.join(work, "reference.xml"))
+        results = run_graders(os.path.join(BUILD, "tests", "run_tests"), NAMES + [SAFETY], os.path.join(work, "reference"))
         for name in NAMES + [SAFETY]:
             p, t, diagnoses = results[name]
             report(t > 0 and p == t, f"the reference passes grader {name} ({p}/{t})" +
