@@ -23,7 +23,7 @@ TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
 .PHONY: all deps demo test unit check fuzz convergence bench figures clean exercise grade compare student-figures
 
-all: $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
+all: $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/my_path_tracer $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
 # Installs what is missing, with sudo when not root; does nothing when all is there.
 deps:
@@ -50,6 +50,34 @@ $(BUILD)/%: $(BUILD)/%.o $(IMPL_OBJ)
 	$(CXX) $^ -o $@ $(LDFLAGS)
 
 .PRECIOUS: $(BUILD)/%.o
+
+# Integrators compiled into the command-line renderer: .cpp files that each register
+# theirs with a smallvcm::IntegratorRegistration (docs/writing-an-integrator.md); -a NAME
+# then runs one and --help lists them. The default adds the course's example, -a mypt.
+#   make build/smallvcm INTEGRATORS="examples/integrators/my_path_tracer.cpp ~/mine.cpp"
+# Each file compiles to build/integrators/<its name>.o (so two files need two names), and
+# the sanitized command line (build/check/smallvcm) links the same files. The list is kept
+# in build/integrators.list, so a different list relinks the program.
+INTEGRATORS ?= examples/integrators/my_path_tracer.cpp
+INTEGRATOR_LIST := $(BUILD)/integrators.list
+integrator_obj = $(foreach f,$(INTEGRATORS),$(1)/integrators/$(basename $(notdir $(f))).o)
+define INTEGRATOR_RULES
+$(BUILD)/integrators/$(basename $(notdir $(1))).o: $(1) $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)/integrators
+	$$(CXX) $$(CPPFLAGS) $$(CXXFLAGS) -c $$< -o $$@
+$(BUILD)/check/integrators/$(basename $(notdir $(1))).o: $(1) $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)/check/integrators
+	$$(CXX) $$(CPPFLAGS) $$(SAN_FLAGS) -c $$< -o $$@
+endef
+$(foreach f,$(INTEGRATORS),$(eval $(call INTEGRATOR_RULES,$(f))))
+$(BUILD)/integrators $(BUILD)/check/integrators:
+	mkdir -p $@
+# Rewritten only when the list changes, so an unchanged list relinks nothing.
+$(INTEGRATOR_LIST): FORCE | $(BUILD)
+	@echo '$(INTEGRATORS)' | cmp -s - $@ || echo '$(INTEGRATORS)' > $@
+.PHONY: FORCE
+FORCE:
+
+$(BUILD)/smallvcm: $(BUILD)/smallvcm.o $(IMPL_OBJ) $(call integrator_obj,$(BUILD)) $(INTEGRATOR_LIST)
+	$(CXX) $(filter %.o,$^) -o $@ $(LDFLAGS)
 
 # The header's first-screen example is a whole program: it defines SMALLVCM_IMPLEMENTATION
 # itself, so it is built alone, not linked with the implementation unit.
@@ -81,8 +109,8 @@ $(BUILD)/check/tests:
 	mkdir -p $@
 $(BUILD)/check/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)/check/tests
 	$(CXX) $(CPPFLAGS) $(SAN_FLAGS) -c $< -o $@
-$(BUILD)/check/smallvcm: $(BUILD)/check/smallvcm.o $(BUILD)/check/smallvcm_impl.o
-	$(CXX) $(SAN_FLAGS) $^ -o $@ $(LDFLAGS)
+$(BUILD)/check/smallvcm: $(BUILD)/check/smallvcm.o $(BUILD)/check/smallvcm_impl.o $(call integrator_obj,$(BUILD)/check) $(INTEGRATOR_LIST)
+	$(CXX) $(SAN_FLAGS) $(filter %.o,$^) -o $@ $(LDFLAGS)
 $(BUILD)/check/tests/catch_main.o: tests/catch_main.cpp | $(BUILD)/check/tests
 	$(CXX) $(CPPFLAGS) $(SAN_FLAGS) -c $< -o $@
 $(BUILD)/check/tests/%.o: tests/%.cpp $(HEADER) $(wildcard tests/*.hpp) | $(BUILD)/check/tests

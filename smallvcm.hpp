@@ -114,8 +114,12 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
+#include <deque>
+#include <functional>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <stdexcept>
 #include <string>
@@ -1966,9 +1970,30 @@ private:
 // =====================================================================================
 // [SECTION] Integrator interface
 // =====================================================================================
-// Provides: the algorithm list, RenderOptions, the MIS heuristic, and AbstractRenderer,
-// the base of every integrator: one instance per thread, owning its Film, asked to run
-// whole iterations (one sample per pixel each) with a random stream given to it.
+// Provides: the built-in algorithm list, RenderOptions, the MIS heuristic,
+// AbstractRenderer, the base of every integrator, and Integrator, the description under
+// which Render() (in [SECTION] Render loop) finds one by name. The built-ins use the
+// same mechanism as a user's own integrator; docs/writing-an-integrator.md walks through
+// examples/my_path_tracer.hpp, a complete one.
+//
+// The contract, as Render() keeps it:
+//  * Render() creates one renderer per thread with Integrator::mCreateRenderer(scene,
+//    options), before any thread starts. Each renderer is used by one thread only, so its
+//    members are that thread's private state (caches, light vertices, photon maps): no
+//    locks. The scene is shared and read-only.
+//  * The renderer's Film (mFilm, the camera's resolution) receives its contributions:
+//    AddColor(pixel, value) adds radiance; add extra layers in the constructor with
+//    AddLayer(name) (only when mOptions.mTechniqueLayers asks for them, by convention)
+//    and write them with AddToLayer.
+//  * RunIteration(i, rng) renders iteration i, conventionally one sample per pixel, and
+//    draws every random number from rng: stream i of the base seed, the same whichever
+//    thread runs it, so one seed and thread count give one image, bit for bit.
+//  * After the last iteration Render() sums the films in thread order and divides by the
+//    number of iterations run: a film holds sums of per-iteration estimates.
+//  * Iteration and time budgets, threads, progress, cancellation (checked between
+//    iterations) and the RenderResult are Render()'s: a renderer only renders.
+//  * An exception thrown by RunIteration stops every thread; Render() rethrows its
+//    message as Error.
 
 enum class Algorithm {
     kEyeLight,
@@ -2062,6 +2087,33 @@ protected:
     RenderOptions mOptions;
     Film mFilm;
 };
+
+// One integrator as Render() and the command line know it. mName is what `-a` takes
+// (letters, digits, '_' and '-'); mDescription is the one line `--help` prints beside it.
+// mCreateRenderer makes one per-thread renderer. mBytesPerRenderer, if set, is what one
+// renderer allocates beyond its film (the film and its layers are counted for every
+// integrator); Render() refuses a render that would not fit in memory before it starts.
+struct Integrator {
+    using CreateRendererFn = std::function<std::unique_ptr<AbstractRenderer>(const Scene&, const RenderOptions&)>;
+    using BytesPerRendererFn = std::function<uint64_t(const Camera&, const RenderOptions&)>;
+
+    std::string mName;
+    std::string mDescription;
+    CreateRendererFn mCreateRenderer;
+    BytesPerRendererFn mBytesPerRenderer;
+};
+
+// The Integrator of a renderer class constructible from (scene, options), the usual case:
+//     MakeIntegrator<MyPathTracer>("mypt", "my path tracer")
+template <class Renderer>
+Integrator MakeIntegrator(const std::string& aName, const std::string& aDescription,
+                          Integrator::BytesPerRendererFn aBytesPerRenderer = nullptr) {
+    return Integrator{aName, aDescription,
+                      [](const Scene& aScene, const RenderOptions& aOptions) -> std::unique_ptr<AbstractRenderer> {
+                          return std::make_unique<Renderer>(aScene, aOptions);
+                      },
+                      std::move(aBytesPerRenderer)};
+}
 
 // =====================================================================================
 // [SECTION] Integrator: eye light
@@ -3414,12 +3466,17 @@ private:
 // =====================================================================================
 // [SECTION] Render loop
 // =====================================================================================
-// Provides: Render(), which runs an algorithm on a scene with a budget of iterations or
-// seconds on all cores, and returns the averaged image (and layers). Each thread owns a
-// renderer and its film; iteration i draws its random numbers from stream i of the base
-// seed. With an iteration budget thread t runs iterations t, t + T, t + 2T, ... and the
-// films are summed in thread order, so one seed and one thread count give one image, bit
-// for bit. With a time budget threads take the next iteration until time runs out.
+// Provides: the integrator registry (the built-ins, and any the program registers: found
+// by name with FindIntegrator, listed by RegisteredIntegrators) and Render(), which runs
+// an integrator on a scene with a budget of iterations or seconds on all cores, and
+// returns the averaged image (and layers). Each thread owns a renderer and its film;
+// iteration i draws its random numbers from stream i of the base seed. With an iteration
+// budget thread t runs iterations t, t + T, t + 2T, ... and the films are summed in thread
+// order, so one seed and one thread count give one image, bit for bit. With a time budget
+// threads take the next iteration until time runs out.
+// Render(scene, options) runs the built-in that RenderOptions::mAlgorithm names;
+// Render(scene, options, integrator) runs any Integrator (see [SECTION] Integrator
+// interface for what it must provide).
 
 struct RenderResult {
     Image mImage;
@@ -3430,14 +3487,132 @@ struct RenderResult {
     bool mStopped = false;  // stopped early by RenderOptions::mStopRequested
 };
 
-inline std::unique_ptr<AbstractRenderer> CreateRenderer(const Scene& aScene, const RenderOptions& aOptions) {
-    switch (aOptions.mAlgorithm) {
-    case Algorithm::kEyeLight: return std::make_unique<EyeLight>(aScene, aOptions);
-    case Algorithm::kPathTracing: return std::make_unique<PathTracer>(aScene, aOptions);
-    case Algorithm::kPhotonMapping:
-    case Algorithm::kPhotonMappingFinalGather: return std::make_unique<PhotonMapper>(aScene, aOptions);
-    default: return std::make_unique<VertexCM>(aScene, aOptions);
+namespace detail {
+
+// A built-in: its renderer runs with RenderOptions::mAlgorithm set to its own algorithm,
+// whatever the caller's options say, because PhotonMapper and VertexCM read from it which
+// of their techniques to use.
+template <class Renderer>
+Integrator MakeBuiltIn(Algorithm aAlgorithm, const char* aDescription,
+                       Integrator::BytesPerRendererFn aBytesPerRenderer = nullptr) {
+    return Integrator{AlgorithmShortName(aAlgorithm), aDescription,
+                      [aAlgorithm](const Scene& aScene, const RenderOptions& aOptions) -> std::unique_ptr<AbstractRenderer> {
+                          RenderOptions options = aOptions;
+                          options.mAlgorithm = aAlgorithm;
+                          return std::make_unique<Renderer>(aScene, options);
+                      },
+                      std::move(aBytesPerRenderer)};
+}
+
+// What a renderer allocates beyond its film, roughly from above: the photon maps (4
+// photons per emitted path, twice: photons and the kd-tree) or the VertexCM family's
+// light vertices (3 per light path, plus the range-search grid: the Cornell scenes store
+// 0.5 to 2.2; the room reserved for 4 is not touched).
+inline uint64_t PhotonMapBytes(const Camera&, const RenderOptions& aOptions) {
+    return uint64_t(aOptions.mPhotonCount) * 4 * 2 * sizeof(Photon);
+}
+inline uint64_t LightVertexBytes(const Camera& aCamera, const RenderOptions&) {
+    return uint64_t(aCamera.PixelCount()) * (3 * (sizeof(VertexCM::LightVertex) + 16) + sizeof(int));
+}
+
+// The built-ins in the order the header teaches them; the registry starts with these.
+inline std::deque<Integrator> BuiltInIntegrators() {
+    return {
+        MakeBuiltIn<EyeLight>(Algorithm::kEyeLight, "eye light: |cos| at the first hit, back faces red (a geometry check)"),
+        MakeBuiltIn<PathTracer>(Algorithm::kPathTracing, "path tracing with next-event estimation and MIS"),
+        MakeBuiltIn<VertexCM>(Algorithm::kLightTracing, "light tracing: light sub-paths splatted onto the image",
+                                    LightVertexBytes),
+        MakeBuiltIn<PhotonMapper>(Algorithm::kPhotonMapping, "photon mapping: k nearest photons at the first hit",
+                                        PhotonMapBytes),
+        MakeBuiltIn<PhotonMapper>(Algorithm::kPhotonMappingFinalGather,
+                                        "photon mapping, partitioned estimator with final gathering", PhotonMapBytes),
+        MakeBuiltIn<VertexCM>(Algorithm::kProgressivePhotonMapping,
+                                    "progressive photon mapping (merging at the first non-specular camera vertex)",
+                                    LightVertexBytes),
+        MakeBuiltIn<VertexCM>(Algorithm::kBidirectionalPhotonMapping,
+                                    "bidirectional photon mapping (merging at every camera vertex, MIS)", LightVertexBytes),
+        MakeBuiltIn<VertexCM>(Algorithm::kBidirectionalPathTracing, "bidirectional path tracing (vertex connection, MIS)",
+                                    LightVertexBytes),
+        MakeBuiltIn<VertexCM>(Algorithm::kVertexConnectionMerging, "vertex connection and merging (BPT + BPM under one MIS)",
+                                    LightVertexBytes),
+    };
+}
+
+// One per program, made on first use (so registration objects in other translation units
+// may run before or after any other static initialization). A deque, so that the
+// Integrator a lookup returned stays where it is when more are registered.
+struct IntegratorRegistry {
+    std::mutex mMutex;
+    std::deque<Integrator> mIntegrators = BuiltInIntegrators();
+};
+inline IntegratorRegistry& GetIntegratorRegistry() {
+    static IntegratorRegistry registry;
+    return registry;
+}
+
+} // namespace detail
+
+// Adds an integrator that Render() and the command line can then find by name. Throws
+// Error on a name that is empty, not of letters, digits, '_' and '-', or already taken
+// (the built-ins' names included), and on an Integrator without mCreateRenderer.
+// Register before rendering: at static initialization (IntegratorRegistration) or early
+// in main.
+inline const Integrator& RegisterIntegrator(Integrator aIntegrator) {
+    const std::string what = "integrator '" + aIntegrator.mName + "'";
+    if (aIntegrator.mName.empty() ||
+        aIntegrator.mName.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") != std::string::npos)
+        throw Error(what + ": a name must be letters, digits, '_' and '-'");
+    if (!aIntegrator.mCreateRenderer) throw Error(what + ": has no mCreateRenderer");
+    detail::IntegratorRegistry& registry = detail::GetIntegratorRegistry();
+    std::lock_guard<std::mutex> lock(registry.mMutex);
+    for (const Integrator& known : registry.mIntegrators)
+        if (known.mName == aIntegrator.mName) throw Error(what + ": the name is already registered");
+    registry.mIntegrators.push_back(std::move(aIntegrator));
+    return registry.mIntegrators.back();
+}
+
+// The integrator of that name, or nullptr.
+inline const Integrator* FindIntegrator(const std::string& aName) {
+    detail::IntegratorRegistry& registry = detail::GetIntegratorRegistry();
+    std::lock_guard<std::mutex> lock(registry.mMutex);
+    for (const Integrator& known : registry.mIntegrators)
+        if (known.mName == aName) return &known;
+    return nullptr;
+}
+
+// Every registered integrator: the built-ins first, then the others in registration order.
+inline std::vector<const Integrator*> RegisteredIntegrators() {
+    detail::IntegratorRegistry& registry = detail::GetIntegratorRegistry();
+    std::lock_guard<std::mutex> lock(registry.mMutex);
+    std::vector<const Integrator*> all;
+    for (const Integrator& known : registry.mIntegrators) all.push_back(&known);
+    return all;
+}
+
+// The built-in integrator of an Algorithm (always registered).
+inline const Integrator& BuiltInIntegrator(Algorithm aAlgorithm) { return *FindIntegrator(AlgorithmShortName(aAlgorithm)); }
+
+// Registers an integrator during static initialization, from the translation unit that
+// defines it, so that linking that unit into a program (the command line, say) is all it
+// takes to make it known:
+//     static const smallvcm::IntegratorRegistration kRegistration(
+//         smallvcm::MakeIntegrator<MyPathTracer>("mypt", "my path tracer"));
+// A refused registration cannot be caught there: it prints the Error's line and exits 1.
+struct IntegratorRegistration {
+    explicit IntegratorRegistration(Integrator aIntegrator) {
+        try {
+            RegisterIntegrator(std::move(aIntegrator));
+        } catch (const Error& e) {
+            std::fprintf(stderr, "smallvcm: %s\n", e.what());
+            std::exit(1);
+        }
     }
+};
+
+// One renderer of the built-in that aOptions.mAlgorithm names (what Render() runs on each
+// thread; the convergence and benchmark tools drive renderers themselves).
+inline std::unique_ptr<AbstractRenderer> CreateRenderer(const Scene& aScene, const RenderOptions& aOptions) {
+    return BuiltInIntegrator(aOptions.mAlgorithm).mCreateRenderer(aScene, aOptions);
 }
 
 // Threads beyond a few per core only add memory (a film each) and scheduling delay.
@@ -3475,22 +3650,20 @@ inline void ValidateRenderOptions(const RenderOptions& aOptions) {
 }
 
 // The bytes Render touches for aThreads threads, roughly from above: per thread a film
-// (double RGB per pixel, and per layer), the light vertices of the VertexCM family (3 per
-// light path, plus the range-search grid: the Cornell scenes store 0.5 to 2.2; the room
-// reserved for 4 is not touched) or the photon maps (4 photons per emitted path, twice:
-// photons and the kd-tree); once, the resolved images.
-inline uint64_t EstimateRenderBytes(const Camera& aCamera, const RenderOptions& aOptions, int aThreads) {
+// (double RGB per pixel, and per layer: with technique layers asked for, room for 64, as
+// VertexCM's pyramid has up to 56) and what the integrator's mBytesPerRenderer says; once,
+// the resolved images.
+inline uint64_t EstimateRenderBytes(const Camera& aCamera, const RenderOptions& aOptions, const Integrator& aIntegrator,
+                                    int aThreads) {
     const uint64_t pixels = uint64_t(aCamera.PixelCount());
-    const uint64_t layers = aOptions.mTechniqueLayers ? 64 : 0;  // VertexCM's pyramid is the most: 56
+    const uint64_t layers = aOptions.mTechniqueLayers ? 64 : 0;
     uint64_t perThread = pixels * sizeof(glm::dvec3) * (1 + layers);
-    switch (aOptions.mAlgorithm) {
-    case Algorithm::kEyeLight:
-    case Algorithm::kPathTracing: break;
-    case Algorithm::kPhotonMapping:
-    case Algorithm::kPhotonMappingFinalGather: perThread += uint64_t(aOptions.mPhotonCount) * 4 * 2 * sizeof(Photon); break;
-    default: perThread += pixels * (3 * (sizeof(VertexCM::LightVertex) + 16) + sizeof(int)); break;
-    }
+    if (aIntegrator.mBytesPerRenderer) perThread += aIntegrator.mBytesPerRenderer(aCamera, aOptions);
     return perThread * uint64_t(aThreads) + pixels * sizeof(Vec3) * (1 + layers);
+}
+// The same for the built-in that aOptions.mAlgorithm names.
+inline uint64_t EstimateRenderBytes(const Camera& aCamera, const RenderOptions& aOptions, int aThreads) {
+    return EstimateRenderBytes(aCamera, aOptions, BuiltInIntegrator(aOptions.mAlgorithm), aThreads);
 }
 
 // The machine's physical memory in bytes (0 where it cannot be asked).
@@ -3505,14 +3678,19 @@ inline uint64_t PhysicalMemoryBytes() {
 // Throws Error when the render would need more than 3/4 of the machine's memory: one
 // clear line before the first allocation instead of std::bad_alloc (or the OOM killer)
 // in the middle.
-inline void CheckRenderMemory(const Camera& aCamera, const RenderOptions& aOptions, int aThreads) {
-    const uint64_t needed = EstimateRenderBytes(aCamera, aOptions, aThreads);
+inline void CheckRenderMemory(const Camera& aCamera, const RenderOptions& aOptions, const Integrator& aIntegrator,
+                              int aThreads) {
+    const uint64_t needed = EstimateRenderBytes(aCamera, aOptions, aIntegrator, aThreads);
     const uint64_t physical = PhysicalMemoryBytes();
     if (physical == 0 || needed <= physical / 4 * 3) return;
     auto gib = [](uint64_t aBytes) { return std::to_string(aBytes >> 30) + "." + std::to_string(((aBytes >> 20) & 1023) * 10 / 1024) + " GiB"; };
     throw Error("memory: " + std::to_string(aCamera.Width()) + "x" + std::to_string(aCamera.Height()) + " with " +
-                AlgorithmShortName(aOptions.mAlgorithm) + " on " + std::to_string(aThreads) + " thread(s) needs about " + gib(needed) +
+                aIntegrator.mName + " on " + std::to_string(aThreads) + " thread(s) needs about " + gib(needed) +
                 ", more than 3/4 of this machine's " + gib(physical) + ": use fewer threads or a smaller resolution");
+}
+// The same for the built-in that aOptions.mAlgorithm names.
+inline void CheckRenderMemory(const Camera& aCamera, const RenderOptions& aOptions, int aThreads) {
+    CheckRenderMemory(aCamera, aOptions, BuiltInIntegrator(aOptions.mAlgorithm), aThreads);
 }
 
 inline uint64_t SplitMix64(uint64_t aX) {
@@ -3527,8 +3705,28 @@ inline Rng IterationRng(uint64_t aSeed, int aIteration) {
     return Rng(SplitMix64(aSeed ^ SplitMix64(uint64_t(aIteration))), uint64_t(aIteration));
 }
 
-inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
+// Throws Error naming the integrator if its renderers' films cannot be summed: each must
+// have the camera's size, and all the same layers (made in the constructor).
+inline void CheckRendererFilms(const Integrator& aIntegrator, const Camera& aCamera,
+                               const std::vector<std::unique_ptr<AbstractRenderer>>& aRenderers) {
+    const Film& first = aRenderers[0]->GetFilm();
+    for (const std::unique_ptr<AbstractRenderer>& renderer : aRenderers) {
+        const Film& film = renderer->GetFilm();
+        if (film.Width() != aCamera.Width() || film.Height() != aCamera.Height())
+            throw Error("integrator '" + aIntegrator.mName + "': a renderer's film is " + std::to_string(film.Width()) + "x" +
+                        std::to_string(film.Height()) + ", not the camera's " + std::to_string(aCamera.Width()) + "x" +
+                        std::to_string(aCamera.Height()));
+        bool sameLayers = film.LayerCount() == first.LayerCount();
+        for (int l = 0; sameLayers && l < film.LayerCount(); l++) sameLayers = film.LayerName(l) == first.LayerName(l);
+        if (!sameLayers)
+            throw Error("integrator '" + aIntegrator.mName + "': its renderers' films have different layers (add them in the constructor)");
+    }
+}
+
+// Runs aIntegrator: one renderer per thread, the budget of aOptions, and the result.
+inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions, const Integrator& aIntegrator) {
     ValidateRenderOptions(aOptions);
+    if (!aIntegrator.mCreateRenderer) throw Error("integrator '" + aIntegrator.mName + "': has no mCreateRenderer");
     if (!aScene.IsFinalized()) throw Error("scene: Finalize() was not called");
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
@@ -3536,14 +3734,18 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
 
     int threadCount = aOptions.mThreads > 0 ? aOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));
     if (aOptions.mIterations > 0) threadCount = std::min(threadCount, aOptions.mIterations);
-    CheckRenderMemory(aScene.mCamera, aOptions, threadCount);
+    CheckRenderMemory(aScene.mCamera, aOptions, aIntegrator, threadCount);
     static const char* const kOutOfMemory = "memory: out of memory while rendering (use fewer threads or a smaller resolution)";
     std::vector<std::unique_ptr<AbstractRenderer>> renderers;
     try {
-        for (int t = 0; t < threadCount; t++) renderers.push_back(CreateRenderer(aScene, aOptions));
+        for (int t = 0; t < threadCount; t++) {
+            renderers.push_back(aIntegrator.mCreateRenderer(aScene, aOptions));
+            if (!renderers.back()) throw Error("integrator '" + aIntegrator.mName + "': mCreateRenderer returned no renderer");
+        }
     } catch (const std::bad_alloc&) {
         throw Error(kOutOfMemory);
     }
+    CheckRendererFilms(aIntegrator, aScene.mCamera, renderers);
 
     const bool timed = aOptions.mSeconds > 0.0;
     std::atomic<int> nextIteration{0};
@@ -3592,7 +3794,7 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
             while (!done) {
                 std::this_thread::sleep_for(std::chrono::milliseconds(250));
                 if (done || elapsed() < 2.0) continue;
-                std::fprintf(stderr, "\r%s: iteration %d%s, %.1f s   ", AlgorithmShortName(aOptions.mAlgorithm),
+                std::fprintf(stderr, "\r%s: iteration %d%s, %.1f s   ", aIntegrator.mName.c_str(),
                              completed.load(),
                              aOptions.mIterations > 0 ? ("/" + std::to_string(aOptions.mIterations)).c_str() : "",
                              elapsed());
@@ -3619,6 +3821,11 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
     result.mImage = film.Resolve(scale);
     for (int l = 0; l < film.LayerCount(); l++) result.mLayers.emplace_back(film.LayerName(l), film.Resolve(scale, l));
     return result;
+}
+
+// Runs the built-in that aOptions.mAlgorithm names.
+inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
+    return Render(aScene, aOptions, BuiltInIntegrator(aOptions.mAlgorithm));
 }
 
 // =====================================================================================

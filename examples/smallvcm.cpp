@@ -8,11 +8,15 @@
 // exit code 1. No output file is written unless the render succeeded. Ctrl-C (SIGINT) or
 // SIGTERM stops the render after the iterations in flight, writes what was accumulated
 // and exits with 130 or 143; a second signal ends it at once, leaving no temporary file.
-// Build: make build/smallvcm. Run with --help for the options.
+// -a takes any registered integrator: the built-ins, and those of the .cpp files the
+// Makefile's INTEGRATORS variable links in (each registers itself with a
+// smallvcm::IntegratorRegistration; docs/writing-an-integrator.md shows how).
+// Build: make build/smallvcm [INTEGRATORS="mine.cpp ..."]. Run with --help for the options.
 
 #include "smallvcm.hpp"
 #include "command_line.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <charconv>
@@ -51,6 +55,14 @@ const char* const kCornellScenes[] = {
     "cornell_4_default.gltf",        // -s 4: SmallVCM's kDefault: small spheres, ceiling light
 };
 
+// "el, pt, ...": every registered integrator's name.
+std::string IntegratorNames() {
+    std::string names;
+    for (const smallvcm::Integrator* integrator : smallvcm::RegisteredIntegrators())
+        names += (names.empty() ? "" : ", ") + integrator->mName;
+    return names;
+}
+
 void PrintHelp() {
     std::printf(
         "Usage: smallvcm [options]\n"
@@ -58,7 +70,13 @@ void PrintHelp() {
         "                        0 glossy + small spheres + sun      1 glossy + large mirror + ceiling light\n"
         "                        2 glossy + small spheres + point    3 glossy + small spheres + background\n"
         "                        4 small mirror and glass spheres + ceiling light (SmallVCM's default)\n"
-        "  -a ALGORITHM        el, pt, lt, ppm, bpm, bpt, vcm, pm, pmfg (default vcm)\n"
+        "  -a ALGORITHM        a registered integrator (default vcm):\n");
+    int nameWidth = 0;
+    for (const smallvcm::Integrator* integrator : smallvcm::RegisteredIntegrators())
+        nameWidth = std::max(nameWidth, int(integrator->mName.size()));
+    for (const smallvcm::Integrator* integrator : smallvcm::RegisteredIntegrators())
+        std::printf("                        %-*s %s\n", nameWidth, integrator->mName.c_str(), integrator->mDescription.c_str());
+    std::printf(
         "  -i ITERATIONS       number of iterations, one sample per pixel each (default 1)\n"
         "  -t SECONDS          time budget; with -t and no -i, runs until the time is up\n"
         "  -o FILE             output image: .png, .hdr or .pfm, in any case (default smallvcm.png)\n"
@@ -125,6 +143,7 @@ struct CommandLine {
     bool mQuiet = false;
     bool mIterationsGiven = false;
     smallvcm::RenderOptions mOptions;
+    const smallvcm::Integrator* mIntegrator = &smallvcm::BuiltInIntegrator(mOptions.mAlgorithm);
     smallvcm::GltfLoadOptions mLoad;
 };
 
@@ -161,8 +180,10 @@ CommandLine Parse(int argc, char** argv) {
         else if (arg == "-s") cl.mScene = value(i);
         else if (arg == "-a") {
             const std::string name = value(i);
-            if (!smallvcm::ParseAlgorithm(name, cl.mOptions.mAlgorithm))
-                throw Error("-a: unknown algorithm '" + name + "' (el, pt, lt, ppm, bpm, bpt, vcm, pm, pmfg)");
+            cl.mIntegrator = smallvcm::FindIntegrator(name);
+            if (!cl.mIntegrator) throw Error("-a: unknown algorithm '" + name + "' (" + IntegratorNames() + ")");
+            // A built-in's name also sets the Algorithm, so the options read as they would in code.
+            smallvcm::ParseAlgorithm(name, cl.mOptions.mAlgorithm);
         }
         else if (arg == "-i") { cl.mOptions.mIterations = ParseNumber<int>(arg, value(i), 1, 100000000, "an integer in [1, 1e8]"); cl.mIterationsGiven = true; }
         else if (arg == "-t") cl.mOptions.mSeconds = ParseNumber<double>(arg, value(i), 1e-3, 1e7, "a number of seconds in [0.001, 1e7]");
@@ -214,8 +235,7 @@ CommandLine Parse(int argc, char** argv) {
     if (cl.mOptions.mSeconds > 0.0 && !cl.mIterationsGiven) cl.mOptions.mIterations = 0;  // until time is up
     if (cl.mOptions.mMinPathLength > cl.mOptions.mMaxPathLength)
         throw Error("--min-path-length: must not exceed --max-path-length (" + std::to_string(cl.mOptions.mMaxPathLength) + ")");
-    if (cl.mOptions.mTechniqueLayers &&
-        (cl.mOptions.mAlgorithm == smallvcm::Algorithm::kEyeLight))
+    if (cl.mOptions.mTechniqueLayers && cl.mIntegrator == &smallvcm::BuiltInIntegrator(smallvcm::Algorithm::kEyeLight))
         throw Error("--layers: the eye light has no techniques to separate");
     cl.mOptions.mProgress = !cl.mQuiet;
     cl.mScene = ResolveScene(cl.mScene);
@@ -248,7 +268,7 @@ int main(int argc, char** argv) {
         scene.mCamera.SetResolution(cl.mWidth, cl.mHeight);
         const int threads = cl.mOptions.mThreads > 0 ? cl.mOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));
         try {
-            smallvcm::CheckRenderMemory(scene.mCamera, cl.mOptions, threads);
+            smallvcm::CheckRenderMemory(scene.mCamera, cl.mOptions, *cl.mIntegrator, threads);
         } catch (const Error& e) {
             std::fprintf(stderr, "smallvcm: -r: %s\n", e.what() + std::strlen("memory: "));
             return 2;
@@ -256,7 +276,7 @@ int main(int argc, char** argv) {
         cl.mOptions.mStopRequested = &gStopRequested;
         std::signal(SIGINT, OnStopSignal);
         std::signal(SIGTERM, OnStopSignal);
-        const smallvcm::RenderResult result = smallvcm::Render(scene, cl.mOptions);
+        const smallvcm::RenderResult result = smallvcm::Render(scene, cl.mOptions, *cl.mIntegrator);
         const int stopSignal = gStopSignal.load();
         if (result.mStopped && result.mIterations == 0) {
             std::fprintf(stderr, "smallvcm: interrupted (%s) before the first iteration finished; nothing written\n",
@@ -271,7 +291,7 @@ int main(int argc, char** argv) {
         if (!cl.mQuiet)
             std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s; %zu triangles and %zu "
                         "spheres loaded in %.2f s; %s\n", scenePath.c_str(),
-                        smallvcm::AlgorithmShortName(cl.mOptions.mAlgorithm), cl.mWidth, cl.mHeight, result.mIterations,
+                        cl.mIntegrator->mName.c_str(), cl.mWidth, cl.mHeight, result.mIterations,
                         result.mIterations == 1 ? "" : "s", result.mSeconds, result.mSeconds / std::max(1, result.mIterations),
                         smallvcm::MeanValue(result.mImage), cl.mOutput.c_str(), scene.mTriangles.size(), scene.mSpheres.size(),
                         loadSeconds, report.mCamera.c_str());

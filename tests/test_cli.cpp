@@ -7,6 +7,7 @@
 // Tests run from tests/, so the program is ../build/smallvcm.
 #include "gltf_corpus.hpp"
 #include "smallvcm.hpp"
+#include "examples/my_path_tracer.hpp"
 
 #include "test_util.hpp"
 
@@ -217,6 +218,43 @@ TEST_CASE("A tiny good run writes a PFM of the requested size", "[cli]") {
     bool finite = true;
     for (const smallvcm::Vec3& pixel : image.mPixels) finite = finite && smallvcm::IsFinite(pixel);
     CHECK(finite);
+    CHECK(smallvcm::MeanValue(image) > 0.0);
+}
+
+TEST_CASE("--help lists every built-in and the linked-in integrators with their descriptions", "[cli][integrator_api]") {
+    const Run run = RunProgram("--help");
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    std::vector<smallvcm::Integrator> expected;
+    smallvcm::Algorithm algorithm = smallvcm::Algorithm::kEyeLight;
+    for (const smallvcm::Integrator* registered : smallvcm::RegisteredIntegrators())
+        if (smallvcm::ParseAlgorithm(registered->mName, algorithm)) expected.push_back(*registered);  // the built-ins
+    expected.push_back(MyPathTracerIntegrator());  // linked in by the Makefile's default INTEGRATORS
+    for (const smallvcm::Integrator& integrator : expected) {
+        INFO(integrator.mName);
+        CHECK(run.mStdout.find(" " + integrator.mName + " ") != std::string::npos);
+        CHECK(run.mStdout.find(integrator.mDescription + "\n") != std::string::npos);
+    }
+    const Run unknown = RunProgram("-a nosuch -q");
+    CHECK(unknown.mExitCode == 2);
+    CHECK(unknown.mStderr == "smallvcm: -a: unknown algorithm 'nosuch' (el, pt, lt, pm, pmfg, ppm, bpm, bpt, vcm, mypt)\n");
+}
+
+TEST_CASE("-a mypt renders the student's path tracer, the same image as Render in this process", "[cli][integrator_api]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "mypt.pfm";
+    const Run run = RunProgram("-s 2 -a mypt -i 2 -j 1 -r 16x12 -q -o " + Quote(output));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    smallvcm::Scene scene = testutil::LoadCornell(2, 16, 12);
+    smallvcm::RenderOptions options;
+    options.mIterations = 2;
+    options.mThreads = 1;
+    options.mProgress = false;
+    const smallvcm::Image expected = smallvcm::Render(scene, options, MyPathTracerIntegrator()).mImage;
+    const smallvcm::Image image = smallvcm::ReadPfm(output);
+    REQUIRE(image.mPixels.size() == expected.mPixels.size());
+    CHECK(image.mPixels == expected.mPixels);
     CHECK(smallvcm::MeanValue(image) > 0.0);
 }
 
