@@ -61,8 +61,11 @@ if [ "${1:-}" = "--smoke" ]; then
       echo "smoke FAILED: $name (exit $code, expected $expected)"; head -n 20 "$err"
     fi
   }
+  # The built-ins, and the example path tracer when the Makefile's INTEGRATORS linked it in.
+  algorithms="el pt lt ppm bpm bpt vcm pm pmfg"
+  "$binary" --help | grep -qE "^ +mypt " && algorithms="$algorithms mypt"
   for scene in 0 1 2 3 4; do
-    for algorithm in el pt lt ppm bpm bpt vcm pm pmfg; do
+    for algorithm in $algorithms; do
       layers="--layers"; [ "$algorithm" = el ] && layers=""  # the eye light has no techniques
       run_one "render -s $scene -a $algorithm" 0 "$binary" -q -s "$scene" -a "$algorithm" -r 16x16 -i 2 \
         --photons 5000 $layers -o "$out/s${scene}_${algorithm}.pfm"
