@@ -350,7 +350,9 @@ inline float PdfAtoW(float aPdfA, float aDist, float aCosThere) {
 // bounding-volume hierarchy (binned SAH, built once per scene) over both kinds of
 // primitive. Intersection is two-sided: back faces occlude like front faces.
 // Invariant: ray directions are unit length; Hit::mNormal is the geometric normal,
-// pointing out of spheres and to the counter-clockwise side of triangles.
+// pointing out of spheres and to the counter-clockwise side of triangles;
+// Hit::mShadingNormal is the normal the BSDF shades with: the interpolated vertex normal
+// of a smooth triangle, turned to the side of mNormal, else mNormal itself (bit for bit).
 
 struct Ray {
     Vec3 mOrigin{0.f};
@@ -363,6 +365,7 @@ struct Hit {
     int mMaterialId = -1;
     int mLightId = -1;      // >= 0 when the primitive emits
     Vec3 mNormal{0.f};      // geometric, unit length
+    Vec3 mShadingNormal{0.f};  // unit length, on mNormal's side (see the invariant above)
     Vec2 mUv{0.f};          // texture coordinates (set when the hit's material has a texture)
     bool IsValid() const { return mPrimitiveId >= 0; }
 };
@@ -1015,6 +1018,10 @@ struct Triangle {
     int mMaterialId = 0;
     int mLightId = -1;
     Vec2 mUv0{0.f}, mUv1{0.f}, mUv2{0.f};  // texture coordinates (glTF TEXCOORD_0)
+    // Vertex normals (glTF NORMAL) of a smooth-shaded triangle, interpolated at each hit
+    // into the shading normal; Scene::Finalize normalises them. Flat triangles have none.
+    bool mHasVertexNormals = false;
+    Vec3 mN0{0.f}, mN1{0.f}, mN2{0.f};
     // In double: a thin triangle's float cross product loses most of its digits.
     float Area() const {
         return float(0.5 * glm::length(glm::cross(glm::dvec3(mP1) - glm::dvec3(mP0), glm::dvec3(mP2) - glm::dvec3(mP0))));
@@ -1423,6 +1430,13 @@ public:
             if (!TriangleNormal(triangle.mP0, triangle.mP1, triangle.mP2, triangle.mNormal))
                 throw Error(where + ": triangle " + std::to_string(t) +
                             " is degenerate (zero area: its vertices coincide or lie on a line)");
+            if (triangle.mHasVertexNormals)
+                for (Vec3* normal : {&triangle.mN0, &triangle.mN1, &triangle.mN2}) {
+                    const double length = glm::length(glm::dvec3(*normal));
+                    if (!IsFinite(*normal) || !(length > 0.0) || !std::isfinite(length))
+                        throw Error(where + ": triangle " + std::to_string(t) + " has a vertex normal that is zero or not finite");
+                    *normal = Vec3(glm::dvec3(*normal) / length);
+                }
             CheckMaterial(where, triangle.mMaterialId);
             box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2);
         }
@@ -1518,13 +1532,19 @@ public:
             oHit.mMaterialId = triangle.mMaterialId;
             oHit.mLightId = triangle.mLightId;
             oHit.mNormal = triangle.mNormal;
-            if (mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0)
-                oHit.mUv = TriangleUv(triangle, aRay.mOrigin + tMax * aRay.mDirection);
+            oHit.mShadingNormal = triangle.mNormal;
+            const bool textured = mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0;
+            if (textured || triangle.mHasVertexNormals) {
+                const TriangleBarycentrics b = Barycentrics(triangle, aRay.mOrigin + tMax * aRay.mDirection);
+                if (textured) oHit.mUv = TriangleUv(triangle, b);
+                if (triangle.mHasVertexNormals) oHit.mShadingNormal = InterpolatedNormal(triangle, b);
+            }
         } else {
             const Sphere& sphere = mSpheres[size_t(primitive - triangleCount)];
             oHit.mMaterialId = sphere.mMaterialId;
             oHit.mLightId = sphere.mLightId;
             oHit.mNormal = glm::normalize(aRay.mOrigin + tMax * aRay.mDirection - sphere.mCenter);
+            oHit.mShadingNormal = oHit.mNormal;  // a sphere's normal is exact
         }
         return true;
     }
@@ -1548,20 +1568,43 @@ public:
         return Ray{aPoint + aDirection * mRayEpsilon, aDirection};
     }
 
-private:
-    // Texture coordinates at aPoint of aTriangle, interpolated with the barycentric
-    // coordinates of the point's projection onto the triangle's plane (Ericson,
-    // Real-Time Collision Detection, 3.4), in double for thin triangles.
-    static Vec2 TriangleUv(const Triangle& aTriangle, const Vec3& aPoint) {
+    // The weights of vertices 1 and 2 at aPoint of aTriangle (vertex 0 has 1 - mB1 - mB2):
+    // the barycentric coordinates of the point's projection onto the triangle's plane
+    // (Ericson, Real-Time Collision Detection, 3.4), in double for thin triangles.
+    // mValid is false for a triangle too thin to tell (then vertex 0 stands for it).
+    struct TriangleBarycentrics { double mB1 = 0.0, mB2 = 0.0; bool mValid = false; };
+    static TriangleBarycentrics Barycentrics(const Triangle& aTriangle, const Vec3& aPoint) {
         const glm::dvec3 p0(aTriangle.mP0), e1 = glm::dvec3(aTriangle.mP1) - p0, e2 = glm::dvec3(aTriangle.mP2) - p0;
         const glm::dvec3 toPoint = glm::dvec3(aPoint) - p0;
         const double d11 = glm::dot(e1, e1), d12 = glm::dot(e1, e2), d22 = glm::dot(e2, e2);
         const double dp1 = glm::dot(toPoint, e1), dp2 = glm::dot(toPoint, e2);
         const double denominator = d11 * d22 - d12 * d12;
-        if (!(denominator > 0.0)) return aTriangle.mUv0;
-        const double b1 = (d22 * dp1 - d12 * dp2) / denominator, b2 = (d11 * dp2 - d12 * dp1) / denominator;
+        if (!(denominator > 0.0)) return {};
+        return {(d22 * dp1 - d12 * dp2) / denominator, (d11 * dp2 - d12 * dp1) / denominator, true};
+    }
+    // Texture coordinates at a point of aTriangle with barycentric coordinates aB.
+    static Vec2 TriangleUv(const Triangle& aTriangle, const TriangleBarycentrics& aB) {
+        if (!aB.mValid) return aTriangle.mUv0;
+        const double b1 = aB.mB1, b2 = aB.mB2;
         return Vec2(glm::dvec2(aTriangle.mUv0) * (1.0 - b1 - b2) + glm::dvec2(aTriangle.mUv1) * b1 + glm::dvec2(aTriangle.mUv2) * b2);
     }
+    // The shading normal at a point of a smooth triangle: its vertex normals interpolated
+    // with the barycentric coordinates aB and normalised (Phong, 1975), then turned to the
+    // side of the geometric normal. The winding decides which side is the front (glTF),
+    // and the Bsdf needs both normals on one side to tell the sides apart. Where the
+    // vertex normals cancel out (opposite normals, nothing to interpolate) it is flat.
+    static Vec3 InterpolatedNormal(const Triangle& aTriangle, const TriangleBarycentrics& aB) {
+        if (!aB.mValid) return aTriangle.mNormal;
+        const double b1 = aB.mB1, b2 = aB.mB2;
+        const glm::dvec3 sum = glm::dvec3(aTriangle.mN0) * (1.0 - b1 - b2) + glm::dvec3(aTriangle.mN1) * b1 +
+                               glm::dvec3(aTriangle.mN2) * b2;
+        const double length = glm::length(sum);
+        if (!(length > 1e-6) || !std::isfinite(length)) return aTriangle.mNormal;
+        const Vec3 normal(sum / length);
+        return glm::dot(normal, aTriangle.mNormal) < 0.f ? -normal : normal;
+    }
+
+private:
 
     // Refuses a light whose power or area pdf would overflow float arithmetic in some
     // estimator (kMaxLightPower, kMinLightArea); the scene sphere must be set.
@@ -1617,6 +1660,33 @@ private:
 // refraction. Evaluate and Pdf see only the non-specular part; the specular (delta)
 // components exist only through Sample. All pdfs here EXCLUDE Russian roulette; the
 // integrators multiply ContinuationProb() in, in both directions.
+//
+// Shading normals (Veach 1997, sec. 5.3). A smooth triangle shades with its interpolated
+// normal Ns while its surface, and so every change of measure, has the geometric normal
+// Ng. The rules, the same for every estimator:
+//  * The components are evaluated and sampled in the frame of Ns; the cosine returned
+//    beside f (cosThetaGen) is |gen . Ns|, so f cosThetaGen is one step's factor.
+//  * The side is decided by Ng: a two-sided material turns both normals towards the
+//    fixed direction when it arrives from behind Ng; a one-sided one is black there.
+//  * No light leaks: a direction (fixed or generated) that lies on one side of the
+//    shading surface and the other side of the geometric one contributes nothing.
+//    Evaluate returns black for it, Sample rejects it, and Setup makes the Bsdf invalid
+//    when the fixed direction is one. (With Ns = Ng this never happens.)
+//  * The BSDF this defines on paths (area measure, with geometric cosines in G) is
+//        f_path(wL -> wE) = f_s(wL, wE) |wL . Ns| / |wL . Ng|      (wL towards the light)
+//    and it is not symmetric. Radiance (camera sub-paths, fix = wE, gen = wL) gets
+//    f_path |wL . Ng| = f_s |gen . Ns| from f_s alone. Importance (light sub-paths, fix =
+//    wL, gen = wE) needs f_path |wE . Ng| = f_s |fix . Ns| |gen . Ng| / |fix . Ng|, so a Bsdf
+//    set up for a light sub-path returns f_s times the adjoint factor
+//        |fix . Ns| |gen . Ng| / (|fix . Ng| |gen . Ns|)         (AdjointShadingFactor)
+//    and f cosThetaGen is again the right step factor. Without it light tracing, photon
+//    mapping, BPT and VCM converge to another image than path tracing.
+//  * Every conversion between solid angle and area (the MIS quantities, a camera's or
+//    BSDF's area pdf) uses the geometric cosine, GeometricCos(); a density estimate
+//    (photons, merging) divides flux by geometric area, so it needs f_path itself:
+//    EvaluatePath().
+// For flat triangles and spheres Ns = Ng bit for bit, and every value is computed
+// exactly as before shading normals existed.
 
 enum BsdfEvent : uint32_t {
     kEventNone = 0,
@@ -1642,6 +1712,16 @@ inline float FresnelDielectric(float aCosIncident, float aIor) {
     return 0.5f * (Sqr(rPar) + Sqr(rPerp));
 }
 
+// The factor that turns a BSDF f_s, defined with the shading normal, into its adjoint for
+// importance transport (light sub-paths): |fix . Ns| |gen . Ng| / (|fix . Ng| |gen . Ns|),
+// from the cosines of the fixed and generated directions with the shading and the
+// geometric normal (Veach 1997, sec. 5.3; see the section's notes). 1 when Ns = Ng.
+inline float AdjointShadingFactor(float aCosFixShading, float aCosFixGeometric, float aCosGenShading,
+                                  float aCosGenGeometric) {
+    return std::abs(aCosFixShading) * std::abs(aCosGenGeometric) /
+           (std::abs(aCosFixGeometric) * std::abs(aCosGenShading));
+}
+
 class Bsdf {
 public:
     Bsdf() = default;
@@ -1650,18 +1730,26 @@ public:
     // aFixIsLight: true on light sub-paths.
     void Setup(const Ray& aRay, const Hit& aHit, const Scene& aScene, bool aFixIsLight) {
         const Material& material = aScene.GetMaterial(aHit.mMaterialId);
-        if (material.mBaseColorTexture < 0) Setup(-aRay.mDirection, aHit.mNormal, material, aFixIsLight);
+        if (material.mBaseColorTexture < 0) Setup(-aRay.mDirection, aHit.mNormal, aHit.mShadingNormal, material, aFixIsLight);
         else {
             const Vec3 texel = aScene.BaseColorTexel(aHit);
-            Setup(-aRay.mDirection, aHit.mNormal, material, aFixIsLight, &texel);
+            Setup(-aRay.mDirection, aHit.mNormal, aHit.mShadingNormal, material, aFixIsLight, &texel);
         }
     }
     // The same from explicit data (what tests use): aWorldDirFix points away from the surface.
     // The Bsdf keeps a pointer to aMaterial, which must outlive it (a temporary is refused).
     void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material&& aMaterial, bool aFixIsLight) = delete;
-    // aBaseColorTexel: the material's texture at this point (see Material::mBaseColorTexture).
+    void Setup(const Vec3& aWorldDirFix, const Vec3& aGeometricNormal, const Vec3& aShadingNormal,
+               const Material&& aMaterial, bool aFixIsLight) = delete;
+    // A flat surface: the shading normal is the geometric one.
     void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material& aMaterial, bool aFixIsLight,
                const Vec3* aBaseColorTexel = nullptr) {
+        Setup(aWorldDirFix, aNormal, aNormal, aMaterial, aFixIsLight, aBaseColorTexel);
+    }
+    // aGeometricNormal, aShadingNormal: unit length, on one side (Hit's invariant).
+    // aBaseColorTexel: the material's texture at this point (see Material::mBaseColorTexture).
+    void Setup(const Vec3& aWorldDirFix, const Vec3& aGeometricNormal, const Vec3& aShadingNormal,
+               const Material& aMaterial, bool aFixIsLight, const Vec3* aBaseColorTexel = nullptr) {
         mMaterial = &aMaterial;
         mFixIsLight = aFixIsLight;
         mReflectance = Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance};
@@ -1673,15 +1761,17 @@ public:
             if (!IsBlack(mReflectance.mMirror))
                 mReflectance.mMirror = aMaterial.mSpecularUntinted + (mReflectance.mMirror - aMaterial.mSpecularUntinted) * texel;
         }
-        mFrame.SetFromZ(aNormal);
+        // A two-sided non-glass material turns both normals towards whoever looks at it,
+        // deciding by the geometric one (the side the ray really arrives from).
+        mShaded = aShadingNormal != aGeometricNormal;
+        const bool flip = aMaterial.mTwoSided && aMaterial.mIor < 0.f && glm::dot(aGeometricNormal, aWorldDirFix) < 0.f;
+        mGeometricNormal = flip ? -aGeometricNormal : aGeometricNormal;
+        mFrame.SetFromZ(flip ? -aShadingNormal : aShadingNormal);
         mLocalDirFix = mFrame.ToLocal(aWorldDirFix);
-        // A two-sided non-glass material turns its frame towards whoever looks at it.
-        if (aMaterial.mTwoSided && aMaterial.mIor < 0.f && mLocalDirFix.z < 0.f) {
-            mFrame.SetFromZ(-aNormal);
-            mLocalDirFix = mFrame.ToLocal(aWorldDirFix);
-        }
+        mCosFixGeometric = mShaded ? glm::dot(mGeometricNormal, aWorldDirFix) : mLocalDirFix.z;
         mValid = false;
         if (std::abs(mLocalDirFix.z) < kEpsCosine) return;  // grazing: nothing reliable here
+        if (mShaded && !SidesAgree(mLocalDirFix.z, mCosFixGeometric)) return;  // a light leak (section notes)
         mFresnel = FresnelDielectric(mLocalDirFix.z, aMaterial.mIor);
         mProbabilities = ComponentProbabilities(mReflectance, aMaterial.mIor, mLocalDirFix.z, mFresnel);
         const float total = mProbabilities[0] + mProbabilities[1] + mProbabilities[2] + mProbabilities[3];
@@ -1696,6 +1786,16 @@ public:
     bool IsDelta() const { return mIsDelta; }
     float ContinuationProb() const { return mContinuationProb; }
     float CosThetaFix() const { return mLocalDirFix.z; }
+    // The cosine of the fixed direction with the geometric normal (what a change of
+    // measure at this vertex needs); CosThetaFix() itself on a flat surface.
+    float CosThetaFixGeometric() const { return mCosFixGeometric; }
+    // |cos| of aWorldDir with the geometric normal, for changes of measure. aShadingCos:
+    // the |cos| with the shading normal that Evaluate or Sample returned for it, which is
+    // the same value on a flat surface and is then returned as it is (bit for bit).
+    float GeometricCos(const Vec3& aWorldDir, float aShadingCos) const {
+        return mShaded ? std::abs(glm::dot(mGeometricNormal, aWorldDir)) : aShadingCos;
+    }
+    bool IsShaded() const { return mShaded; }
     Vec3 WorldDirFix() const { return mFrame.ToWorld(mLocalDirFix); }
     const Material& GetMaterial() const { return *mMaterial; }
     bool FixIsLight() const { return mFixIsLight; }
@@ -1709,9 +1809,30 @@ public:
         Vec3 f(0.f);
         float directPdfW = 0.f, reversePdfW = 0.f;
         EvaluateNonSpecular(localDirGen, f, directPdfW, reversePdfW);
+        if (mShaded && !IsBlack(f)) {
+            const float cosGenGeometric = glm::dot(mGeometricNormal, aWorldDirGen);
+            if (!SidesAgree(localDirGen.z, cosGenGeometric)) {  // a light leak: nothing
+                f = Vec3(0.f);
+                directPdfW = reversePdfW = 0.f;
+            } else if (mFixIsLight) {
+                f *= AdjointShadingFactor(mLocalDirFix.z, mCosFixGeometric, localDirGen.z, cosGenGeometric);
+            }
+        }
         if (oDirectPdfW) *oDirectPdfW = directPdfW;
         if (oReversePdfW) *oReversePdfW = reversePdfW;
         return f;
+    }
+
+    // f_path(wL -> wE) of the section's notes, for density estimation: what the flux of a
+    // particle is multiplied by (on a camera sub-path, aWorldDirGen is where the particle
+    // came from). Flux is spread over geometric area, so the estimate needs f_path, which
+    // is f |gen . Ns| / |gen . Ng| in both transport directions (for importance, f carries
+    // the adjoint factor); on a flat surface it is f itself.
+    Vec3 EvaluatePath(const Vec3& aWorldDirGen, float* oDirectPdfW = nullptr, float* oReversePdfW = nullptr) const {
+        float cosThetaGen;
+        const Vec3 f = Evaluate(aWorldDirGen, cosThetaGen, oDirectPdfW, oReversePdfW);
+        if (!mShaded || IsBlack(f)) return f;
+        return f * (cosThetaGen / GeometricCos(aWorldDirGen, cosThetaGen));
     }
 
     // The pdf of sampling aWorldDirGen (or, with aReverse, of sampling the fixed
@@ -1730,8 +1851,26 @@ public:
     // oReversePdfW: the pdf of the opposite choice, sampling fix given gen (what Pdf(gen,
     // true) returns; for a specular pick the same selection probability). Evaluating the
     // non-specular components yields it anyway, and bidirectional methods need it.
+    // On a smooth surface a sampled direction that would leak (section notes) is black,
+    // and a Bsdf of a light sub-path multiplies the adjoint factor in.
     Vec3 Sample(const Vec3& aRnd, Vec3& oWorldDirGen, float& oPdfW, float& oCosThetaGen,
                 uint32_t* oSampledEvent = nullptr, float* oReversePdfW = nullptr) const {
+        const Vec3 f = SampleInShadingFrame(aRnd, oWorldDirGen, oPdfW, oCosThetaGen, oSampledEvent, oReversePdfW);
+        if (!mShaded || IsBlack(f)) return f;
+        const float cosGenGeometric = glm::dot(mGeometricNormal, oWorldDirGen);
+        if (!SidesAgree(glm::dot(mFrame.mZ, oWorldDirGen), cosGenGeometric)) {
+            oPdfW = 0.f;
+            if (oSampledEvent) *oSampledEvent = kEventNone;
+            return Vec3(0.f);
+        }
+        if (!mFixIsLight) return f;
+        return f * AdjointShadingFactor(mLocalDirFix.z, mCosFixGeometric, oCosThetaGen, cosGenGeometric);
+    }
+
+private:
+    // Sample without the shading-normal rules: the components in the shading frame.
+    Vec3 SampleInShadingFrame(const Vec3& aRnd, Vec3& oWorldDirGen, float& oPdfW, float& oCosThetaGen,
+                              uint32_t* oSampledEvent, float* oReversePdfW) const {
         if (oSampledEvent) *oSampledEvent = kEventNone;
         oPdfW = 0.f;
         Vec3 localDirGen;
@@ -1785,7 +1924,13 @@ public:
         return f;
     }
 
-private:
+    // A direction whose cosines with the shading and the geometric normal have one sign,
+    // and that does not graze the geometric surface: the only kind a smooth surface
+    // scatters from and into (section notes: no light leaks).
+    static bool SidesAgree(float aCosShading, float aCosGeometric) {
+        return (aCosShading > 0.f) == (aCosGeometric > 0.f) && std::abs(aCosGeometric) >= kEpsCosine;
+    }
+
     enum Component { kDiffuse = 0, kPhong = 1, kReflect = 2, kRefract = 3 };
     // The reflectances of the components at this point.
     struct Reflectances { Vec3 mDiffuse{0.f}, mPhong{0.f}, mMirror{0.f}; };
@@ -1855,8 +2000,11 @@ private:
         // END EXERCISE phong_bsdf/evaluate
     }
 
-    Frame mFrame;
+    Frame mFrame;                 // around the shading normal (turned to the viewer if two-sided)
+    Vec3 mGeometricNormal{0.f};   // turned like the frame
     Vec3 mLocalDirFix{0.f};
+    float mCosFixGeometric = 0.f; // fix . mGeometricNormal (= mLocalDirFix.z when flat)
+    bool mShaded = false;         // the shading normal differs from the geometric one
     const Material* mMaterial = nullptr;
     Reflectances mReflectance;  // the material's, textured at this point
     std::array<float, 4> mProbabilities{};
@@ -2119,8 +2267,8 @@ Integrator MakeIntegrator(const std::string& aName, const std::string& aDescript
 // [SECTION] Integrator: eye light
 // =====================================================================================
 // Not an estimator of light transport: it shades each first hit by |cos| between the
-// normal and the view direction and paints back faces red, so that geometry, normals
-// and the camera can be checked at a glance (SmallVCM's "el").
+// shading normal and the view direction and paints back faces (by the geometric normal)
+// red, so that geometry, normals and the camera can be checked at a glance (SmallVCM's "el").
 
 class EyeLight : public AbstractRenderer {
 public:
@@ -2134,8 +2282,9 @@ public:
                 const Ray ray = camera.GenerateRay(raster);
                 Hit hit;
                 if (!mScene.Intersect(ray, hit)) continue;
-                const float cosFront = glm::dot(hit.mNormal, -ray.mDirection);
-                const Vec3 color = cosFront > 0.f ? Vec3(cosFront) : Vec3(-cosFront, 0.f, 0.f);
+                const float cosFront = glm::dot(hit.mShadingNormal, -ray.mDirection);
+                const bool front = glm::dot(hit.mNormal, -ray.mDirection) > 0.f;
+                const Vec3 color = front ? Vec3(std::abs(cosFront)) : Vec3(std::abs(cosFront), 0.f, 0.f);
                 mFilm.AddColor(y * camera.Width() + x, color);
             }
         }
@@ -2510,8 +2659,8 @@ public:
         Vec3 sum(0.f);
         for (const KdTree::Neighbor& n : aScratch) {
             const Photon& photon = mPhotons[n.mIndex];
-            float cosGen;
-            sum += aBsdf.Evaluate(photon.mDirFix, cosGen) * photon.mPower;
+            // f_path, not f: the photons' flux is per unit of geometric area (Bsdf notes).
+            sum += aBsdf.EvaluatePath(photon.mDirFix) * photon.mPower;
         }
         return sum / (kPi * radiusSqr);
     }
@@ -3092,7 +3241,8 @@ public:
                 Bsdf bsdf;
                 bsdf.Setup(ray, hit, mScene, true);
                 if (!bsdf.IsValid()) break;
-                VcmMis::AfterSegment(mMis, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFix(),
+                // The area pdf of this vertex: a change of measure, by the geometric cosine.
+                VcmMis::AfterSegment(mMis, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
                                      light.mPathLength > 1 || light.mIsFiniteLight);
 
                 if (!bsdf.IsDelta()) {
@@ -3105,6 +3255,7 @@ public:
                         vertex.mMaterialId = hit.mMaterialId;
                         vertex.mDirFix = -ray.mDirection;
                         vertex.mNormal = hit.mNormal;
+                        vertex.mShadingNormal = hit.mShadingNormal;
                         vertex.mMis = light.mMis;
                         mLightVertices.push_back(vertex);
                     }
@@ -3196,9 +3347,9 @@ private:
     };
 
 public:
-    // A stored light vertex: what a connection or a merge needs, in 68 bytes. The BSDF
+    // A stored light vertex: what a connection or a merge needs, in 80 bytes. The BSDF
     // is not stored (it would double the size): a connection rebuilds it from the
-    // incoming direction, normal and material -- exactly the inputs it was made from --
+    // incoming direction, normals and material -- exactly the inputs it was made from --
     // and a merge needs only the incoming direction.
     struct LightVertex {
         Vec3 mHitPoint{0.f};
@@ -3207,6 +3358,7 @@ public:
         int mMaterialId = 0;
         Vec3 mDirFix{0.f};  // the exact direction it arrived from (minus the ray direction)
         Vec3 mNormal{0.f};  // geometric normal of the hit
+        Vec3 mShadingNormal{0.f};
         SubpathMis mMis;
     };
 
@@ -3260,7 +3412,9 @@ private:
         const bool specular = scatter.IsSpecular();
         // For a specular event both pdfs are the component's selection probability (the
         // Fresnel term is the same for both directions of a reflection or refraction).
-        VcmMis::AfterScatter(mMis, ioState.mMis, scatter.mCosThetaOut, scatter.mPdfW, scatter.mReversePdfW, specular);
+        // The cosine converts the reverse pdf at this vertex to area: the geometric one.
+        VcmMis::AfterScatter(mMis, ioState.mMis, aBsdf.GeometricCos(scatter.mDirection, scatter.mCosThetaOut),
+                             scatter.mPdfW, scatter.mReversePdfW, specular);
         ioState.mOrigin = aHitPoint;
         ioState.mDirection = scatter.mDirection;
         ioState.mThroughput *= scatter.mWeight;
@@ -3297,10 +3451,13 @@ private:
         const Vec3 bsdfFactor = aBsdf.Evaluate(dirToCamera, cosToCamera, &bsdfDirPdfW, &bsdfRevPdfW);
         if (IsBlack(bsdfFactor)) return;
         bsdfRevPdfW *= aBsdf.ContinuationProb();
-        const float cameraPdfA = CameraPdfA(dirToCamera, distance, cosToCamera);
+        // The camera's area pdf of this vertex (for MIS) converts by the geometric cosine;
+        // the contribution takes the shading cosine that goes with the Bsdf's f (for
+        // importance, f_s times the adjoint factor; Bsdf notes). Equal on flat surfaces.
+        const float cameraPdfA = CameraPdfA(dirToCamera, distance, aBsdf.GeometricCos(dirToCamera, cosToCamera));
         const float weight = mLightTraceOnly ? 1.f : VcmMis::WeightLightTracing(mMis, aLight.mMis, cameraPdfA, bsdfRevPdfW);
         // Each of the N_L light sub-paths estimates the whole image: divide by N_L.
-        const Vec3 unweighted = aLight.mThroughput * bsdfFactor * (cameraPdfA / mMis.mLightPathCount);
+        const Vec3 unweighted = aLight.mThroughput * bsdfFactor * (CameraPdfA(dirToCamera, distance, cosToCamera) / mMis.mLightPathCount);
         if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return;
         const int pixel = camera.RasterToIndex(raster);
         mFilm.AddColor(pixel, unweighted * weight);
@@ -3362,8 +3519,11 @@ private:
         bsdfDirPdfW *= aBsdf.ContinuationProb();
         bsdfRevPdfW *= aBsdf.ContinuationProb();
         const float directPdfW = sample.mDirectPdfW * lightPickProb;
+        // The MIS weight converts the emission pdf to area at this vertex: geometric cosine;
+        // the contribution's cosine is the shading one that goes with f (Bsdf notes).
         const float weight = VcmMis::WeightNextEvent(mMis, aCamera.mMis, bsdfDirPdfW, bsdfRevPdfW, directPdfW,
-                                                     sample.mEmissionPdfW * lightPickProb, cosToLight,
+                                                     sample.mEmissionPdfW * lightPickProb,
+                                                     aBsdf.GeometricCos(sample.mDirToLight, cosToLight),
                                                      sample.mCosAtLight, light.IsDelta());
         const Vec3 unweighted = aCamera.mThroughput * bsdfFactor * sample.mRadiance * (cosToLight / directPdfW);
         if (mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance)) return;
@@ -3393,17 +3553,20 @@ private:
             cameraBsdfDirPdfW *= aBsdf.ContinuationProb();
             cameraBsdfRevPdfW *= aBsdf.ContinuationProb();
             Bsdf lightBsdf;
-            lightBsdf.Setup(vertex.mDirFix, vertex.mNormal, mScene.GetMaterial(vertex.mMaterialId), true);
+            lightBsdf.Setup(vertex.mDirFix, vertex.mNormal, vertex.mShadingNormal, mScene.GetMaterial(vertex.mMaterialId), true);
             float cosLight, lightBsdfDirPdfW, lightBsdfRevPdfW;
             const Vec3 lightFactor = lightBsdf.Evaluate(-direction, cosLight, &lightBsdfDirPdfW, &lightBsdfRevPdfW);
             if (IsBlack(lightFactor)) continue;
             lightBsdfDirPdfW *= lightBsdf.ContinuationProb();
             lightBsdfRevPdfW *= lightBsdf.ContinuationProb();
 
+            // G takes the shading cosines that go with each side's f (the light side's f
+            // carries the adjoint factor, so f cos is f_path |cos_geometric|: Bsdf notes);
+            // the pdfs change measure at the other vertex by its geometric cosine.
             const float geometryTerm = cosCamera * cosLight / distanceSqr;
-            const float weight = VcmMis::WeightConnection(mMis, vertex.mMis, aCamera.mMis,
-                                                          PdfWtoA(cameraBsdfDirPdfW, distance, cosLight), cameraBsdfRevPdfW,
-                                                          PdfWtoA(lightBsdfDirPdfW, distance, cosCamera), lightBsdfRevPdfW);
+            const float weight = VcmMis::WeightConnection(
+                mMis, vertex.mMis, aCamera.mMis, PdfWtoA(cameraBsdfDirPdfW, distance, lightBsdf.GeometricCos(-direction, cosLight)),
+                cameraBsdfRevPdfW, PdfWtoA(lightBsdfDirPdfW, distance, aBsdf.GeometricCos(direction, cosCamera)), lightBsdfRevPdfW);
             const Vec3 unweighted = aCamera.mThroughput * vertex.mThroughput * cameraFactor * lightFactor * geometryTerm;
             if (mScene.Occluded(aHitPoint, direction, distance)) continue;
             mFilm.AddColor(aPixel, unweighted * weight);
@@ -3420,9 +3583,10 @@ private:
             const LightVertex& vertex = mLightVertices[i];
             const int pathLength = vertex.mPathLength + aCamera.mPathLength;
             if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
-            // The camera's BSDF, evaluated towards where the light vertex came from.
-            float cosCamera, cameraBsdfDirPdfW, cameraBsdfRevPdfW;
-            const Vec3 cameraFactor = aBsdf.Evaluate(vertex.mDirFix, cosCamera, &cameraBsdfDirPdfW, &cameraBsdfRevPdfW);
+            // The camera's BSDF, evaluated towards where the light vertex came from: f_path,
+            // as the density estimate spreads flux over geometric area (Bsdf notes).
+            float cameraBsdfDirPdfW, cameraBsdfRevPdfW;
+            const Vec3 cameraFactor = aBsdf.EvaluatePath(vertex.mDirFix, &cameraBsdfDirPdfW, &cameraBsdfRevPdfW);
             if (IsBlack(cameraFactor)) return;
             cameraBsdfDirPdfW *= aBsdf.ContinuationProb();
             cameraBsdfRevPdfW *= aBsdf.ContinuationProb();
@@ -4608,7 +4772,7 @@ private:
             const auto& pbr = source.pbrMetallicRoughness;
             // What the header does not model is approximated and listed in one note.
             if (pbr.metallicRoughnessTexture.index >= 0) Approximated("metallicRoughnessTexture (the factors are used)");
-            if (source.normalTexture.index >= 0) Approximated("normalTexture (geometric normals are used)");
+            if (source.normalTexture.index >= 0) Approximated("normalTexture (NORMAL, or else geometric normals, are used)");
             if (source.occlusionTexture.index >= 0) Approximated("occlusionTexture (occlusion is computed, not baked)");
             if (source.emissiveTexture.index >= 0) Approximated("emissiveTexture (emission is the uniform emissiveFactor)");
             if (source.alphaMode != "OPAQUE") Approximated("alphaMode " + Excerpt(source.alphaMode) + " (rendered opaque)");
@@ -4786,7 +4950,7 @@ private:
 
     // Reads an accessor as aComponents-wide rows of doubles, after checking its type,
     // component type and that every byte it names lies inside its buffer.
-    enum class AccessorKind { kIndices, kPositions, kTexcoords };
+    enum class AccessorKind { kIndices, kPositions, kNormals, kTexcoords };
     std::vector<double> ReadAccessor(int aIndex, int aType, AccessorKind aKind, const std::string& aWhat) const {
         const bool aIndices = aKind == AccessorKind::kIndices;
         if (aIndex < 0 || aIndex >= int(mModel.accessors.size())) Fail(aWhat + " refers to accessor " + std::to_string(aIndex) + ", which does not exist");
@@ -4807,7 +4971,8 @@ private:
             else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT && accessor.normalized) componentSize = 2;
             else Fail(where + ": texture coordinates must be FLOAT or normalised unsigned byte or short");
         } else {
-            if (componentType != TINYGLTF_COMPONENT_TYPE_FLOAT) Fail(where + ": positions must be FLOAT");
+            if (componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
+                Fail(where + (aKind == AccessorKind::kNormals ? ": normals must be FLOAT" : ": positions must be FLOAT"));
             componentSize = 4;
         }
         const size_t components = aIndices ? 1 : aKind == AccessorKind::kTexcoords ? 2 : 3;
@@ -4896,6 +5061,8 @@ private:
                     if (!std::isfinite(uvs[v]) || !std::isfinite(float(uvs[v])))
                         Fail(what + ": TEXCOORD_0 of vertex " + std::to_string(v / 2) + " is not finite (NaN or infinity)");
             }
+            const std::vector<Vec3> normals = WorldNormals(primitive, aWorld, vertexCount, what);
+            size_t againstWinding = 0;
             std::vector<int> triangleIds;
             for (size_t t = 0; t + 2 < indices.size(); t += 3) {
                 size_t i0 = size_t(indices[t]), i1 = size_t(indices[t + 1]), i2 = size_t(indices[t + 2]);
@@ -4911,7 +5078,21 @@ private:
                     added.mUv1 = Vec2(float(uvs[2 * i1]), float(uvs[2 * i1 + 1]));
                     added.mUv2 = Vec2(float(uvs[2 * i2]), float(uvs[2 * i2 + 1]));
                 }
+                // Smooth shading where all three vertex normals survived the transform.
+                if (!normals.empty() && normals[i0] != Vec3(0.f) && normals[i1] != Vec3(0.f) && normals[i2] != Vec3(0.f)) {
+                    Triangle& added = mScene.mTriangles.back();
+                    added.mHasVertexNormals = true;
+                    added.mN0 = normals[i0];
+                    added.mN1 = normals[i1];
+                    added.mN2 = normals[i2];
+                    if (glm::dot(normals[i0] + normals[i1] + normals[i2], normal) < 0.f) againstWinding++;
+                }
             }
+            if (againstWinding > 0 && mReport.mNotes.size() < 64)
+                mReport.mNotes.push_back(what + ": NORMAL points against the winding on " + std::to_string(againstWinding) +
+                                         " of " + std::to_string(triangleIds.size()) +
+                                         " triangles (the winding decides the front, as in glTF; shading turns the "
+                                         "normals to it)");
             // An emissive primitive instance is one area light over all its triangles.
             if (!IsBlack(mMaterialEmission[size_t(material)]) && !triangleIds.empty())
                 mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)]);
@@ -4919,6 +5100,40 @@ private:
                 mReport.mNotes.push_back(what + " looks inside-out: a closed mesh with negative volume (its triangles face "
                                          "inwards; reflection is two-sided, but one-sided emission and glass work inside out)");
         }
+    }
+
+    // The vertex normals (NORMAL) of a primitive in world space, or none when it has no
+    // NORMAL. glTF: a VEC3 FLOAT accessor with one unit vector per vertex, transformed by
+    // the inverse transpose of the node's matrix. A non-finite or zero normal is refused
+    // (nothing to repair it from); one that is not of unit length is normalised, as the
+    // spec requires of the file, and noted. A normal the transform cannot carry (a
+    // singular matrix, whose triangles are all degenerate and skipped) becomes zero.
+    std::vector<Vec3> WorldNormals(const tinygltf::Primitive& aPrimitive, const Mat4& aWorld, size_t aVertexCount,
+                                   const std::string& aWhat) {
+        auto attribute = aPrimitive.attributes.find("NORMAL");
+        if (attribute == aPrimitive.attributes.end()) return {};
+        const std::vector<double> local = ReadAccessor(attribute->second, TINYGLTF_TYPE_VEC3, AccessorKind::kNormals, aWhat + " NORMAL");
+        if (local.size() != 3 * aVertexCount)
+            Fail(aWhat + ": NORMAL has " + std::to_string(local.size() / 3) + " elements but POSITION has " +
+                 std::to_string(aVertexCount) + " (one normal per vertex)");
+        const glm::dmat3 normalMatrix = glm::transpose(glm::inverse(glm::dmat3(aWorld)));
+        std::vector<Vec3> world(aVertexCount);
+        size_t notUnit = 0;
+        for (size_t v = 0; v < aVertexCount; v++) {
+            const glm::dvec3 n(local[3 * v], local[3 * v + 1], local[3 * v + 2]);
+            const double length = glm::length(n);
+            if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z))
+                Fail(aWhat + ": NORMAL of vertex " + std::to_string(v) + " is not finite (NaN or infinity)");
+            if (!(length > 0.0)) Fail(aWhat + ": NORMAL of vertex " + std::to_string(v) + " has zero length");
+            if (std::abs(length - 1.0) > 1e-3) notUnit++;
+            const glm::dvec3 w = normalMatrix * (n / length);
+            const double worldLength = glm::length(w);
+            if (worldLength > 0.0 && std::isfinite(worldLength)) world[v] = Vec3(w / worldLength);
+        }
+        if (notUnit > 0 && mReport.mNotes.size() < 64)
+            mReport.mNotes.push_back(aWhat + ": NORMAL of " + std::to_string(notUnit) + " of " + std::to_string(aVertexCount) +
+                                     " vertices is not of unit length (glTF requires it): normalised");
+        return world;
     }
 
     // True for a closed mesh (every edge used once in each direction, so it bounds a

@@ -347,6 +347,7 @@ def to_gltf(scene):
     palette = scene.get("materials", MATERIALS)   # figure scenes bring their own
     used_ids = {mid for _, prims in scene["walls"] + scene["light_box"] for mid, _ in prims}
     used_ids |= {mid for _, _, _, mid in scene["spheres"]}
+    used_ids |= {smooth["material"] for smooth in scene.get("smooth", [])}
     for mid in sorted(used_ids):
         m = palette[mid]
         emissive = mid in scene["emission"]
@@ -416,6 +417,32 @@ def to_gltf(scene):
     for name, prims in scene["light_box"]:
         add_mesh(name, prims)
 
+    # Smooth-shaded meshes: indexed vertices with a NORMAL each (bufferView 2), only
+    # in the scenes that have them, so the other files stay as they were.
+    normals = bytearray()
+    for smooth in scene.get("smooth", []):
+        verts = [f32_point(p) for p in smooth["positions"]]
+        pos_acc = len(accessors)
+        accessors.append({"bufferView": 0, "byteOffset": len(positions),
+                          "componentType": 5126, "count": len(verts), "type": "VEC3",
+                          "min": [f32_json(min(v[i] for v in verts)) for i in range(3)],
+                          "max": [f32_json(max(v[i] for v in verts)) for i in range(3)]})
+        for v in verts:
+            positions.extend(struct.pack("<3f", *v))
+        normal_acc = len(accessors)
+        accessors.append({"bufferView": 2, "byteOffset": len(normals),
+                          "componentType": 5126, "count": len(verts), "type": "VEC3"})
+        for n in smooth["normals"]:
+            normals.extend(struct.pack("<3f", *n))
+        idx_acc = len(accessors)
+        accessors.append({"bufferView": 1, "byteOffset": len(indices),
+                          "componentType": 5125, "count": len(smooth["indices"]), "type": "SCALAR"})
+        indices.extend(struct.pack("<%dI" % len(smooth["indices"]), *smooth["indices"]))
+        meshes.append({"name": smooth["name"], "primitives": [
+            {"attributes": {"POSITION": pos_acc, "NORMAL": normal_acc}, "indices": idx_acc,
+             "material": material_index[smooth["material"]], "mode": 4}]})
+        nodes.append({"name": smooth["name"], "mesh": len(meshes) - 1})
+
     # Punctual lights (KHR_lights_punctual): 1 cd := 1 W/sr, 1 lux := 1 W/m^2.
     lights = []
     if scene["sun"] is not None:
@@ -432,8 +459,8 @@ def to_gltf(scene):
                       "extensions": {"KHR_lights_punctual": {"light": len(lights) - 1}}})
 
     # Buffer: positions then indices (positions are 12-byte aligned, so the
-    # index view starts 4-byte aligned).
-    data = bytes(positions) + bytes(indices)
+    # index view starts 4-byte aligned), then normals if any.
+    data = bytes(positions) + bytes(indices) + bytes(normals)
     gltf = {
         "asset": {
             "version": "2.0",
@@ -456,7 +483,9 @@ def to_gltf(scene):
             {"name": "positions", "buffer": 0, "byteOffset": 0,
              "byteLength": len(positions), "byteStride": 12, "target": 34962},
             {"name": "indices", "buffer": 0, "byteOffset": len(positions),
-             "byteLength": len(indices), "target": 34963}],
+             "byteLength": len(indices), "target": 34963}] +
+            ([{"name": "normals", "buffer": 0, "byteOffset": len(positions) + len(indices),
+               "byteLength": len(normals), "byteStride": 12, "target": 34962}] if normals else []),
         "buffers": [{"byteLength": len(data),
                      "uri": "data:application/octet-stream;base64,"
                             + base64.b64encode(data).decode("ascii")}],
@@ -587,6 +616,52 @@ def build_veach_plates():
     return scene
 
 
+def icosphere(subdivisions):
+    """A unit geodesic sphere: the icosahedron, each triangle split in four
+    `subdivisions` times, vertices pushed onto the sphere. Returns (vertices,
+    triangles as index triples), wound counter-clockwise seen from outside.
+    20 * 4^subdivisions triangles (1: 80, 2: 320)."""
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    verts = [normalize(v) for v in [
+        (-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t),
+        (0, -1, -t), (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]]
+    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
+             (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
+             (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    for _ in range(subdivisions):
+        midpoints = {}
+
+        def middle(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in midpoints:
+                midpoints[key] = len(verts)
+                verts.append(normalize(tuple(verts[a][i] + verts[b][i] for i in range(3))))
+            return midpoints[key]
+        finer = []
+        for a, b, c in faces:
+            ab, bc, ca = middle(a, b), middle(b, c), middle(c, a)
+            finer += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        faces = finer
+    return verts, faces
+
+
+def build_smooth_sphere_box():
+    """The shading-normal test (tests/test_integrators.cpp): an 80-triangle geodesic
+    sphere (radius 0.6, white Lambert) with its exact sphere normals as NORMAL, on the
+    floor of the white-floored Cornell box under its area light. Its vertex normals differ
+    from the faces' by up to ~21 degrees, so estimators that transport importance (light
+    tracing, BPT, VCM) agree with path tracing only with Veach's adjoint correction."""
+    scene = cornell_variant(LIGHT_CEILING, "smooth-shaded low-polygon sphere in the Cornell box", [])
+    verts, faces = icosphere(1)
+    centre, radius = (0.0, 0.1, -1.28002 + 0.6 + 0.02), 0.6
+    scene["smooth"] = [{
+        "name": "smooth sphere (80 triangles, vertex normals)", "material": WHITE,
+        "positions": [tuple(centre[i] + radius * v[i] for i in range(3)) for v in verts],
+        "normals": [f32_point(v) for v in verts],
+        "indices": [i for face in faces for i in face]}]
+    return scene
+
+
 # (file name, builder) of the figure scenes.
 FIGURE_SCENES = [
     ("veach_plates.gltf", build_veach_plates),
@@ -597,6 +672,7 @@ FIGURE_SCENES = [
     ("caustic_glass_sphere.gltf", lambda: cornell_variant(
         LIGHT_CEILING | LARGE_GLASS_SPHERE,
         "caustic: a large glass sphere under the small area light", ["F07", "F09", "F10", "F11", "F12"])),
+    ("smooth_sphere_box.gltf", build_smooth_sphere_box),
 ]
 
 

@@ -283,6 +283,34 @@ bad("vertex_nan.gltf", "vertex 2 has x = NaN (raw float bits 0x7fc00000)",
     "vertex 2 is not finite")(lambda: raw_floor(NAN_BITS))
 bad("vertex_infinite.gltf", "vertex 2 has x = +infinity (raw float bits 0x7f800000)",
     "vertex 2 is not finite")(lambda: raw_floor(INF_BITS))
+
+
+def with_normals(normals, raw=None, component=FLOAT, kind="VEC3", floor_node=None):
+    """The floor with a NORMAL accessor of the given values (raw bytes replace them)."""
+    b = base(floor_node=floor_node)
+    packed = raw if raw is not None else b"".join(struct.pack("<3f", *n) for n in normals)
+    b.doc["accessors"].append({"bufferView": b.view(packed), "componentType": component,
+                               "count": len(normals), "type": kind})
+    b.doc["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = len(b.doc["accessors"]) - 1
+    return b.finish()
+
+
+UP4 = [(0.0, 0.0, 1.0)] * 4
+bad("normal_count_mismatch.gltf", "3 NORMAL elements for the floor's 4 vertices",
+    "NORMAL has 3 elements but POSITION has 4")(lambda: with_normals(UP4[:3]))
+bad("normal_nan.gltf", "the NORMAL of vertex 2 has z = NaN (raw float bits 0x7fc00000)",
+    "NORMAL of vertex 2 is not finite")(
+    lambda: with_normals(UP4, raw=b"".join(struct.pack("<3f", *n) for n in UP4[:2]) +
+                         struct.pack("<ffI", 0.0, 0.0, NAN_BITS) + struct.pack("<3f", *UP4[3])))
+bad("normal_zero.gltf", "the NORMAL of vertex 1 is (0, 0, 0)", "NORMAL of vertex 1 has zero length")(
+    lambda: with_normals([UP4[0], (0.0, 0.0, 0.0)] + UP4[2:]))
+bad("normal_vec2.gltf", "a NORMAL accessor of type VEC2", "NORMAL (accessor 4): wrong type (VEC3 expected)")(
+    lambda: with_normals(UP4, kind="VEC2"))
+bad("normal_unsigned_short.gltf", "a NORMAL accessor of component type UNSIGNED_SHORT",
+    "normals must be FLOAT")(lambda: with_normals(UP4, component=USHORT))
+bad("normal_accessor_out_of_range.gltf", "NORMAL refers to accessor 9 (there are 4)",
+    "NORMAL refers to accessor 9, which does not exist")(
+    lambda: modified(lambda d: d["meshes"][0]["primitives"][0]["attributes"].update(NORMAL=9)))
 bad("mode_lines.gltf", "primitive mode 1 (LINES)", "primitive mode 1 is not supported")(
     lambda: modified(lambda d: d["meshes"][0]["primitives"][0].update(mode=1)))
 bad("mode_points.gltf", "primitive mode 0 (POINTS)", "primitive mode 0 is not supported")(
@@ -527,6 +555,11 @@ GOOD_CASES = {
                               "roughnessFactor": 1.0})),
     "emitter_with_reflectance.gltf": lambda: modified(lambda d: d["materials"][1]["extensions"].update(
         SMALLVCM_material={"diffuse": [0.3, 0.3, 0.3]})),
+    # Vertex normals: tilted towards +x at x = 1 and -x at x = -1, two of them twice too
+    # long (normalised, with a note), under a node that stretches x by 2 (so the world
+    # normals follow the inverse transpose: the tilt halves).
+    "normals_scaled.gltf": lambda: with_normals(
+        [(-0.6, 0.0, 0.8), (1.2, 0.0, 1.6), (0.6, 0.0, 0.8), (-1.2, 0.0, 1.6)], floor_node={"scale": [2.0, 1.0, 1.0]}),
     # Indices: none (vertex order), UNSIGNED_BYTE, UNSIGNED_SHORT.
     "indices_none.gltf": lambda: scene(floor_points=[FLOOR[i] for i in FLOOR_INDICES], floor_indices=None),
     "indices_unsigned_byte.gltf": lambda: scene(floor_component=UBYTE),
