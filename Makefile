@@ -79,6 +79,15 @@ FORCE:
 $(BUILD)/smallvcm: $(BUILD)/smallvcm.o $(IMPL_OBJ) $(call integrator_obj,$(BUILD)) $(INTEGRATOR_LIST)
 	$(CXX) $(filter %.o,$^) -o $@ $(LDFLAGS)
 
+# The command line records `git describe --always --dirty` of the sources it was built
+# from in every image's sidecar. build/commit.txt changes only when that does, so only
+# the command line's object is rebuilt, and only then.
+COMMIT := $(shell git describe --always --dirty 2>/dev/null)
+$(BUILD)/commit.txt: FORCE | $(BUILD)
+	@echo '$(COMMIT)' | cmp -s - $@ || echo '$(COMMIT)' > $@
+$(BUILD)/smallvcm.o $(BUILD)/check/smallvcm.o: $(BUILD)/commit.txt
+$(BUILD)/smallvcm.o $(BUILD)/check/smallvcm.o: CPPFLAGS += -DSMALLVCM_COMMIT='"$(COMMIT)"'
+
 # The header's first-screen example is a whole program: it defines SMALLVCM_IMPLEMENTATION
 # itself, so it is built alone, not linked with the implementation unit.
 $(BUILD)/minimal: examples/minimal.cpp $(HEADER) | $(BUILD)

@@ -3995,12 +3995,13 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
 // =====================================================================================
 // [SECTION] Image output and metrics
 // =====================================================================================
-// Provides: image metrics (mean, RMSE, relative MSE against a reference) and, compiled
-// under SMALLVCM_IMPLEMENTATION, the writers: PNG (sRGB-encoded, clamped to [0, 1]),
-// Radiance .hdr (RGBE, top row first as the format expects) and PFM (exact floats,
-// bottom row first as the PFM convention requires), plus a PFM reader. Every writer
-// writes a temporary file and renames it, so a failed write never leaves a partial
-// image under the requested name.
+// Provides: image metrics (mean, RMSE, relative MSE against a reference), the display
+// mapping of PNGs (exposure and tone curve) and, compiled under SMALLVCM_IMPLEMENTATION,
+// the writers: PNG (exposed, tone-mapped, sRGB-encoded), Radiance .hdr (RGBE, top row
+// first as the format expects) and PFM (exact floats, bottom row first as the PFM
+// convention requires), plus readers of PFM and .hdr. Every writer writes temporary
+// files and renames them, so a failed write never leaves a partial image (nor half of a
+// set of files written together) under the requested names.
 
 // Average over pixels and channels.
 inline double MeanValue(const Image& aImage) {
@@ -4055,19 +4056,85 @@ inline ImageFormat ImageFormatOf(const std::string& aPath) {
 }
 inline bool IsSupportedImagePath(const std::string& aPath) { return ImageFormatOf(aPath) != ImageFormat::kUnknown; }
 
-// Writes .png, .hdr or .pfm by the file's extension. Throws Error on failure. The bytes
-// go to a new temporary file of a unique name in the same folder (created exclusively:
-// never an existing file, never through a symlink), which is then renamed onto aPath in
-// one step: aPath holds the old file or the whole new image, and two programs writing
-// the same path both leave a valid image. SIGINT, SIGTERM and SIGHUP are held back on
-// the calling thread while the temporary file exists, so a signal cannot leave it behind.
-void WriteImage(const std::string& aPath, const Image& aImage);
+// How a PNG shows radiance. A PNG holds 8-bit sRGB values in [0, 1], so each channel is
+// scaled by 2^exposure (EV, photographic stops), mapped into [0, 1] by the tone curve,
+// then sRGB-encoded. HDR and PFM ignore these options: they keep linear radiance, exactly
+// as rendered, so that images can be measured, compared and merged.
+//   kClamp  min(max(x, 0), 1). The default: at exposure 0 a PNG is byte for byte what it
+//           was before these options existed.
+//   kAces   a filmic curve with a toe and a soft shoulder, so bright lights and caustics
+//           keep their shape instead of clipping to white (AcesFilmic below).
+enum class ToneMap { kClamp, kAces };
+inline constexpr float kMaxExposure = 32.f;  // 2^32: beyond that a float image has nothing left to show
+
+struct ImageWriteOptions {
+    float mExposure = 0.f;  // EV in [-kMaxExposure, kMaxExposure]: PNG value = tone(radiance * 2^EV)
+    ToneMap mToneMap = ToneMap::kClamp;
+};
+
+inline const char* ToneMapName(ToneMap aToneMap) { return aToneMap == ToneMap::kAces ? "aces" : "clamp"; }
+inline bool ParseToneMap(const std::string& aName, ToneMap& oToneMap) {
+    for (ToneMap t : {ToneMap::kClamp, ToneMap::kAces})
+        if (aName == ToneMapName(t)) { oToneMap = t; return true; }
+    return false;
+}
+
+// Throws Error naming the option unless the exposure is a finite number of stops in range.
+inline void ValidateImageWriteOptions(const ImageWriteOptions& aOptions) {
+    if (!(aOptions.mExposure >= -kMaxExposure && aOptions.mExposure <= kMaxExposure))
+        throw Error("exposure: must be a finite number of stops in [-32, 32]");
+}
+
+// K. Narkowicz, "ACES Filmic Tone Mapping Curve" (2016): a rational fit, per channel, of
+// the ACES reference rendering and output transforms ODT(RRT(x)) for a Rec.709 display
+// with its 2.4 gamma removed, pre-exposed so that 1 maps to about 0.8:
+//     f(x) = x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14),  clamped to [0, 1].
+// Its output is display-linear (sRGB encoding follows). f(0) = 0, f is increasing on
+// x >= 0 and tends to 2.51 / 2.43 > 1, so it reaches 1 (white) at x of about 7.24.
+inline float AcesFilmic(float aValue) {
+    const float x = std::min(std::max(aValue, 0.f), 8.f);  // white from 7.24 on; 8 keeps x^2 from overflowing
+    return std::min(x * (2.51f * x + 0.03f) / (x * (2.43f * x + 0.59f) + 0.14f), 1.f);
+}
+
+// The display-linear value in [0, 1] a PNG shows for aRadiance (before sRGB encoding).
+inline float DisplayValue(float aRadiance, const ImageWriteOptions& aOptions) {
+    const float exposed = aRadiance * std::exp2(aOptions.mExposure);  // exp2(0) is exactly 1
+    return aOptions.mToneMap == ToneMap::kAces ? AcesFilmic(exposed) : std::min(std::max(exposed, 0.f), 1.f);
+}
+
+// One file of a set written together by WriteFilesTogether.
+struct OutputFile {
+    std::string mPath;
+    std::vector<unsigned char> mBytes;
+};
+
+// The bytes of aImage in the format of aPath's extension (.png, .hdr, .pfm); aOptions
+// apply to PNG only. Throws Error on failure.
+std::vector<unsigned char> EncodeImage(const std::string& aPath, const Image& aImage, const ImageWriteOptions& aOptions = {});
+// Writes every file, or none. Each file's bytes go to a new temporary file of a unique
+// name in its folder (created exclusively: never an existing file, never through a
+// symlink); once all are complete they are renamed onto their paths, each in one step.
+// If a write or a rename fails, the temporaries are removed and so are the new files
+// already renamed into place: no new file of the set remains (an old file that a rename
+// had already replaced is gone too). Two programs writing the same paths each leave
+// complete files. SIGINT, SIGTERM and SIGHUP are held back on the calling thread while
+// temporary files exist, so a signal cannot leave one behind. Throws Error naming the file.
+void WriteFilesTogether(const std::vector<OutputFile>& aFiles);
+// Writes .png, .hdr or .pfm by the file's extension (WriteFilesTogether with one file):
+// aPath holds the old file or the whole new image. Throws Error on failure.
+void WriteImage(const std::string& aPath, const Image& aImage, const ImageWriteOptions& aOptions = {});
 // Throws Error naming aPath unless an image can be written there: a known extension, an
 // existing folder in which files can be created, and no directory of that name. Call it
 // before a long render; it leaves nothing behind.
 void CheckOutputPath(const std::string& aPath);
 // Reads a PFM written by WriteImage (or any 3-channel PFM). Throws Error on failure.
 Image ReadPfm(const std::string& aPath);
+// Reads a Radiance .hdr in RGBE (flat or run-length encoded scanlines, -Y H +X W), as
+// WriteImage writes it: each value to within 1/256 of itself. Throws Error on failure.
+Image ReadHdr(const std::string& aPath);
+// Reads linear radiance from a .pfm or .hdr, by the extension in any case; a .png is
+// refused (its values are exposed, tone-mapped and 8-bit: not radiance).
+Image ReadImage(const std::string& aPath);
 
 // =====================================================================================
 // [SECTION] Scene loading (glTF)
@@ -4142,6 +4209,7 @@ Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr,
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <new>
 #include <set>
@@ -4194,9 +4262,9 @@ inline int CreateUniqueTemporary(const std::string& aPath, std::string& oName) {
     return -1;
 }
 
-// Writes aBytes to aPath through a unique temporary file and a rename (see WriteImage).
-inline void WriteFileAtomically(const std::string& aPath, const std::vector<unsigned char>& aBytes) {
-    const SignalsHeldBack held;
+// Writes aBytes to a new unique temporary file next to aPath and returns its name; on
+// failure removes it and throws Error naming aPath. The caller holds signals back.
+inline std::string WriteTemporary(const std::string& aPath, const std::vector<unsigned char>& aBytes) {
     std::string temporary;
     const int fd = CreateUniqueTemporary(aPath, temporary);
     if (fd < 0) throw Error(aPath + ": cannot create a file next to it (" + std::strerror(errno) + ")");
@@ -4212,11 +4280,7 @@ inline void WriteFileAtomically(const std::string& aPath, const std::vector<unsi
         ::unlink(temporary.c_str());
         throw Error(aPath + ": write failed (disk full?)");
     }
-    if (std::rename(temporary.c_str(), aPath.c_str()) != 0) {
-        const int renameError = errno;
-        ::unlink(temporary.c_str());
-        throw Error(aPath + ": cannot put the image in place (" + std::strerror(renameError) + ")");
-    }
+    return temporary;
 }
 
 inline void AppendBytes(void* aContext, void* aData, int aSize) {
@@ -4258,15 +4322,36 @@ void CheckOutputPath(const std::string& aPath) {
     ::unlink(probe.c_str());
 }
 
-void WriteImage(const std::string& aPath, const Image& aImage) {
+void WriteFilesTogether(const std::vector<OutputFile>& aFiles) {
+    const detail::SignalsHeldBack held;
+    std::vector<std::string> temporaries;
+    try {
+        for (const OutputFile& file : aFiles) temporaries.push_back(detail::WriteTemporary(file.mPath, file.mBytes));
+    } catch (const Error&) {
+        for (const std::string& temporary : temporaries) ::unlink(temporary.c_str());
+        throw;
+    }
+    for (size_t i = 0; i < aFiles.size(); i++) {
+        if (std::rename(temporaries[i].c_str(), aFiles[i].mPath.c_str()) == 0) continue;
+        const int renameError = errno;
+        for (size_t k = 0; k < i; k++) ::unlink(aFiles[k].mPath.c_str());  // ours: renamed a moment ago
+        for (size_t k = i; k < aFiles.size(); k++) ::unlink(temporaries[k].c_str());
+        throw Error(aFiles[i].mPath + ": cannot put the file in place (" + std::strerror(renameError) + ")");
+    }
+}
+
+std::vector<unsigned char> EncodeImage(const std::string& aPath, const Image& aImage, const ImageWriteOptions& aOptions) {
     if (aImage.mWidth <= 0 || aImage.mHeight <= 0) throw Error(aPath + ": the image is empty");
+    ValidateImageWriteOptions(aOptions);
     std::vector<unsigned char> bytes;
     const ImageFormat format = ImageFormatOf(aPath);
     if (format == ImageFormat::kPng) {
         std::vector<unsigned char> pixels(aImage.mPixels.size() * 3);
         for (size_t i = 0; i < aImage.mPixels.size(); i++)
-            for (int c = 0; c < 3; c++)
-                pixels[3 * i + size_t(c)] = (unsigned char)(detail::LinearToSrgb(aImage.mPixels[i][c]) * 255.f + 0.5f);
+            for (int c = 0; c < 3; c++) {
+                const float display = DisplayValue(aImage.mPixels[i][c], aOptions);
+                pixels[3 * i + size_t(c)] = (unsigned char)(detail::LinearToSrgb(display) * 255.f + 0.5f);
+            }
         if (!stbi_write_png_to_func(detail::AppendBytes, &bytes, aImage.mWidth, aImage.mHeight, 3, pixels.data(), aImage.mWidth * 3))
             throw Error(aPath + ": PNG encoding failed");
     } else if (format == ImageFormat::kHdr) {
@@ -4289,7 +4374,11 @@ void WriteImage(const std::string& aPath, const Image& aImage) {
     } else {
         throw Error(aPath + ": unknown image format (use .png, .hdr or .pfm)");
     }
-    detail::WriteFileAtomically(aPath, bytes);
+    return bytes;
+}
+
+void WriteImage(const std::string& aPath, const Image& aImage, const ImageWriteOptions& aOptions) {
+    WriteFilesTogether({{aPath, EncodeImage(aPath, aImage, aOptions)}});
 }
 
 Image ReadPfm(const std::string& aPath) {
@@ -4302,6 +4391,11 @@ Image ReadPfm(const std::string& aPath) {
     if (magic != "PF" || width <= 0 || height <= 0 || scale >= 0.0 || width > 65536 || height > 65536)
         throw Error(aPath + ": not a little-endian 3-channel PFM file");
     file.get();  // the single whitespace after the header
+    // Before allocating: a few bytes must not claim gigabytes of pixels.
+    const std::streampos pixelsStart = file.tellg();
+    file.seekg(0, std::ios::end);
+    if (!file || file.tellg() - pixelsStart < std::streamoff(12) * width * height) throw Error(aPath + ": the file is truncated");
+    file.seekg(pixelsStart);
     Image image(width, height);
     for (int y = height - 1; y >= 0; y--)
         for (int x = 0; x < width; x++)
@@ -4311,6 +4405,88 @@ Image ReadPfm(const std::string& aPath) {
                 image.At(x, y)[c] = value;
             }
     return image;
+}
+
+Image ReadHdr(const std::string& aPath) {
+    struct stat info;
+    if (::stat(aPath.c_str(), &info) != 0) throw Error(aPath + ": cannot open (" + std::strerror(errno) + ")");
+    if (!S_ISREG(info.st_mode)) throw Error(aPath + ": not a regular file");
+    if (uint64_t(info.st_size) > (uint64_t(1) << 34)) throw Error(aPath + ": larger than any .hdr of at most 65536x65536 pixels");
+    std::ifstream file(aPath, std::ios::binary);
+    if (!file) throw Error(aPath + ": cannot open");
+    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    const Error notRgbe(aPath + ": not a Radiance RGBE .hdr file");
+    // The header: "#?RADIANCE" (or "#?RGBE"), lines of variables, an empty line, then the
+    // resolution line; only the orientation writers use, top row first: "-Y H +X W".
+    size_t position = 0;
+    auto nextLine = [&](std::string& oLine) {
+        const size_t end = std::find(bytes.begin() + long(position), bytes.begin() + long(std::min(bytes.size(), position + 4096)), '\n') - bytes.begin();
+        if (end >= bytes.size() || bytes[end] != '\n') throw notRgbe;
+        oLine.assign(bytes.begin() + long(position), bytes.begin() + long(end));
+        position = end + 1;
+    };
+    std::string line;
+    nextLine(line);
+    if (line != "#?RADIANCE" && line != "#?RGBE") throw notRgbe;
+    for (int lines = 0;; lines++) {
+        nextLine(line);
+        if (line.empty()) break;
+        if (lines > 256) throw notRgbe;
+        if (line.rfind("FORMAT=", 0) == 0 && line != "FORMAT=32-bit_rle_rgbe")
+            throw Error(aPath + ": " + line.substr(0, 40) + " is not supported (only FORMAT=32-bit_rle_rgbe)");
+    }
+    nextLine(line);
+    std::istringstream resolution(line);
+    std::string yAxis, xAxis, rest;
+    int width = 0, height = 0;
+    resolution >> yAxis >> height >> xAxis >> width;
+    if (!resolution || yAxis != "-Y" || xAxis != "+X" || (resolution >> rest) || width < 1 || height < 1 || width > 65536 || height > 65536)
+        throw Error(aPath + ": only the resolution line '-Y H +X W' with sizes in [1, 65536] is supported");
+    // Before allocating: a scanline takes at least 4 bytes plus 2 per 127 pixels per channel.
+    if (uint64_t(bytes.size() - position) < uint64_t(height) * (4 + 8 * (uint64_t(width) / 127))) throw Error(aPath + ": the file is truncated");
+    const Error corrupt(aPath + ": the pixel data is truncated or corrupt");
+    Image image(width, height);
+    std::vector<unsigned char> scanline(size_t(width) * 4);
+    for (int y = 0; y < height; y++) {
+        const bool runLengthEncoded = width >= 8 && width < 32768 && position + 4 <= bytes.size() && bytes[position] == 2 &&
+                                      bytes[position + 1] == 2 && ((bytes[position + 2] << 8) | bytes[position + 3]) == width;
+        if (runLengthEncoded) {
+            // Each channel in turn: a count byte c > 128 repeats the next byte c - 128
+            // times, otherwise the next c bytes are literal.
+            position += 4;
+            for (int c = 0; c < 4; c++)
+                for (int x = 0; x < width;) {
+                    if (position >= bytes.size()) throw corrupt;
+                    const int count = bytes[position++];
+                    const bool run = count > 128;
+                    const int length = run ? count - 128 : count;
+                    if (length == 0 || length > width - x || position + (run ? 1 : size_t(length)) > bytes.size()) throw corrupt;
+                    for (int k = 0; k < length; k++, x++) scanline[4 * size_t(x) + size_t(c)] = bytes[run ? position : position + size_t(k)];
+                    position += run ? 1 : size_t(length);
+                }
+        } else {
+            if (position + scanline.size() > bytes.size()) throw corrupt;
+            std::copy(bytes.begin() + long(position), bytes.begin() + long(position + scanline.size()), scanline.begin());
+            position += scanline.size();
+        }
+        // RGBE to float as Radiance's colr_color does: (mantissa + 1/2) 2^(exponent - 136),
+        // the middle of the interval the writer's truncation mapped the value into.
+        for (int x = 0; x < width; x++) {
+            const unsigned char* rgbe = &scanline[4 * size_t(x)];
+            const float scale = rgbe[3] == 0 ? 0.f : std::ldexp(1.f, int(rgbe[3]) - 136);
+            for (int c = 0; c < 3; c++) image.At(x, y)[c] = scale == 0.f ? 0.f : (float(rgbe[c]) + 0.5f) * scale;
+        }
+    }
+    return image;
+}
+
+Image ReadImage(const std::string& aPath) {
+    switch (ImageFormatOf(aPath)) {
+    case ImageFormat::kPfm: return ReadPfm(aPath);
+    case ImageFormat::kHdr: return ReadHdr(aPath);
+    case ImageFormat::kPng: throw Error(aPath + ": a PNG holds exposed, tone-mapped 8-bit values, not radiance (use the .pfm or .hdr)");
+    default: throw Error(aPath + ": unknown image format (use .pfm or .hdr)");
+    }
 }
 
 // -------------------------------------------------------------------------------------

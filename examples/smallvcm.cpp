@@ -8,6 +8,8 @@
 // exit code 1. No output file is written unless the render succeeded. Ctrl-C (SIGINT) or
 // SIGTERM stops the render after the iterations in flight, writes what was accumulated
 // and exits with 130 or 143; a second signal ends it at once, leaving no temporary file.
+// Every image is written with a JSON sidecar IMAGE.json (examples/sidecar.hpp says what
+// it holds); `smallvcm merge OUT RUN...` averages runs of one scene by their iterations.
 // -a takes any registered integrator: the built-ins, and those of the .cpp files the
 // Makefile's INTEGRATORS variable links in (each registers itself with a
 // smallvcm::IntegratorRegistration; docs/writing-an-integrator.md shows how).
@@ -15,6 +17,7 @@
 
 #include "smallvcm.hpp"
 #include "command_line.hpp"
+#include "sidecar.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -24,6 +27,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
+#include <initializer_list>
+#include <algorithm>
 #include <string>
 #include <thread>
 #include <vector>
@@ -79,7 +85,11 @@ void PrintHelp() {
     std::printf(
         "  -i ITERATIONS       number of iterations, one sample per pixel each (default 1)\n"
         "  -t SECONDS          time budget; with -t and no -i, runs until the time is up\n"
-        "  -o FILE             output image: .png, .hdr or .pfm, in any case (default smallvcm.png)\n"
+        "  -o FILE             output image: .png, .hdr or .pfm, in any case (default smallvcm.png),\n"
+        "                        written with a sidecar FILE.json saying how it was made\n"
+        "  --exposure EV       PNG only: scale radiance by 2^EV before tone mapping (default 0, in [-32, 32])\n"
+        "  --tonemap T         PNG only: clamp (default: to [0, 1]) or aces (a filmic curve that keeps\n"
+        "                        highlights); .hdr and .pfm always hold linear radiance\n"
         "  -r WIDTHxHEIGHT     resolution (default 512x512)\n"
         "  -j THREADS          threads (default: all cores; at most 4 per core)\n"
         "  --seed N            base random seed (default 1234)\n"
@@ -91,15 +101,20 @@ void PrintHelp() {
         "  --photons N         pm, pmfg: photons traced per iteration (default 200000)\n"
         "  --knn K             pm, pmfg: nearest photons per estimate (default 100)\n"
         "  --max-radius F      pm, pmfg: largest search radius, fraction of the scene radius (default 0.05, at most 1)\n"
-        "  --layers            also write per-technique layers as FILE-stem.LAYER.ext\n"
+        "  --layers            also write per-technique layers as FILE-stem.LAYER.ext (those that received\n"
+        "                        any contribution) and their list, FILE-stem.layers.json\n"
         "  --camera N          the N-th camera node of the file (default: the first; a file without\n"
         "                        cameras gets one that frames the whole scene from the front)\n"
         "  --background R,G,B  add (or replace the file's) uniform background of this linear radiance;\n"
         "  --background none     none: no background. Default: the file's, and white (1,1,1) when the\n"
         "                        file has no light at all\n"
-        "  -q                  quiet: no summary line, no progress\n"
+        "  -q                  quiet: nothing on success (no summary, notes or progress); errors still go to stderr\n"
+        "  --help              this text\n"
         "Ctrl-C or SIGTERM writes the iterations done so far (exit 130 or 143); a second one stops at once.\n"
-        "  --help              this text\n");
+        "\n"
+        "Usage: smallvcm merge [-q] [--exposure EV] [--tonemap clamp|aces] OUT RUN1 RUN2 ...\n"
+        "  Averages runs (.pfm or .hdr, each with its sidecar) of one scene, algorithm, resolution\n"
+        "  and settings, with different --seed, weighted by their iterations; OUT gets a sidecar too.\n");
 }
 
 // The repository's scenes/ folder: $SMALLVCM_SCENES if set, else found by walking up
@@ -136,16 +151,45 @@ std::string WithLayerName(const std::string& aPath, const std::string& aLayer) {
     return aPath.substr(0, dot) + "." + aLayer + aPath.substr(dot);
 }
 
+// --layers: FILE-stem.layers.json lists the layer files written.
+std::string LayerIndexPath(const std::string& aPath) { return aPath.substr(0, aPath.find_last_of('.')) + ".layers.json"; }
+
+// Before a long render: the image can be written, and nothing that is not a plain file
+// (a directory, say) sits where its sidecar goes.
+void CheckOutputPaths(const std::string& aPath) {
+    smallvcm::CheckOutputPath(aPath);
+    struct stat info;
+    const std::string sidecarPath = sidecar::SidecarPath(aPath);
+    if (::lstat(sidecarPath.c_str(), &info) == 0 && !S_ISREG(info.st_mode))
+        throw Error(sidecarPath + ": is in the way of the image's sidecar (not a regular file)");
+}
+
 struct CommandLine {
     std::string mScene = "4";
     std::string mOutput = "smallvcm.png";
     int mWidth = 512, mHeight = 512;
     bool mQuiet = false;
     bool mIterationsGiven = false;
+    smallvcm::ImageWriteOptions mWrite;
     smallvcm::RenderOptions mOptions;
     const smallvcm::Integrator* mIntegrator = &smallvcm::BuiltInIntegrator(mOptions.mAlgorithm);
     smallvcm::GltfLoadOptions mLoad;
 };
+
+// --exposure and --tonemap, shared by rendering and merging; false if aArg is neither.
+bool ParseWriteOption(const std::string& aArg, const std::function<std::string()>& aValue, smallvcm::ImageWriteOptions& oWrite) {
+    if (aArg == "--exposure") {
+        oWrite.mExposure = ParseNumber<float>(aArg, aValue(), -smallvcm::kMaxExposure, smallvcm::kMaxExposure,
+                                              "a finite number of stops in [-32, 32]");
+        return true;
+    }
+    if (aArg == "--tonemap") {
+        const std::string name = aValue();
+        if (!smallvcm::ParseToneMap(name, oWrite.mToneMap)) throw Error("--tonemap: unknown tone curve '" + name + "' (clamp, aces)");
+        return true;
+    }
+    return false;
+}
 
 // "R,G,B" (three finite numbers >= 0: linear radiance) or "none".
 void ParseBackground(const std::string& aText, smallvcm::GltfLoadOptions& oLoad) {
@@ -230,6 +274,7 @@ CommandLine Parse(int argc, char** argv) {
         else if (arg == "--camera") cl.mLoad.mCamera = ParseNumber<int>(arg, value(i), 0, 1000000, "a camera number in [0, 1e6]");
         else if (arg == "--background") ParseBackground(value(i), cl.mLoad);
         else if (arg == "-q") cl.mQuiet = true;
+        else if (ParseWriteOption(arg, [&] { return value(i); }, cl.mWrite)) {}
         else throw Error(arg + ": unknown option (see --help)");
     }
     if (cl.mOptions.mSeconds > 0.0 && !cl.mIterationsGiven) cl.mOptions.mIterations = 0;  // until time is up
@@ -242,9 +287,141 @@ CommandLine Parse(int argc, char** argv) {
     return cl;
 }
 
+// The sidecar of the main image; a layer's differs only in estimator.layer.
+sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadReport& aReport, const smallvcm::RenderResult& aResult,
+                           int aThreads, int aStopSignal) {
+    using sidecar::Json;
+    using sidecar::Shortest;
+    using Background = smallvcm::GltfLoadOptions::Background;
+    const smallvcm::RenderOptions& o = aCl.mOptions;
+    const smallvcm::Vec3& radiance = aCl.mLoad.mBackgroundRadiance;
+    Json estimator;
+    estimator["algorithm"] = aCl.mIntegrator->mName;
+    estimator["scene_fnv1a64"] = sidecar::FileFnv1a64(aCl.mScene);
+    estimator["width"] = aCl.mWidth;
+    estimator["height"] = aCl.mHeight;
+    estimator["camera"] = aReport.mCamera;
+    estimator["background"] = aCl.mLoad.mBackground == Background::kFromFile ? Json("from file")
+                              : aCl.mLoad.mBackground == Background::kNone   ? Json("none")
+                                                                             : Json{Shortest(radiance.x), Shortest(radiance.y), Shortest(radiance.z)};
+    // Only the settings a built-in algorithm uses: runs that differ in one it ignores still
+    // merge. An integrator linked in from elsewhere may read any of them: all are recorded.
+    using smallvcm::Algorithm;
+    const bool builtIn = aCl.mIntegrator == &smallvcm::BuiltInIntegrator(o.mAlgorithm);
+    auto uses = [&](std::initializer_list<Algorithm> aAlgorithms) {
+        return !builtIn || std::find(aAlgorithms.begin(), aAlgorithms.end(), o.mAlgorithm) != aAlgorithms.end();
+    };
+    const bool merges = uses({Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping, Algorithm::kVertexConnectionMerging});
+    const bool photonMaps = uses({Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather});
+    if (!builtIn || o.mAlgorithm != Algorithm::kEyeLight) {
+        estimator["min_path_length"] = o.mMinPathLength;
+        estimator["max_path_length"] = o.mMaxPathLength;
+        estimator["mis"] = o.mMis == smallvcm::MisHeuristic::kPower ? "power" : "balance";
+    }
+    if (merges) {
+        estimator["radius_factor"] = Shortest(o.mRadiusFactor);
+        estimator["radius_alpha"] = Shortest(o.mRadiusAlpha);
+    }
+    if (photonMaps) {
+        estimator["photons"] = o.mPhotonCount;
+        estimator["knn"] = o.mNearestPhotons;
+        estimator["max_radius"] = Shortest(o.mMaxPhotonRadiusFactor);
+    }
+    estimator["layer"] = nullptr;
+    Json run;
+    run["iterations_requested"] = o.mIterations > 0 ? Json(o.mIterations) : Json(nullptr);
+    run["seconds_budget"] = o.mSeconds > 0.0 ? Json(o.mSeconds) : Json(nullptr);
+    run["threads"] = aThreads;
+    run["stopped_early"] = aResult.mStopped;
+    run["stop_signal"] = aStopSignal == SIGTERM ? Json("SIGTERM") : aStopSignal == SIGINT ? Json("SIGINT") : Json(nullptr);
+    Json record;
+    record["format"] = sidecar::kFormat;
+    record["image"] = nullptr;  // sidecar::AddImage fills in the image's name, fingerprint and mean
+    record["image_fnv1a64"] = nullptr;
+    record["scene"] = aCl.mScene;
+    record["estimator"] = estimator;
+    record["seed"] = o.mSeed;
+    record["iterations"] = aResult.mIterations;
+    record["seconds"] = aResult.mSeconds;
+    record["run"] = run;
+    record["png"] = sidecar::PngRecord(aCl.mWrite);
+    record["mean"] = nullptr;
+    record["smallvcm_commit"] = sidecar::Commit();
+    return record;
+}
+
+// The image, each layer that received any contribution and, with --layers, the index
+// FILE-stem.layers.json of what was written, every one with its sidecar: all files or none.
+std::vector<smallvcm::OutputFile> OutputFiles(const CommandLine& aCl, const smallvcm::RenderResult& aResult, const sidecar::Json& aRecord) {
+    std::vector<smallvcm::OutputFile> files;
+    sidecar::AddImage(files, aCl.mOutput, aResult.mImage, aCl.mWrite, aRecord);
+    if (!aCl.mOptions.mTechniqueLayers) return files;
+    sidecar::Json written = sidecar::Json::array(), empty = sidecar::Json::array();
+    for (const auto& [name, image] : aResult.mLayers) {
+        const bool contributed = std::any_of(image.mPixels.begin(), image.mPixels.end(),
+                                             [](const smallvcm::Vec3& aPixel) { return aPixel != smallvcm::Vec3(0.f); });
+        if (!contributed) {
+            empty.push_back(name);
+            continue;
+        }
+        const std::string path = WithLayerName(aCl.mOutput, name);
+        sidecar::Json record = aRecord;
+        record["estimator"]["layer"] = name;
+        sidecar::AddImage(files, path, image, aCl.mWrite, record);
+        written.push_back({{"layer", name}, {"file", sidecar::FileName(path)}, {"mean", smallvcm::MeanValue(image)}});
+    }
+    const sidecar::Json index = {{"image", sidecar::FileName(aCl.mOutput)}, {"layers", written}, {"layers_without_contribution", empty}};
+    const std::string text = index.dump(2) + "\n";
+    files.push_back({LayerIndexPath(aCl.mOutput), std::vector<unsigned char>(text.begin(), text.end())});
+    return files;
+}
+
+// smallvcm merge [-q] [--exposure EV] [--tonemap clamp|aces] OUT RUN1 RUN2 ...
+int MergeMain(int argc, char** argv) {
+    bool quiet = false;
+    smallvcm::ImageWriteOptions write;
+    std::vector<std::string> paths;
+    try {
+        for (int i = 2; i < argc; i++) {
+            const std::string arg = argv[i];
+            auto value = [&]() -> std::string {
+                if (i + 1 >= argc) throw Error(arg + ": needs a value");
+                return argv[++i];
+            };
+            if (arg == "-q") quiet = true;
+            else if (ParseWriteOption(arg, value, write)) {}
+            else if (arg.size() > 1 && arg[0] == '-') throw Error(arg + ": unknown option of merge (-q, --exposure, --tonemap)");
+            else paths.push_back(arg);
+        }
+        if (paths.size() < 2) throw Error("merge: needs an output and at least one run (smallvcm merge OUT.pfm RUN1.pfm RUN2.pfm ...)");
+        if (!smallvcm::IsSupportedImagePath(paths[0]))
+            throw Error(paths[0] + ": unknown image format for the merged image (use .pfm, .hdr or .png)");
+    } catch (const Error& e) {
+        std::fprintf(stderr, "smallvcm: %s\n", e.what());
+        return 2;
+    }
+    try {
+        CheckOutputPaths(paths[0]);
+        const std::vector<std::string> inputs(paths.begin() + 1, paths.end());
+        const sidecar::MergeResult merged = sidecar::Merge(paths[0], inputs, write);
+        if (!quiet)
+            std::printf("merged %zu run%s of %s: %lld iteration%s, mean %.6f -> %s\n", inputs.size(), inputs.size() == 1 ? "" : "s",
+                        merged.mAlgorithm.c_str(), static_cast<long long>(merged.mIterations), merged.mIterations == 1 ? "" : "s",
+                        merged.mMean, paths[0].c_str());
+    } catch (const Error& e) {
+        std::fprintf(stderr, "smallvcm: %s\n", e.what());
+        return 1;
+    } catch (const std::bad_alloc&) {
+        std::fprintf(stderr, "smallvcm: out of memory while merging\n");
+        return 1;
+    }
+    return 0;
+}
+
 } // namespace
 
 int main(int argc, char** argv) {
+    if (argc >= 2 && std::string(argv[1]) == "merge") return MergeMain(argc, argv);
     CommandLine cl;
     try {
         cl = Parse(argc, argv);
@@ -253,14 +430,14 @@ int main(int argc, char** argv) {
         return 2;
     }
     try {
-        smallvcm::CheckOutputPath(cl.mOutput);  // before a long render, not after it
+        CheckOutputPaths(cl.mOutput);  // before a long render, not after it
         const std::string& scenePath = cl.mScene;
         smallvcm::GltfLoadReport report;
         cl.mLoad.mDefaultCameraAspect = float(cl.mWidth) / float(cl.mHeight);
         const auto loadStart = std::chrono::steady_clock::now();
         smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath, &report, cl.mLoad);  // parsing and the BVH build
         const double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loadStart).count();
-        if (report.mSkippedDegenerateTriangles > 0)
+        if (report.mSkippedDegenerateTriangles > 0 && !cl.mQuiet)
             std::fprintf(stderr, "smallvcm: %s: note: skipped %d degenerate (zero-area) triangles\n", scenePath.c_str(),
                          report.mSkippedDegenerateTriangles);
         if (!cl.mQuiet)
@@ -286,8 +463,7 @@ int main(int argc, char** argv) {
         if (result.mStopped)
             std::fprintf(stderr, "smallvcm: interrupted (%s): writing the %d iteration%s accumulated so far\n",
                          stopSignal == SIGTERM ? "SIGTERM" : "SIGINT", result.mIterations, result.mIterations == 1 ? "" : "s");
-        smallvcm::WriteImage(cl.mOutput, result.mImage);
-        for (const auto& layer : result.mLayers) smallvcm::WriteImage(WithLayerName(cl.mOutput, layer.first), layer.second);
+        smallvcm::WriteFilesTogether(OutputFiles(cl, result, RenderRecord(cl, report, result, threads, stopSignal)));
         if (!cl.mQuiet)
             std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s; %zu triangles and %zu "
                         "spheres loaded in %.2f s; %s\n", scenePath.c_str(),

@@ -71,6 +71,9 @@ if [ "${1:-}" = "--smoke" ]; then
         --photons 5000 $layers -o "$out/s${scene}_${algorithm}.pfm"
     done
   done
+  # A second seed of one run, merged with the first through both sidecars.
+  run_one "render -s 2 -a pt --seed 7" 0 "$binary" -q -s 2 -a pt -r 16x16 -i 3 --seed 7 -o "$out/s2_pt_seed7.pfm"
+  run_one "merge" 0 "$binary" merge -q --tonemap aces "$out/s2_pt_merged.png" "$out/s2_pt.pfm" "$out/s2_pt_seed7.pfm"
   for file in data/bad/*.gltf data/bad/*.glb data/fuzz/*.gltf data/fuzz/*.glb; do
     [ -e "$file" ] || continue
     case "$file" in
@@ -103,6 +106,8 @@ if [ "${1:-}" = "--smoke" ]; then
 -s 9
 --no-such-option
 -i
+--exposure nan
+--tonemap foo
 OPTIONS
   echo "smoke stage with $binary: $((passed)) passed so far, $failed failed so far"
   rm -rf "$out"

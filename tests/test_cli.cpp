@@ -4,6 +4,9 @@
 // file (nor a .partial). One tiny good run writes a PFM of the requested size. Every
 // rejected file of the glTF corpus (tests/data/bad) and the hostile files
 // (tests/data/hostile, which crash or hang the loader in-process) run through it too.
+// Then what people look at and combine: PNG exposure and tone curves, the JSON sidecar
+// written with every image, `smallvcm merge` (its refusals, and a statistical test that a
+// merge of runs equals one longer run), -q, "1 iteration", -i with -t, and --layers.
 // Tests run from tests/, so the program is ../build/smallvcm.
 #include "gltf_corpus.hpp"
 #include "smallvcm.hpp"
@@ -12,6 +15,7 @@
 #include "test_util.hpp"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -23,6 +27,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 namespace {
@@ -86,6 +91,7 @@ void CheckFailure(const Run& aRun, int aExitCode, const std::string& aNamed, con
     CHECK(StartsWith(aRun.mStderr, "smallvcm: " + aNamed + ": "));
     CHECK_FALSE(fs::exists(aOutput));
     CHECK_FALSE(fs::exists(aOutput + ".partial"));
+    CHECK_FALSE(fs::exists(aOutput + ".json"));  // nor its sidecar
 }
 
 // Small, fast settings placed before each case's own arguments (later values win).
@@ -116,6 +122,17 @@ TEST_CASE("Bad options exit with code 2 and one line naming the option", "[cli]"
         {"--frobnicate", 2, "--frobnicate"},
         {"-i", 2, "-i"},  // missing value
         {"-s 9", 2, "-s"},
+        {"--exposure nan", 2, "--exposure"},
+        {"--exposure inf", 2, "--exposure"},
+        {"--exposure -inf", 2, "--exposure"},
+        {"--exposure 33", 2, "--exposure"},
+        {"--exposure -40", 2, "--exposure"},
+        {"--exposure 1e9", 2, "--exposure"},
+        {"--exposure 2EV", 2, "--exposure"},
+        {"--exposure", 2, "--exposure"},
+        {"--tonemap reinhard", 2, "--tonemap"},
+        {"--tonemap ACES", 2, "--tonemap"},
+        {"--tonemap", 2, "--tonemap"},
     };
     int index = 0;
     for (const BadCommandLine& c : cases) {
@@ -195,12 +212,18 @@ TEST_CASE("Files that crash or hang the loader in-process end with code 1 in tim
 TEST_CASE("A scene with zero-area triangles renders and the note names the file and the count", "[cli]") {
     TemporaryFolder folder;
     const std::string output = folder / "out.png";
-    const Run run = RunProgram(Tiny(output) + " -s data/bad/degenerate_repeated_index.gltf");
+    const Run run = RunProgram("-a el -i 1 -r 8x8 -j 1 -o " + Quote(output) + " -s data/bad/degenerate_repeated_index.gltf");
     INFO(run);
     CHECK(run.mExitCode == 0);
     CHECK(LineCount(run.mStderr) == 1);
     CHECK(StartsWith(run.mStderr, "smallvcm: data/bad/degenerate_repeated_index.gltf: note: skipped 1 degenerate"));
     CHECK(fs::exists(output));
+    // -q: nothing at all on success, the note included.
+    const Run quiet = RunProgram(Tiny(output) + " -s data/bad/degenerate_repeated_index.gltf");
+    INFO(quiet);
+    CHECK(quiet.mExitCode == 0);
+    CHECK(quiet.mStderr.empty());
+    CHECK(quiet.mStdout.empty());
 }
 
 TEST_CASE("A tiny good run writes a PFM of the requested size", "[cli]") {
@@ -407,4 +430,445 @@ TEST_CASE("Resource options beyond what the machine can do are refused with the 
         CheckFailure(big, 2, "-r", output);
         CHECK(big.mStderr.find("needs about") != std::string::npos);
     }
+}
+
+// -------------------------------------------------------------------------------------
+// Exposure, tone curves and sidecars
+// -------------------------------------------------------------------------------------
+
+namespace {
+
+using Json = nlohmann::json;
+
+Json ReadJson(const std::string& aPath) {
+    std::ifstream file(aPath, std::ios::binary);
+    REQUIRE(file);
+    return Json::parse(file);
+}
+
+std::vector<unsigned char> ReadFileBytes(const std::string& aPath) {
+    std::ifstream file(aPath, std::ios::binary);
+    return std::vector<unsigned char>((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+}
+
+// FNV-1a (64 bits) in hex, as the sidecar's fingerprints are written.
+std::string Fnv1a64(const std::vector<unsigned char>& aBytes) {
+    uint64_t hash = 1469598103934665603ull;
+    for (unsigned char byte : aBytes) hash = (hash ^ byte) * 1099511628211ull;
+    char text[17];
+    std::snprintf(text, sizeof(text), "%016llx", static_cast<unsigned long long>(hash));
+    return text;
+}
+
+} // namespace
+
+TEST_CASE("--exposure and --tonemap change the PNG only, exactly as the library's encoder does", "[cli][sidecar]") {
+    TemporaryFolder folder;
+    // One thread and one seed: the same image bit for bit, so the PFM is the PNG's radiance.
+    const std::string common = "-s 4 -a pt -i 2 -r 24x16 -j 1 -q --seed 5 ";
+    const std::string pfm = folder / "radiance.pfm";
+    REQUIRE(RunProgram(common + "--exposure 3 --tonemap aces -o " + Quote(pfm)).mExitCode == 0);
+    const smallvcm::Image radiance = smallvcm::ReadPfm(pfm);
+    const std::string plainPfm = folder / "plain.pfm";
+    REQUIRE(RunProgram(common + "-o " + Quote(plainPfm)).mExitCode == 0);
+    CHECK(ReadFileBytes(pfm) == ReadFileBytes(plainPfm));  // linear radiance, whatever the PNG options
+    struct Case { std::string mArguments; float mExposure; smallvcm::ToneMap mToneMap; };
+    for (const Case& c : {Case{"", 0.f, smallvcm::ToneMap::kClamp}, Case{"--exposure 1.5", 1.5f, smallvcm::ToneMap::kClamp},
+                          Case{"--tonemap aces", 0.f, smallvcm::ToneMap::kAces}, Case{"--exposure -2 --tonemap aces", -2.f, smallvcm::ToneMap::kAces},
+                          Case{"--tonemap clamp --exposure 0", 0.f, smallvcm::ToneMap::kClamp}}) {
+        INFO(c.mArguments);
+        const std::string png = folder / "tone.PNG";
+        const Run run = RunProgram(common + c.mArguments + " -o " + Quote(png));
+        REQUIRE(run.mExitCode == 0);
+        smallvcm::ImageWriteOptions options;
+        options.mExposure = c.mExposure;
+        options.mToneMap = c.mToneMap;
+        CHECK(ReadFileBytes(png) == smallvcm::EncodeImage(png, radiance, options));
+        const Json sidecar = ReadJson(png + ".json");
+        CHECK(sidecar["png"]["exposure"].get<double>() == c.mExposure);
+        CHECK(sidecar["png"]["tonemap"] == smallvcm::ToneMapName(c.mToneMap));
+    }
+}
+
+TEST_CASE("Every image gets a sidecar saying how it was made, fingerprinting the image", "[cli][sidecar]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "run.pfm";
+    const Run run = RunProgram("-s 2 -a vcm -i 3 -r 20x12 -j 2 -q --seed 77 --max-path-length 7 --min-path-length 1 "
+                               "--mis power --radius-factor 0.01 --background 0.5,0.25,0 -o " + Quote(output));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    const Json s = ReadJson(output + ".json");
+    INFO(s.dump(2));
+    CHECK(s["format"] == "smallvcm image sidecar 1");
+    CHECK(s["image"] == "run.pfm");
+    CHECK(s["image_fnv1a64"] == Fnv1a64(ReadFileBytes(output)));
+    CHECK(StartsWith(s["scene"].get<std::string>(), "/"));  // -s 2 resolved to its file
+    CHECK(s["scene"].get<std::string>().find("cornell_2_point.gltf") != std::string::npos);
+    const Json& e = s["estimator"];
+    CHECK(e["algorithm"] == "vcm");
+    CHECK(e["scene_fnv1a64"] == Fnv1a64(ReadFileBytes("../scenes/cornell_2_point.gltf")));
+    CHECK(e["width"] == 20);
+    CHECK(e["height"] == 12);
+    CHECK(e["max_path_length"] == 7);
+    CHECK(e["min_path_length"] == 1);
+    CHECK(e["mis"] == "power");
+    CHECK(e["radius_factor"].get<double>() == 0.01);
+    CHECK(e["background"] == Json::array({0.5, 0.25, 0.0}));
+    CHECK(e["layer"].is_null());
+    CHECK_FALSE(e.contains("photons"));  // only the settings vcm uses
+    CHECK(s["seed"] == 77);
+    CHECK(s["iterations"] == 3);
+    CHECK(s["seconds"].get<double>() > 0.0);
+    CHECK(s["run"]["iterations_requested"] == 3);
+    CHECK(s["run"]["seconds_budget"].is_null());
+    CHECK(s["run"]["threads"] == 2);
+    CHECK(s["run"]["stopped_early"] == false);
+    CHECK(s["mean"].get<double>() == Approx(smallvcm::MeanValue(smallvcm::ReadPfm(output))).epsilon(1e-12));
+    CHECK((s["smallvcm_commit"].is_null() || s["smallvcm_commit"].is_string()));
+}
+
+TEST_CASE("A scene path with quotes, backslashes and a newline is escaped in the sidecar", "[cli][sidecar]") {
+    TemporaryFolder folder;
+    const std::string scene = folder / "we\"ird\\name\nwith 'quotes'.gltf";
+    fs::copy_file("../scenes/cornell_2_point.gltf", scene);
+    const std::string output = folder / "out.pfm";
+    const Run run = RunProgram("-s " + Quote(scene) + " -a el -i 1 -r 8x8 -j 1 -q -o " + Quote(output));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    CHECK(ReadJson(output + ".json")["scene"] == scene);
+}
+
+TEST_CASE("Something in the way of the sidecar is found before rendering; a late failure leaves neither file", "[cli][sidecar]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "out.pfm";
+    SECTION("a directory where the sidecar goes") {
+        fs::create_directories(output + ".json");
+        const Run run = RunProgram(Tiny(output) + " -s 2 -t 100 -i 100000000", 20);
+        INFO(run);
+        CHECK(run.mExitCode == 1);
+        CHECK(LineCount(run.mStderr) == 1);
+        CHECK(StartsWith(run.mStderr, "smallvcm: " + output + ".json: is in the way"));
+        CHECK_FALSE(fs::exists(output));
+        CHECK_FALSE(AnyPartial(folder));
+    }
+    SECTION("a layer's name taken by a non-empty directory: the rename fails after the render, nothing is left") {
+        fs::create_directories(folder / "out.direct_nonspecular.pfm/inside");
+        const Run run = RunProgram(Tiny(output) + " -s 2 -a pt --layers");
+        INFO(run);
+        CHECK(run.mExitCode == 1);
+        CHECK(LineCount(run.mStderr) == 1);
+        CHECK(StartsWith(run.mStderr, "smallvcm: " + folder / "out.direct_nonspecular.pfm: cannot put the file in place"));
+        CHECK(FolderEntries(folder) == std::vector<std::string>{"out.direct_nonspecular.pfm"});
+    }
+}
+
+// -------------------------------------------------------------------------------------
+// smallvcm merge
+// -------------------------------------------------------------------------------------
+
+namespace {
+
+// A merge that must fail: the exit code, one line naming aNamed, and neither OUT nor its
+// sidecar (nor a temporary) in the folder afterwards.
+void CheckMergeFailure(const Run& aRun, int aExitCode, const std::string& aNamed, const std::string& aOutput, const std::string& aProblem) {
+    CheckFailure(aRun, aExitCode, aNamed, aOutput);
+    INFO(aRun);
+    CHECK(aRun.mStderr.find(aProblem) != std::string::npos);
+}
+
+// Runs of the point-light Cornell scene by path tracing; aExtra may change any setting.
+std::string RenderRun(const TemporaryFolder& aFolder, const std::string& aName, int aIterations, int aSeed, const std::string& aExtra = "") {
+    const std::string path = aFolder / aName;
+    const Run run = RunProgram("-s 2 -a pt -r 16x12 -j 1 -q -i " + std::to_string(aIterations) + " --seed " + std::to_string(aSeed) + " " +
+                               aExtra + " -o " + Quote(path));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    return path;
+}
+
+std::string MergeCommand(const std::string& aOutput, const std::vector<std::string>& aInputs) {
+    std::string command = "merge " + Quote(aOutput);
+    for (const std::string& input : aInputs) command += " " + Quote(input);
+    return command;
+}
+
+} // namespace
+
+TEST_CASE("merge weights runs by their iterations and writes a sidecar listing them", "[cli][merge]") {
+    TemporaryFolder folder;
+    const std::string a = RenderRun(folder, "a.pfm", 1, 1), b = RenderRun(folder, "b.pfm", 3, 2), c = RenderRun(folder, "c.hdr", 4, 3);
+    const std::string output = folder / "merged.pfm";
+    const Run run = RunProgram(MergeCommand(output, {a, b, c}));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    CHECK(run.mStderr.empty());
+    CHECK(StartsWith(run.mStdout, "merged 3 runs of pt: 8 iterations, mean "));
+    const smallvcm::Image merged = smallvcm::ReadPfm(output);
+    const smallvcm::Image ia = smallvcm::ReadImage(a), ib = smallvcm::ReadImage(b), ic = smallvcm::ReadImage(c);
+    double worst = 0.0;
+    for (size_t i = 0; i < merged.mPixels.size(); i++)
+        for (int k = 0; k < 3; k++) {
+            const double expected = (1.0 * ia.mPixels[i][k] + 3.0 * ib.mPixels[i][k] + 4.0 * ic.mPixels[i][k]) / 8.0;
+            worst = std::max(worst, std::abs(double(merged.mPixels[i][k]) - expected) / std::max(expected, 1e-30));
+        }
+    CHECK(worst < 1e-6);  // float rounding of the stored result
+    const Json s = ReadJson(output + ".json");
+    INFO(s.dump(2));
+    CHECK(s["iterations"] == 8);
+    CHECK(s["seeds"] == Json::array({1, 2, 3}));
+    CHECK(s["estimator"] == ReadJson(a + ".json")["estimator"]);
+    CHECK(s["image_fnv1a64"] == Fnv1a64(ReadFileBytes(output)));
+    REQUIRE(s["merged_from"].size() == 3);
+    CHECK(s["merged_from"][2]["file"] == c);
+    CHECK(s["merged_from"][2]["iterations"] == 4);
+    // A merged image merges again (its seeds count as used), and -q prints nothing.
+    const std::string d = RenderRun(folder, "d.pfm", 2, 4);
+    const std::string again = folder / "again.pfm";
+    const Run second = RunProgram("merge -q " + Quote(again) + " " + Quote(output) + " " + Quote(d));
+    INFO(second);
+    REQUIRE(second.mExitCode == 0);
+    CHECK(second.mStdout.empty());
+    CHECK(ReadJson(again + ".json")["iterations"] == 10);
+    CHECK(ReadJson(again + ".json")["seeds"] == Json::array({1, 2, 3, 4}));
+    // To PNG, with exposure and tone curve: a picture of the merged radiance.
+    const std::string png = folder / "merged.png";
+    REQUIRE(RunProgram("merge -q --exposure 1 --tonemap aces " + Quote(png) + " " + Quote(a) + " " + Quote(b)).mExitCode == 0);
+    CHECK(ReadJson(png + ".json")["png"]["tonemap"] == "aces");
+}
+
+TEST_CASE("merge refuses mismatched runs, bad sidecars, PNGs and bad paths with one line naming the file", "[cli][merge]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "out.pfm";
+    const std::string a = RenderRun(folder, "a.pfm", 2, 1), b = RenderRun(folder, "b.pfm", 2, 2);
+    auto copyRun = [&](const std::string& aFrom, const std::string& aName) {
+        fs::copy_file(aFrom, folder / aName);
+        fs::copy_file(aFrom + ".json", folder / (aName + ".json"));
+        return folder / aName;
+    };
+    SECTION("another scene") {
+        const std::string other = RenderRun(folder, "other.pfm", 2, 3, "-s 3");
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, other})), 1, other, output, "its scene_fnv1a64");
+    }
+    SECTION("another resolution") {
+        const std::string other = RenderRun(folder, "other.pfm", 2, 3, "-r 12x16");
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, other})), 1, other, output, "its width (12) differs");
+    }
+    SECTION("another algorithm") {
+        const std::string other = RenderRun(folder, "other.pfm", 2, 3, "-a bpt");
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, other})), 1, other, output, "its algorithm (\"bpt\") differs");
+    }
+    SECTION("another setting of the estimator") {
+        const std::string other = RenderRun(folder, "other.pfm", 2, 3, "--max-path-length 4");
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, other})), 1, other, output, "its max_path_length (4) differs");
+    }
+    SECTION("a setting the algorithm does not use differs: the runs merge") {
+        const std::string other = RenderRun(folder, "other.pfm", 2, 3, "--photons 5000 --radius-factor 0.1");
+        const Run run = RunProgram(MergeCommand(output, {a, other}));
+        INFO(run);
+        CHECK(run.mExitCode == 0);
+        CHECK_FALSE(ReadJson(a + ".json")["estimator"].contains("radius_factor"));
+    }
+    SECTION("a layer with the image") {
+        RenderRun(folder, "layered.pfm", 2, 3, "--layers");
+        const std::string layer = folder / "layered.direct_nonspecular.pfm";
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, layer})), 1, layer, output, "its layer");
+    }
+    SECTION("the same seed twice") {
+        const std::string same = copyRun(a, "same.pfm");
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, b, same})), 1, same, output, "seed 1 was used by an earlier input");
+    }
+    SECTION("a PNG") {
+        const std::string png = RenderRun(folder, "run.png", 2, 3);
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, png})), 1, png, output, "not radiance");
+    }
+    SECTION("a missing run") {
+        const std::string missing = folder / "missing.pfm";
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, missing})), 1, missing, output, "does not exist");
+    }
+    SECTION("a missing sidecar") {
+        const std::string lonely = folder / "lonely.pfm";
+        fs::copy_file(b, lonely);
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, lonely})), 1, lonely + ".json", output, "the sidecar does not exist");
+    }
+    SECTION("malformed sidecars") {
+        const std::string broken = copyRun(b, "broken.pfm");
+        Json good = ReadJson(b + ".json");
+        const struct { std::string mText, mProblem; } cases[] = {
+            {"{\"format\": ", "not valid JSON"},
+            {"[1, 2]", "no \"format\""},
+            {[&] { Json j = good; j["format"] = "something else"; return j.dump(); }(), "no \"format\""},
+            {[&] { Json j = good; j.erase("iterations"); return j.dump(); }(), "\"iterations\" is not an integer"},
+            {[&] { Json j = good; j["iterations"] = 0; return j.dump(); }(), "\"iterations\" is not an integer"},
+            {[&] { Json j = good; j["iterations"] = "2"; return j.dump(); }(), "\"iterations\" is not an integer"},
+            {[&] { Json j = good; j.erase("seed"); return j.dump(); }(), "no \"seed\""},
+            {[&] { Json j = good; j["seed"] = -1; return j.dump(); }(), "no \"seed\""},
+            {[&] { Json j = good; j.erase("estimator"); return j.dump(); }(), "no \"estimator\""},
+            {[&] { Json j = good; j["estimator"]["width"] = "16"; return j.dump(); }(), "no integer estimator.width"},
+            {[&] { Json j = good; j["image_fnv1a64"] = "0000000000000000"; return j.dump(); }(), "describes another image"},
+            {[&] { Json j = good; j["estimator"]["width"] = 15; return j.dump(); }(), "but its sidecar says 15x12"},
+        };
+        for (const auto& c : cases) {
+            std::ofstream(broken + ".json", std::ios::trunc) << c.mText;
+            const Run run = RunProgram(MergeCommand(output, {a, broken}));
+            const bool namesImage = c.mProblem == "describes another image" || c.mProblem.rfind("but its", 0) == 0;
+            CheckMergeFailure(run, 1, namesImage ? broken : broken + ".json", output, c.mProblem);
+        }
+    }
+    SECTION("a sidecar paired with another run's image") {
+        const std::string swapped = folder / "swapped.pfm";
+        fs::copy_file(a, swapped);
+        fs::copy_file(b + ".json", swapped + ".json");
+        CheckMergeFailure(RunProgram(MergeCommand(output, {b, swapped})), 1, swapped, output, "describes another image");
+    }
+    SECTION("a truncated run") {
+        const std::string cut = copyRun(b, "cut.pfm");
+        fs::resize_file(cut, fs::file_size(cut) - 5);
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, cut})), 1, cut, output, "truncated");
+    }
+    SECTION("a FIFO as a run's sidecar") {
+        const std::string piped = folder / "piped.pfm";
+        fs::copy_file(b, piped);
+        REQUIRE(mkfifo((piped + ".json").c_str(), 0600) == 0);
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, piped}), 10), 1, piped + ".json", output, "not a regular file");
+    }
+    SECTION("output problems") {
+        CheckMergeFailure(RunProgram(MergeCommand(folder / "out.jpg", {a, b})), 2, folder / "out.jpg", folder / "out.jpg", "unknown image format");
+        const std::string nowhere = folder / "no_such_folder/out.pfm";
+        CheckMergeFailure(RunProgram(MergeCommand(nowhere, {a, b})), 1, nowhere, nowhere, "does not exist");
+        fs::create_directories(output + ".json");
+        const Run inTheWay = RunProgram(MergeCommand(output, {a, b}));
+        INFO(inTheWay);
+        CHECK(inTheWay.mExitCode == 1);
+        CHECK(LineCount(inTheWay.mStderr) == 1);
+        CHECK(StartsWith(inTheWay.mStderr, "smallvcm: " + output + ".json: is in the way"));
+        CHECK_FALSE(fs::exists(output));
+        CHECK_FALSE(AnyPartial(folder));
+    }
+    SECTION("bad merge command lines") {
+        CheckMergeFailure(RunProgram("merge " + Quote(output)), 2, "merge", output, "needs an output and at least one run");
+        CheckMergeFailure(RunProgram("merge --seed 3 " + Quote(output) + " " + Quote(a)), 2, "--seed", output, "unknown option of merge");
+        CheckMergeFailure(RunProgram("merge --exposure 99 " + Quote(output) + " " + Quote(a)), 2, "--exposure", output, "[-32, 32]");
+        CheckMergeFailure(RunProgram("merge --tonemap gamma " + Quote(output) + " " + Quote(a)), 2, "--tonemap", output, "clamp, aces");
+    }
+}
+
+TEST_CASE("A merge of runs of 4, 12, 24 and 88 iterations agrees with one run of 128 within the per-pixel noise; "
+          "an unweighted average does not", "[cli][merge]") {
+    // Path tracing of the diffuse box (diffuse walls, an area light: light-tailed noise, so
+    // 128-iteration averages are close to normal) at 32x32. Each pixel's per-iteration
+    // variance s^2 is measured from 1000 independent one-iteration renders (in this
+    // process, the same estimator as the program's). Merged and single run each average
+    // 128 independent iterations, so their difference has variance 2 s^2 / 128 and
+    // z = difference / sqrt(2 s^2 / 128) has E[z^2] = 1 at every pixel. The statistic is
+    // the mean of z^2 over the pixels, T, with its standard error measured from the spread
+    // of the z^2 themselves, SE = sd(z^2) / sqrt(pixels). T must lie within 4 SE of 1, plus
+    // 0.03 for the noise of s^2 itself (1000 samples: E[1/s^2] exceeds 1/sigma^2 by about
+    // 2/1000 for normal values, more for heavier tails; measured T is printed). An
+    // unweighted average of the four runs has variance s^2 (1/4 + 1/12 + 1/24 + 1/88) / 16
+    // instead of s^2 / 128: E[T] = 2.05, which must fail the same bound.
+    TemporaryFolder folder;
+    const int width = 32, height = 32;
+    const std::vector<int> iterations = {4, 12, 24, 88};
+    const std::string scenePath = "../scenes/diffuse_box.gltf";
+    std::vector<std::string> runs;
+    for (size_t k = 0; k < iterations.size(); k++) {
+        const std::string path = folder / ("run" + std::to_string(k) + ".pfm");
+        const Run run = RunProgram("-s " + scenePath + " -a pt -r 32x32 -q -i " + std::to_string(iterations[k]) + " --seed " + std::to_string(100 + k) +
+                                   " -o " + Quote(path));
+        REQUIRE(run.mExitCode == 0);
+        runs.push_back(path);
+    }
+    const std::string merged = folder / "merged.pfm", single = folder / "single.pfm";
+    REQUIRE(RunProgram(MergeCommand(merged, runs)).mExitCode == 0);
+    REQUIRE(RunProgram("-s " + scenePath + " -a pt -r 32x32 -q -i 128 --seed 200 -o " + Quote(single)).mExitCode == 0);
+
+    smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath);
+    scene.mCamera.SetResolution(width, height);
+    const int samples = 1000;
+    std::vector<double> sum(size_t(width * height), 0.0), sumSquares(size_t(width * height), 0.0);
+    for (int r = 0; r < samples; r++) {
+        const smallvcm::Image image = testutil::RenderWith(scene, smallvcm::Algorithm::kPathTracing, 1, uint64_t(1000 + r)).mImage;
+        for (size_t i = 0; i < sum.size(); i++) {
+            const smallvcm::Vec3& p = image.mPixels[i];
+            const double value = (double(p.x) + double(p.y) + double(p.z)) / 3.0;
+            sum[i] += value;
+            sumSquares[i] += value * value;
+        }
+    }
+    auto channelMean = [](const smallvcm::Vec3& aPixel) { return (double(aPixel.x) + double(aPixel.y) + double(aPixel.z)) / 3.0; };
+    const smallvcm::Image mergedImage = smallvcm::ReadPfm(merged), singleImage = smallvcm::ReadPfm(single);
+    std::vector<smallvcm::Image> runImages;
+    for (const std::string& run : runs) runImages.push_back(smallvcm::ReadPfm(run));
+    struct Statistic { double mMeanZ2 = 0.0, mStandardError = 0.0, mMaxAbsZ = 0.0; int mPixels = 0; };
+    auto statistic = [&](const std::function<double(size_t)>& aCombined) {
+        std::vector<double> z2;
+        Statistic result;
+        for (size_t i = 0; i < sum.size(); i++) {
+            const double variance = (sumSquares[i] - sum[i] * sum[i] / samples) / (samples - 1);
+            if (variance <= 0.0) continue;  // a pixel that sees nothing varying (none here: checked below)
+            const double z = (aCombined(i) - channelMean(singleImage.mPixels[i])) / std::sqrt(2.0 * variance / 128.0);
+            z2.push_back(z * z);
+            result.mMaxAbsZ = std::max(result.mMaxAbsZ, std::abs(z));
+        }
+        result.mPixels = int(z2.size());
+        double total = 0.0, totalSquares = 0.0;
+        for (double v : z2) total += v, totalSquares += v * v;
+        result.mMeanZ2 = total / double(z2.size());
+        result.mStandardError = std::sqrt((totalSquares / double(z2.size()) - result.mMeanZ2 * result.mMeanZ2) / double(z2.size()));
+        return result;
+    };
+    const Statistic weighted = statistic([&](size_t i) { return channelMean(mergedImage.mPixels[i]); });
+    const Statistic unweighted = statistic([&](size_t i) {
+        double average = 0.0;
+        for (const smallvcm::Image& image : runImages) average += channelMean(image.mPixels[i]) / double(runImages.size());
+        return average;
+    });
+    auto within = [](const Statistic& aStatistic) { return std::abs(aStatistic.mMeanZ2 - 1.0) <= 4.0 * aStatistic.mStandardError + 0.03; };
+    WARN("weighted merge: mean z^2 " << weighted.mMeanZ2 << " +- " << weighted.mStandardError << ", max |z| " << weighted.mMaxAbsZ
+                                     << " over " << weighted.mPixels << " pixels; unweighted average: mean z^2 " << unweighted.mMeanZ2
+                                     << " +- " << unweighted.mStandardError << ", max |z| " << unweighted.mMaxAbsZ);
+    CHECK(weighted.mPixels == width * height);
+    CHECK(within(weighted));
+    CHECK_FALSE(within(unweighted));
+}
+
+TEST_CASE("--layers writes only layers that received a contribution, each with a sidecar, and an index", "[cli][sidecar]") {
+    // Path tracing of the point-light scene: a point light is never seen directly, nor in
+    // a mirror, so the "emitted" and specular layers stay black; the direct and indirect
+    // non-specular ones do not.
+    TemporaryFolder folder;
+    const std::string output = folder / "pt.pfm";
+    const Run run = RunProgram("-s 2 -a pt -i 2 -r 16x12 -j 1 -q --layers -o " + Quote(output));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    const Json index = ReadJson(folder / "pt.layers.json");
+    INFO(index.dump(2));
+    CHECK(index["image"] == "pt.pfm");
+    std::vector<std::string> expected = {"pt.layers.json", "pt.pfm", "pt.pfm.json"};
+    for (const Json& layer : index["layers"]) {
+        const std::string file = layer["file"];
+        expected.push_back(file);
+        expected.push_back(file + ".json");
+        const smallvcm::Image image = smallvcm::ReadPfm(folder / file);
+        CHECK(smallvcm::MeanValue(image) > 0.0);
+        CHECK(layer["mean"].get<double>() == Approx(smallvcm::MeanValue(image)).epsilon(1e-12));
+        const Json sidecar = ReadJson(folder / (file + ".json"));
+        CHECK(sidecar["estimator"]["layer"] == layer["layer"]);
+        CHECK(sidecar["image"] == file);
+    }
+    CHECK(index["layers"].size() == 2);
+    CHECK(index["layers_without_contribution"] == Json::array({"emitted", "direct_specular", "indirect_specular"}));
+    std::sort(expected.begin(), expected.end());
+    CHECK(FolderEntries(folder) == expected);
+}
+
+TEST_CASE("The sidecar of a linked-in integrator names it and records every setting it might read", "[cli][sidecar]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "mine.pfm";
+    const Run run = RunProgram("-s 2 -a mypt -i 1 -r 8x8 -j 1 -q -o " + Quote(output));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    const Json e = ReadJson(output + ".json")["estimator"];
+    CHECK(e["algorithm"] == "mypt");
+    for (const char* key : {"max_path_length", "mis", "radius_factor", "radius_alpha", "photons", "knn", "max_radius"}) CHECK(e.contains(key));
 }

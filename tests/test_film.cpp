@@ -1,6 +1,7 @@
 // [film] Film accumulation, layers and Resolve; image metrics against hand-computed
 // values; the image writers (PFM round trip bit for bit, orientation in the file, PNG and
-// HDR signatures) and their failure behaviour (Error naming the path, nothing left behind).
+// HDR signatures) and their failure behaviour (Error naming the path, nothing left behind);
+// PNG exposure and tone curves (decoded again), files written together, the .hdr reader.
 // Files go to a per-process folder under the system's temporary directory.
 #include "test_util.hpp"
 
@@ -16,6 +17,11 @@
 #include <vector>
 
 #include <unistd.h>
+
+#define STB_IMAGE_STATIC
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_ONLY_PNG
+#include <stb/stb_image.h>
 
 using namespace smallvcm;
 namespace fs = std::filesystem;
@@ -403,4 +409,210 @@ TEST_CASE("CheckOutputPath finds output problems before rendering and leaves not
     const bool onlyWhatWasThere =
         entries == std::vector<std::string>{"a folder.png", "plain"} || entries == std::vector<std::string>{"a folder.png", "locked", "plain"};
     CHECK(onlyWhatWasThere);
+}
+
+// -------------------------------------------------------------------------------------
+// PNG exposure and tone curves, files written together, the .hdr reader
+// -------------------------------------------------------------------------------------
+
+namespace {
+
+// The sRGB encoding, written out again here (IEC 61966-2-1) so the test does not read the
+// writer's own function.
+double SrgbEncode(double aLinear) {
+    return aLinear <= 0.0031308 ? 12.92 * aLinear : 1.055 * std::pow(aLinear, 1.0 / 2.4) - 0.055;
+}
+
+// A PNG file decoded by stb_image (compiled privately into this test: STB_IMAGE_STATIC).
+std::vector<unsigned char> DecodePng(const std::string& aPath, int aWidth, int aHeight) {
+    int width = 0, height = 0, channels = 0;
+    unsigned char* pixels = stbi_load(aPath.c_str(), &width, &height, &channels, 3);
+    REQUIRE(pixels != nullptr);
+    REQUIRE(width == aWidth);
+    REQUIRE(height == aHeight);
+    std::vector<unsigned char> values(pixels, pixels + size_t(width) * size_t(height) * 3);
+    stbi_image_free(pixels);
+    return values;
+}
+
+} // namespace
+
+TEST_CASE("The ACES fit is Narkowicz's formula: 0 at 0, about 0.8 at 1, increasing, white from about 7.24", "[film]") {
+    CHECK(AcesFilmic(0.f) == 0.f);
+    CHECK(AcesFilmic(-3.f) == 0.f);
+    CHECK(AcesFilmic(1.f) == Approx(2.54 / 3.16).epsilon(1e-6));  // (2.51 + 0.03) / (2.43 + 0.59 + 0.14)
+    CHECK(AcesFilmic(0.18f) == Approx(0.18 * (2.51 * 0.18 + 0.03) / (0.18 * (2.43 * 0.18 + 0.59) + 0.14)).epsilon(1e-6));
+    CHECK(AcesFilmic(7.2f) < 1.f);
+    CHECK(AcesFilmic(7.3f) == 1.f);
+    CHECK(AcesFilmic(1e30f) == 1.f);
+    float previous = 0.f;
+    bool increasing = true;
+    for (int i = 1; i <= 7200; i++) {
+        const float value = AcesFilmic(float(i) * 1e-3f);
+        increasing = increasing && value > previous;
+        previous = value;
+    }
+    CHECK(increasing);
+}
+
+TEST_CASE("DisplayValue scales by 2^EV before the tone curve; clamp at EV 0 is the identity on [0, 1]", "[film]") {
+    const ImageWriteOptions clamp;
+    for (float x : {0.f, 0.25f, 0.5f, 1.f}) CHECK(DisplayValue(x, clamp) == x);
+    CHECK(DisplayValue(3.f, clamp) == 1.f);
+    CHECK(DisplayValue(-1.f, clamp) == 0.f);
+    ImageWriteOptions brighter;
+    brighter.mExposure = 2.f;
+    CHECK(DisplayValue(0.125f, brighter) == 0.5f);
+    brighter.mExposure = -1.f;
+    CHECK(DisplayValue(0.5f, brighter) == 0.25f);
+    ImageWriteOptions aces;
+    aces.mToneMap = ToneMap::kAces;
+    aces.mExposure = 1.f;
+    CHECK(DisplayValue(0.5f, aces) == AcesFilmic(1.f));
+    ToneMap parsed = ToneMap::kClamp;
+    CHECK(ParseToneMap("aces", parsed));
+    CHECK(parsed == ToneMap::kAces);
+    CHECK_FALSE(ParseToneMap("ACES", parsed));
+    CHECK_FALSE(ParseToneMap("reinhard", parsed));
+    for (float bad : {33.f, -33.f, std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
+        ImageWriteOptions options;
+        options.mExposure = bad;
+        CHECK_THROWS_WITH(ValidateImageWriteOptions(options), Catch::StartsWith("exposure: "));
+    }
+}
+
+TEST_CASE("A PNG holds sRGB(tone(radiance * 2^EV)) in 8 bits; HDR and PFM ignore exposure and tone curve", "[film]") {
+    const TempFolder folder;
+    Image image(6, 1);
+    const float values[6] = {0.f, 0.01f, 0.2f, 0.7f, 1.5f, 40.f};
+    for (int x = 0; x < 6; x++) image.At(x, 0) = Vec3(values[x], values[x] * 0.5f, values[x] * 0.25f);
+    for (ToneMap toneMap : {ToneMap::kClamp, ToneMap::kAces})
+        for (float exposure : {0.f, 1.5f, -2.f}) {
+            ImageWriteOptions options;
+            options.mExposure = exposure;
+            options.mToneMap = toneMap;
+            INFO(ToneMapName(toneMap) << " at EV " << exposure);
+            const std::string path = folder.File("tone.png");
+            WriteImage(path, image, options);
+            const std::vector<unsigned char> decoded = DecodePng(path, 6, 1);
+            for (int x = 0; x < 6; x++)
+                for (int c = 0; c < 3; c++) {
+                    const double exposed = double(image.At(x, 0)[c]) * std::pow(2.0, double(exposure));
+                    const double display = toneMap == ToneMap::kAces
+                                               ? std::min(exposed * (2.51 * exposed + 0.03) / (exposed * (2.43 * exposed + 0.59) + 0.14), 1.0)
+                                               : std::min(std::max(exposed, 0.0), 1.0);
+                    INFO("pixel " << x << " channel " << c);
+                    CHECK(std::abs(double(decoded[3 * size_t(x) + size_t(c)]) - 255.0 * SrgbEncode(display)) <= 0.5 + 1e-3);
+                }
+            // The linear formats keep radiance exactly, whatever the PNG options say.
+            WriteImage(folder.File("tone.pfm"), image, options);
+            CHECK(ReadPfm(folder.File("tone.pfm")).mPixels == image.mPixels);
+            CHECK(EncodeImage("x.hdr", image, options) == EncodeImage("x.hdr", image));
+        }
+    ImageWriteOptions bad;
+    bad.mExposure = 100.f;
+    CHECK_THROWS_WITH(WriteImage(folder.File("bad.png"), image, bad), Catch::StartsWith("exposure: "));
+    CHECK_FALSE(fs::exists(folder.File("bad.png")));
+}
+
+TEST_CASE("WriteFilesTogether leaves all files or none, and no temporary file", "[film]") {
+    const TempFolder folder;
+    const std::vector<unsigned char> first{'1'}, second{'2', '2'};
+    WriteFilesTogether({{folder.File("a.txt"), first}, {folder.File("b.txt"), second}});
+    CHECK(ReadText(folder.File("a.txt")) == "1");
+    CHECK(ReadText(folder.File("b.txt")) == "22");
+    SECTION("the second file's name is taken by a directory: the rename fails, the first file goes too") {
+        fs::create_directories(folder.File("taken"));
+        fs::create_directories(folder.File("taken/inside"));  // a non-empty directory: rename(2) cannot replace it
+        REQUIRE_THROWS_WITH(WriteFilesTogether({{folder.File("new.txt"), first}, {folder.File("taken"), second}}),
+                            Catch::StartsWith(folder.File("taken") + ": cannot put the file in place"));
+        std::vector<std::string> entries = folder.Entries();
+        std::sort(entries.begin(), entries.end());
+        CHECK(entries == std::vector<std::string>{"a.txt", "b.txt", "taken"});
+    }
+    SECTION("the second file's folder does not exist: nothing is created") {
+        REQUIRE_THROWS_WITH(WriteFilesTogether({{folder.File("new.txt"), first}, {folder.File("missing/b.txt"), second}}),
+                            Catch::StartsWith(folder.File("missing/b.txt") + ": cannot create a file next to it"));
+        std::vector<std::string> entries = folder.Entries();
+        std::sort(entries.begin(), entries.end());
+        CHECK(entries == std::vector<std::string>{"a.txt", "b.txt"});
+    }
+}
+
+TEST_CASE("ReadHdr reads back what WriteImage wrote, flat and run-length encoded, to RGBE precision", "[film]") {
+    const TempFolder folder;
+    // Width 5 is written flat, 300 with run-length encoded scanlines (stb_image_write's
+    // choice: 8 <= width < 32768); runs appear where neighbours share a byte.
+    for (int width : {5, 300}) {
+        Image image(width, 7);
+        for (int y = 0; y < 7; y++)
+            for (int x = 0; x < width; x++)
+                image.At(x, y) = x < width / 2 ? Vec3(0.25f, 0.5f, 1.f) : Vec3(float(x) * 0.37f + 0.01f, float(y) * 3.1f, 1e-3f * float(x + y));
+        image.At(0, 0) = Vec3(0.f);
+        const std::string path = folder.File("round.HDR");
+        WriteImage(path, image);
+        const Image read = ReadImage(path);
+        REQUIRE(read.mWidth == width);
+        REQUIRE(read.mHeight == 7);
+        // RGBE keeps 8 bits of mantissa shared by the pixel's channels: the writer truncates,
+        // the reader takes the middle of the interval, so each channel is within half a step,
+        // 2^-8 of the pixel's largest channel.
+        double worst = 0.0;
+        for (size_t i = 0; i < image.mPixels.size(); i++) {
+            const Vec3& p = image.mPixels[i];
+            const double largest = std::max({p.x, p.y, p.z});
+            for (int c = 0; c < 3; c++)
+                worst = std::max(worst, largest == 0.0 ? double(read.mPixels[i][c]) : std::abs(double(read.mPixels[i][c]) - p[c]) / largest);
+        }
+        INFO("width " << width << ": worst error " << worst << " of the largest channel");
+        CHECK(worst <= 1.0 / 256.0);
+        CHECK(read.At(0, 0) == Vec3(0.f));
+    }
+}
+
+TEST_CASE("ReadHdr and ReadImage refuse foreign, truncated and corrupt files, and PNGs, naming the file", "[film]") {
+    const TempFolder folder;
+    const Image image = MakeGradient(40, 3);
+    const std::string good = folder.File("good.hdr");
+    WriteImage(good, image);
+    const std::vector<unsigned char> bytes = ReadBytes(good);
+    auto writeVariant = [&](const std::string& aName, std::vector<unsigned char> aBytes) {
+        const std::string path = folder.File(aName);
+        std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(aBytes.data()), long(aBytes.size()));
+        return path;
+    };
+    std::vector<unsigned char> truncated = bytes;
+    truncated.resize(bytes.size() - 10);
+    std::vector<unsigned char> corrupt = bytes;
+    const std::string text(bytes.begin(), bytes.end());
+    const size_t firstScanline = text.find("+X 40\n") + 6;
+    corrupt[firstScanline + 4] = 200;  // a run of 72 in a scanline of 40
+    std::string xyze = text;
+    xyze.replace(xyze.find("FORMAT=32-bit_rle_rgbe"), 22, "FORMAT=32-bit_rle_xyze");
+    std::string flipped = text;
+    flipped.replace(flipped.find("-Y 3 +X 40"), 10, "+Y 3 +X 40");
+    std::string huge = text;
+    huge.replace(huge.find("-Y 3 +X 40"), 10, "-Y 60000 +X 60000");
+    const struct {
+        std::string mPath, mProblem;
+    } cases[] = {
+        {folder.File("missing.hdr"), "cannot open"},
+        {writeVariant("foreign.hdr", {'P', '6', '\n'}), "not a Radiance RGBE .hdr file"},
+        {writeVariant("truncated.hdr", truncated), "truncated"},
+        {writeVariant("corrupt.hdr", corrupt), "truncated or corrupt"},
+        {writeVariant("xyze.hdr", {xyze.begin(), xyze.end()}), "FORMAT=32-bit_rle_xyze is not supported"},
+        {writeVariant("flipped.hdr", {flipped.begin(), flipped.end()}), "only the resolution line"},
+        {writeVariant("huge.hdr", {huge.begin(), huge.end()}), "truncated"},
+        {folder.File("folder.hdr"), "not a regular file"},
+    };
+    fs::create_directories(folder.File("folder.hdr"));
+    for (const auto& c : cases) {
+        INFO(c.mPath);
+        REQUIRE_THROWS_WITH(ReadHdr(c.mPath), Catch::StartsWith(c.mPath + ": ") && Catch::Contains(c.mProblem));
+    }
+    REQUIRE_THROWS_WITH(ReadImage(folder.File("x.png")), Catch::StartsWith(folder.File("x.png") + ": a PNG holds"));
+    CHECK(ReadImage(good).mWidth == 40);
+    // A PFM header that claims far more pixels than the file holds is refused before allocating.
+    const std::string claims = writeVariant("claims.pfm", {'P', 'F', '\n', '6', '0', '0', '0', '0', ' ', '6', '0', '0', '0', '0', '\n', '-', '1', '\n', 0, 0});
+    REQUIRE_THROWS_WITH(ReadPfm(claims), Catch::Contains("truncated"));
 }
