@@ -5272,9 +5272,15 @@ private:
             // An emissive primitive instance is one area light over all its triangles.
             if (!IsBlack(mMaterialEmission[size_t(material)]) && !triangleIds.empty())
                 mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)]);
+            // Whether its outside reflects depends on the material: say which.
+            const bool twoSided = mScene.mMaterials[size_t(material)].mTwoSided;
             if (LooksInsideOut(world, indices, flip) && mReport.mNotes.size() < 64)
                 mReport.mNotes.push_back(what + " looks inside-out: a closed mesh with negative volume (its triangles face "
-                                         "inwards; reflection is two-sided, but one-sided emission and glass work inside out)");
+                                         "inwards; " +
+                                         (twoSided ? std::string("its doubleSided material reflects on both sides, but")
+                                                   : std::string("its material is not doubleSided, so its outside is black; "
+                                                                 "and")) +
+                                         " one-sided emission and glass work inside out)");
         }
     }
 

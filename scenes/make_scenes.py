@@ -677,6 +677,93 @@ FIGURE_SCENES = [
 
 
 # ---------------------------------------------------------------------------
+# A model as people bring them: textured, smooth-shaded, no camera, no light
+# ---------------------------------------------------------------------------
+
+def png_rgb(width, height, pixels):
+    """An 8-bit RGB PNG (pixels: (r, g, b) tuples, row by row from the top)."""
+    import zlib
+    raw = b"".join(b"\x00" + bytes(c for p in pixels[y * width:(y + 1) * width] for c in p)
+                   for y in range(height))
+
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data +
+                struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    return (b"\x89PNG\r\n\x1a\n" +
+            chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) +
+            chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+
+def build_textured_torus():
+    """A smooth-shaded torus (major radius 1, minor 0.4, 48 x 24 quads) with a checker
+    baseColorTexture (a 64 x 64 PNG in a data URI, sRGB as glTF says), NORMAL and
+    TEXCOORD_0, tilted 35 degrees towards the viewer, glTF's +y up. No camera and no light:
+    smallvcm frames it with its default camera under its default white background."""
+    rings, sides, major, minor = 48, 24, 1.0, 0.4
+    positions, normals, uvs, indices = [], [], [], []
+    for i in range(rings + 1):              # seams duplicated: the texture wraps cleanly
+        u = i / rings
+        phi = 2.0 * math.pi * u
+        for j in range(sides + 1):
+            v = j / sides
+            theta = 2.0 * math.pi * v
+            n = (math.cos(theta) * math.cos(phi), math.sin(theta), math.cos(theta) * math.sin(phi))
+            positions.append(f32_point((major * math.cos(phi) + minor * n[0], minor * n[1],
+                                        major * math.sin(phi) + minor * n[2])))
+            normals.append(f32_point(n))
+            uvs.append((f32(4.0 * u), f32(2.0 * v)))   # 4 x 2 texture repeats around
+    for i in range(rings):
+        for j in range(sides):
+            a, b = i * (sides + 1) + j, (i + 1) * (sides + 1) + j
+            # Counter-clockwise seen from outside (the side the normals face).
+            indices += [a, a + 1, b, b, a + 1, b + 1]
+    cells, size = 8, 64
+    light, dark = (235, 214, 170), (176, 58, 46)
+    texels = [light if ((x * cells // size) + (y * cells // size)) % 2 == 0 else dark
+              for y in range(size) for x in range(size)]
+    png = png_rgb(size, size, texels)
+    data = bytearray()
+    views = []
+    for raw, target in [(b"".join(struct.pack("<3f", *p) for p in positions), 34962),
+                        (b"".join(struct.pack("<3f", *n) for n in normals), 34962),
+                        (b"".join(struct.pack("<2f", *t) for t in uvs), 34962),
+                        (struct.pack("<%dH" % len(indices), *indices), 34963)]:
+        views.append({"buffer": 0, "byteOffset": len(data), "byteLength": len(raw), "target": target})
+        data += raw
+        data += b"\0" * (-len(data) % 4)
+    tilt = math.radians(35.0)
+    return {
+        "asset": {"version": "2.0", "generator": "smallvcm scenes/make_scenes.py",
+                  "extras": {"note": "A model as people bring them: textured, smooth-shaded "
+                                     "(NORMAL), no camera, no light. glTF conventions: +y up, "
+                                     "metres, sRGB texture. See docs/scene_format.md."}},
+        "scene": 0,
+        "scenes": [{"name": "textured torus", "nodes": [0]}],
+        "nodes": [{"name": "torus", "mesh": 0,
+                   "rotation": [round(math.sin(tilt / 2.0), 9), 0.0, 0.0, round(math.cos(tilt / 2.0), 9)]}],
+        "meshes": [{"name": "torus", "primitives": [{
+            "attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}, "indices": 3,
+            "material": 0, "mode": 4}]}],
+        "materials": [{"name": "checker plastic",
+                       "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
+                                                "metallicFactor": 0.0, "roughnessFactor": 0.5}}],
+        "textures": [{"sampler": 0, "source": 0}],
+        "samplers": [{"magFilter": 9729, "minFilter": 9729, "wrapS": 10497, "wrapT": 10497}],
+        "images": [{"name": "checker", "uri": "data:image/png;base64," + base64.b64encode(png).decode("ascii")}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": len(positions), "type": "VEC3",
+             "min": f32_vec([min(p[k] for p in positions) for k in range(3)]),
+             "max": f32_vec([max(p[k] for p in positions) for k in range(3)])},
+            {"bufferView": 1, "componentType": 5126, "count": len(normals), "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": len(uvs), "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5123, "count": len(indices), "type": "SCALAR"}],
+        "bufferViews": views,
+        "buffers": [{"byteLength": len(data),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(data)).decode("ascii")}],
+    }
+
+
+# ---------------------------------------------------------------------------
 # Compact JSON: number arrays and short objects on one line, the rest indented
 # ---------------------------------------------------------------------------
 
@@ -707,6 +794,9 @@ def main():
         with open(os.path.join(out_dir, file_name), "w", encoding="ascii", newline="\n") as f:
             f.write(text)
         print("wrote scenes/%s  (%s)" % (file_name, scene["name"]))
+    with open(os.path.join(out_dir, "textured_torus.gltf"), "w", encoding="ascii", newline="\n") as f:
+        f.write(dumps(build_textured_torus()) + "\n")
+    print("wrote scenes/textured_torus.gltf  (textured, smooth-shaded, no camera, no light)")
 
 
 if __name__ == "__main__":

@@ -812,6 +812,32 @@ TEST_CASE("A closed mesh wound inwards is noted as inside-out; outward and open 
     }
 }
 
+TEST_CASE("An inside-out mesh reflects outside only with a doubleSided material, and the note says which", "[gltf][shading]") {
+    testutil::TemporaryFolder folder;
+    for (bool doubleSided : {false, true}) {
+        const std::string material = std::string(R"({"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1], )"
+                                                 R"("metallicFactor": 0, "roughnessFactor": 1}, "doubleSided": )") +
+                                     (doubleSided ? "true}" : "false}");
+        const std::string path = WriteTemporary(folder, doubleSided ? "two.gltf" : "one.gltf",
+                                                MeshGltf(Cube(Vec3(0.f), true), "", "", material));
+        GltfLoadReport report;
+        const Scene scene = LoadGltfScene(path, &report);
+        std::string note;
+        for (const std::string& n : report.mNotes)
+            if (n.find("looks inside-out") != std::string::npos) note = n;
+        INFO(note);
+        CHECK_THAT(note, Catch::Contains(doubleSided ? "doubleSided material reflects on both sides" : "its outside is black"));
+        // Seen from outside (+z above the cube, whose top faces down): black or not.
+        const Ray ray{Vec3(0.1f, 0.2f, 3.f), Vec3(0.f, 0.f, -1.f)};
+        Hit hit;
+        REQUIRE(scene.Intersect(ray, hit));
+        REQUIRE(hit.mNormal.z < 0.f);
+        Bsdf bsdf;
+        bsdf.Setup(ray, hit, scene, false);
+        CHECK(bsdf.IsValid() == doubleSided);
+    }
+}
+
 // ---------------------------------------------------------------------------------
 // Textures
 // ---------------------------------------------------------------------------------

@@ -136,6 +136,35 @@ TEST_CASE("Vertex normals that point against the winding are turned to its side"
     RequireNear(hit.mShadingNormal, -down);
 }
 
+TEST_CASE("A double-sided smooth mesh wound against its normals still reflects from the side the normals face", "[shading][geometry]") {
+    // The triangle is wound to face -z, its vertex normals say +z (a reversed winding).
+    Scene scene;
+    Material white;
+    white.mDiffuseReflectance = Vec3(0.5f);
+    white.mTwoSided = true;
+    scene.AddTriangle(Vec3(0.f), Vec3(0.f, 1.f, 0.f), Vec3(1.f, 0.f, 0.f), scene.AddMaterial(white));
+    Triangle& triangle = scene.mTriangles.back();
+    triangle.mHasVertexNormals = true;
+    triangle.mN0 = glm::normalize(Vec3(-0.2f, 0.f, 1.f));
+    triangle.mN1 = glm::normalize(Vec3(0.f, 0.2f, 1.f));
+    triangle.mN2 = glm::normalize(Vec3(0.2f, 0.f, 1.f));
+    scene.AddPointLight(Vec3(0.f, 0.f, 3.f), Vec3(1.f));
+    scene.Finalize();
+    const Ray ray{Vec3(0.25f, 0.25f, 1.f), Vec3(0.f, 0.f, -1.f)};
+    Hit hit;
+    REQUIRE(scene.Intersect(ray, hit));
+    REQUIRE(hit.mNormal.z < 0.f);
+    REQUIRE(hit.mShadingNormal.z < 0.f);  // turned to the winding's side
+    for (bool fixIsLight : {false, true}) {
+        Bsdf bsdf;
+        bsdf.Setup(ray, hit, scene, fixIsLight);
+        REQUIRE(bsdf.IsValid());
+        float cos;
+        CHECK(!IsBlack(bsdf.Evaluate(glm::normalize(Vec3(0.3f, 0.1f, 1.f)), cos)));
+        CHECK(IsBlack(bsdf.Evaluate(glm::normalize(Vec3(0.3f, 0.1f, -1.f)), cos)));
+    }
+}
+
 TEST_CASE("NORMAL is normalised, noted and carried to world space by the inverse transpose", "[shading][gltf]") {
     // tests/data/make_bad_gltf.py: the 2 x 2 floor stretched to 4 x 2 by a node scale
     // (2, 1, 1); its normals lean by (-+0.6, 0, 0.8) at x = -+1 (two given twice as long).
@@ -291,5 +320,17 @@ TEST_CASE("Path tracing, light tracing, BPT and VCM agree on a smooth-shaded low
         CHECK(std::abs(zRest) < 4.5);
         CHECK(4.5 * seSphere < 0.005 * imageMean.mean);
         CHECK(4.5 * seRest < 0.005 * imageMean.mean);
+    }
+}
+
+TEST_CASE("The textured torus loads smooth and textured, with the default camera and background", "[shading][gltf]") {
+    GltfLoadReport report;
+    const Scene scene = LoadGltfScene("../scenes/textured_torus.gltf", &report);
+    CHECK(report.mDefaultCamera);
+    CHECK(report.mDefaultBackground);
+    REQUIRE(scene.mTriangles.size() == 2304);
+    for (const Triangle& triangle : scene.mTriangles) {
+        REQUIRE(triangle.mHasVertexNormals);
+        REQUIRE(scene.GetMaterial(triangle.mMaterialId).mBaseColorTexture >= 0);
     }
 }
