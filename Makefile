@@ -168,6 +168,15 @@ bench: deps $(BUILD)/bench
 	$(BUILD)/bench --repeat 2 --markdown docs/performance/bench.md --csv docs/performance/bench
 	/usr/bin/python3 docs/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
 
+# make mutants [MUTANTS=M01,M02]: mutation testing of the transport code (tests/mutants.py,
+# the list in tests/mutant_list.py): each mutant is one edited line of the header, built
+# in a temporary copy of the tree and run against the suite without the golden images,
+# cheap stages first, stopping at the first failing test; prints one line per mutant and
+# the score, and writes them to build/mutants/report.txt (docs/testing.md).
+.PHONY: mutants
+mutants: deps $(BUILD)/tests/catch_main.o
+	/usr/bin/python3 tests/mutants.py $(if $(MUTANTS),--only $(MUTANTS))
+
 # make fuzz [FUZZ_SECONDS=600]: libFuzzer over the glTF loader (installs clang if missing).
 FUZZ_SECONDS ?= 300
 fuzz:

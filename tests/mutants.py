@@ -1,0 +1,314 @@
+#!/usr/bin/env python3
+"""Mutation testing of smallvcm's transport code: `make mutants` (docs/testing.md).
+
+Each mutant of tests/mutant_list.py is one small edit of smallvcm.hpp, found by an exact
+text match (a match must be unique, so the edit survives unrelated changes of the header;
+a mutant whose text is gone is reported "not applicable", never skipped in silence). For
+each mutant the script writes the edited header into a copy of the tree in a temporary
+folder, rebuilds the test objects that include it and runs the Catch2 suite without the
+golden-image test ([regression]) in stages of rising cost, stopping at the first failing
+test (Catch2 -a). A mutant is
+
+  killed          a test failed (or a stage crashed or timed out: CI would fail too),
+  survived        every stage passed,
+  equivalent      it survived and the list argues why it cannot change what a test sees
+                  (the argument is printed; a listed "equivalent" that is killed counts
+                  as killed and says so),
+  not applicable  its text is not in the header (or not once).
+
+Score = killed / (applicable - equivalent). The last stage, which builds and runs the
+whole remaining suite with the Makefile, runs only for a mutant no earlier stage killed.
+
+Usage: tests/mutants.py [--only ID,ID,...] [--list] [--check] [--jobs N] [--keep]
+       (from the repository root; `make mutants` runs it with no arguments).
+"""
+import argparse
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ElementTree
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+from mutant_list import MUTANTS  # noqa: E402
+
+HEADER = "smallvcm.hpp"
+CXX = os.environ.get("CXX", "g++")
+# -O2 as the suite is built (the statistical stages run faster than at -O1, and a TU takes
+# only ~1 s more); no debug information, which is a third of the compile time.
+CXXFLAGS = ["-std=c++17", "-O2", "-w", "-I."]
+
+# Stages in order of cost: (name, test sources to add, Catch2 test spec, timeout in s).
+# The timeouts are about 10x what a stage takes unmutated on 2 shared cores: a mutant
+# that makes a walk endless is killed by the timeout, as it would be in CI.
+STAGES = [
+    ("units", ["test_sampling", "test_bsdf", "test_camera", "test_vcm_mis", "test_lights", "test_transport_units"],
+     "[sampling],[bsdf],[camera],[mis],[lights],[transport_units]", 120),
+    ("scenes", ["test_integrators", "test_transport"],
+     "[transport],[integrators]", 400),
+    ("photons+stability", ["test_photon_mapping", "test_stability"], "[photon_mapping],[stability]", 300),
+    ("figures+convergence", ["test_figures", "test_convergence"], "[figures],[convergence]", 600),
+]
+# The rest of the suite (every other test file; built with the Makefile, which also
+# builds build/smallvcm for the command-line tests): everything except the golden
+# images and what the stages above already ran.
+REST_SPEC = "~[regression]~[sampling]~[bsdf]~[camera]~[mis]~[lights]~[transport_units]~[transport]" \
+            "~[integrators]~[photon_mapping]~[stability]~[figures]~[convergence]"
+REST_TIMEOUT = 900
+
+
+def log(message):
+    print(message, flush=True)
+
+
+def find_unique(text, needle):
+    """The offset of needle in text, or None unless it occurs exactly once."""
+    first = text.find(needle)
+    if first < 0 or text.find(needle, first + 1) >= 0:
+        return None
+    return first
+
+
+def applicability(header, mutant):
+    count = header.count(mutant["find"])
+    if count == 0:
+        return "text not found"
+    if count > 1:
+        return "text found %d times (must be unique)" % count
+    if mutant["replace"] == mutant["find"]:
+        return "replacement equals the original"
+    return None
+
+
+def mutated_header(header, mutant):
+    offset = find_unique(header, mutant["find"])
+    return header[:offset] + mutant["replace"] + header[offset + len(mutant["find"]):]
+
+
+def line_of(header, mutant):
+    return header[:find_unique(header, mutant["find"])].count("\n") + 1
+
+
+def run(command, cwd, timeout):
+    """(exit code or 'timeout', combined output)."""
+    try:
+        done = subprocess.run(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                              timeout=timeout, text=True, errors="replace")
+        return done.returncode, done.stdout
+    except subprocess.TimeoutExpired as expired:
+        out = expired.stdout.decode(errors="replace") if isinstance(expired.stdout, bytes) else (expired.stdout or "")
+        return "timeout", out
+
+
+def compile_objects(tree, sources, objdir, jobs):
+    """Compiles tests/NAME.cpp for each NAME into objdir, jobs at a time. None or the error."""
+    pending = [s for s in sources if os.path.exists(os.path.join(tree, "tests", s + ".cpp"))]
+    running = []
+    while pending or running:
+        while pending and len(running) < jobs:
+            name = pending.pop(0)
+            command = [CXX] + CXXFLAGS + ["-c", "tests/%s.cpp" % name, "-o", os.path.join(objdir, name + ".o")]
+            running.append((name, subprocess.Popen(command, cwd=tree, stdout=subprocess.PIPE,
+                                                   stderr=subprocess.STDOUT, text=True, errors="replace")))
+        name, process = running.pop(0)
+        out, _ = process.communicate()
+        if process.returncode != 0:
+            for _, other in running:
+                other.wait()
+            return "%s.cpp does not compile:\n%s" % (name, out[-2000:])
+    return None
+
+
+def failed_tests(junit_path, output):
+    """Names of the failing test cases in a Catch2 JUnit report (or a hint from the output)."""
+    names = []
+    try:
+        for case in ElementTree.parse(junit_path).getroot().iter("testcase"):
+            if case.find("failure") is not None or case.find("error") is not None:
+                name = case.get("name", "?")
+                if name not in names:
+                    names.append(name)
+    except (ElementTree.ParseError, OSError):
+        pass
+    if not names:
+        signal = re.search(r"(SIGSEGV|SIGABRT|SIGFPE|Segmentation|terminate called|Aborted)", output)
+        names.append("(no report: %s)" % (signal.group(1) if signal else "the run ended abnormally"))
+    return names
+
+
+def prepare_tree(workdir):
+    """A copy of the files the tests need (no build/, no .git, no docs/figures)."""
+    tree = os.path.join(workdir, "tree")
+    ignore = shutil.ignore_patterns(".git", "build", "figures", "performance", "*.png", "*.pfm", "*.exr")
+    os.makedirs(tree)
+    for entry in os.listdir(ROOT):
+        source = os.path.join(ROOT, entry)
+        if entry in (".git", "build"):
+            continue
+        if os.path.isdir(source):
+            shutil.copytree(source, os.path.join(tree, entry), ignore=ignore, symlinks=True)
+        else:
+            shutil.copy2(source, os.path.join(tree, entry))
+    return tree
+
+
+def shared_objects(tree, jobs):
+    """catch_main.o and the implementation unit, compiled once from the unmutated header."""
+    objdir = os.path.join(tree, "shared-obj")
+    os.makedirs(objdir, exist_ok=True)
+    commands = [
+        [CXX] + CXXFLAGS + ["-c", "tests/catch_main.cpp", "-o", os.path.join(objdir, "catch_main.o")],
+        [CXX] + CXXFLAGS + ["-c", "examples/smallvcm_impl.cpp", "-o", os.path.join(objdir, "smallvcm_impl.o")],
+    ]
+    reuse = os.path.join(ROOT, "build", "tests", "catch_main.o")
+    if os.path.exists(reuse):  # Catch2's main does not include the header: reuse the suite's
+        shutil.copy2(reuse, os.path.join(objdir, "catch_main.o"))
+        commands = commands[1:]
+    processes = [subprocess.Popen(c, cwd=tree, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                 for c in commands[:jobs]]
+    for c in commands[jobs:]:
+        processes.append(subprocess.Popen(c, cwd=tree, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
+    for p in processes:
+        out, _ = p.communicate()
+        if p.returncode != 0:
+            sys.exit("mutants: the unmutated tree does not build:\n" + out[-3000:])
+    return objdir
+
+
+def test_mutant(tree, shared, mutant, header, jobs):
+    """('killed' | 'survived' | 'broken', stage, details)."""
+    with open(os.path.join(tree, HEADER), "w") as f:
+        f.write(mutated_header(header, mutant))
+    objdir = os.path.join(tree, "mutant-obj")
+    shutil.rmtree(objdir, ignore_errors=True)
+    os.makedirs(objdir)
+    impl = os.path.join(shared, "smallvcm_impl.o")
+    if mutant.get("impl"):
+        # The mutated line is compiled into the implementation unit too (Scene::Finalize is
+        # emitted there and may be inlined into the loader): rebuild it for this mutant.
+        impl = os.path.join(objdir, "smallvcm_impl.o")
+        code, out = run([CXX] + CXXFLAGS + ["-c", "examples/smallvcm_impl.cpp", "-o", impl], tree, 600)
+        if code != 0:
+            return "broken", "build", "the implementation unit does not compile: " + out[-500:]
+    objects = []
+    for name, sources, spec, timeout in STAGES:
+        error = compile_objects(tree, sources, objdir, jobs)
+        if error:
+            return "broken", name, error.splitlines()[0]
+        objects += [os.path.join(objdir, s + ".o") for s in sources if os.path.exists(os.path.join(objdir, s + ".o"))]
+        binary = os.path.join(objdir, "run_tests")
+        # The mutated objects come first: where an inline function of the header is also
+        # emitted in the (unmutated) implementation unit, the linker keeps the first copy.
+        code, out = run([CXX] + objects + [os.path.join(shared, "catch_main.o"), impl, "-o", binary, "-pthread"], tree, 300)
+        if code != 0:
+            return "broken", name, "link failed: " + out[-500:]
+        junit = os.path.join(objdir, "report.xml")
+        code, out = run([binary, spec, "-a", "-r", "junit", "-o", junit], os.path.join(tree, "tests"), timeout)
+        if code == "timeout":
+            return "killed", name, "timed out after %d s" % timeout
+        if code != 0:
+            return "killed", name, "; ".join(failed_tests(junit, out))
+    # The rest of the suite, with the Makefile.
+    code, out = run(["make", "-j%d" % jobs, "--no-print-directory", "build/tests/run_tests", "build/smallvcm",
+                     "CXXFLAGS=" + " ".join(CXXFLAGS[:-1])], tree, 1200)
+    if code != 0:
+        return "broken", "rest", "make failed: " + out[-500:]
+    junit = os.path.join(tree, "build", "report.xml")
+    code, out = run(["../build/tests/run_tests", REST_SPEC, "-a", "-r", "junit", "-o", junit],
+                    os.path.join(tree, "tests"), REST_TIMEOUT)
+    if code == "timeout":
+        return "killed", "rest", "timed out after %d s" % REST_TIMEOUT
+    if code != 0:
+        return "killed", "rest", "; ".join(failed_tests(junit, out))
+    return "survived", "", ""
+
+
+def main():
+    parser = argparse.ArgumentParser(description="Mutation testing of smallvcm's transport code.")
+    parser.add_argument("--only", help="comma-separated mutant ids (default: all)")
+    parser.add_argument("--list", action="store_true", help="list the mutants and whether each applies, then stop")
+    parser.add_argument("--check", action="store_true", help="like --list, exit 1 if any does not apply")
+    parser.add_argument("--jobs", type=int, default=2, help="parallel compilations (default 2)")
+    parser.add_argument("--keep", action="store_true", help="keep the temporary tree (its path is printed)")
+    parser.add_argument("--report", default=os.path.join(ROOT, "build", "mutants", "report.txt"),
+                        help="where the report is written (default build/mutants/report.txt)")
+    args = parser.parse_args()
+
+    with open(os.path.join(ROOT, HEADER)) as f:
+        header = f.read()
+    ids = [m["id"] for m in MUTANTS]
+    if len(set(ids)) != len(ids):
+        sys.exit("mutants: duplicate ids in tests/mutant_list.py")
+    selected = MUTANTS
+    if args.only:
+        wanted = args.only.split(",")
+        unknown = [w for w in wanted if w not in ids]
+        if unknown:
+            sys.exit("mutants: --only: unknown id(s) " + ", ".join(unknown))
+        selected = [m for m in MUTANTS if m["id"] in wanted]
+
+    if args.list or args.check:
+        bad = 0
+        for m in selected:
+            why = applicability(header, m)
+            bad += why is not None
+            where = "line %d" % line_of(header, m) if why is None else "NOT APPLICABLE: " + why
+            log("%-4s %-12s %-10s %s%s" % (m["id"], m["class"], where, m["what"],
+                                          "  [listed equivalent]" if m.get("equivalent") else ""))
+        log("%d mutants, %d applicable" % (len(selected), len(selected) - bad))
+        return 1 if (args.check and bad) else 0
+
+    workdir = tempfile.mkdtemp(prefix="smallvcm-mutants-")
+    log("mutants: %d mutants; temporary tree in %s" % (len(selected), workdir))
+    start = time.time()
+    tree = prepare_tree(workdir)
+    shared = shared_objects(tree, args.jobs)
+    results = []
+    os.makedirs(os.path.dirname(args.report), exist_ok=True)
+    report = open(args.report, "w")
+
+    def emit(line):
+        log(line)
+        report.write(line + "\n")
+        report.flush()
+
+    emit("# make mutants: %s, header %s" % (time.strftime("%Y-%m-%d %H:%M"), HEADER))
+    try:
+        for m in selected:
+            why = applicability(header, m)
+            t0 = time.time()
+            if why:
+                outcome, stage, details = "not applicable", "", why
+            else:
+                outcome, stage, details = test_mutant(tree, shared, m, header, args.jobs)
+                if outcome == "survived" and m.get("equivalent"):
+                    outcome, details = "equivalent", m["equivalent"]
+                elif outcome == "killed" and m.get("equivalent"):
+                    details += " (listed as equivalent: the argument is wrong)"
+            results.append((m, outcome))
+            emit("%-4s %-14s %-12s %-20s %5.0f s  %s -- %s" % (
+                m["id"], outcome, m["class"], stage, time.time() - t0, m["what"], details))
+    finally:
+        with open(os.path.join(tree, HEADER), "w") as f:
+            f.write(header)
+        if not args.keep:
+            shutil.rmtree(workdir, ignore_errors=True)
+
+    count = {k: sum(1 for _, o in results if o == k) for k in ("killed", "survived", "equivalent", "not applicable", "broken")}
+    applicable = len(results) - count["not applicable"]
+    scored = applicable - count["equivalent"] - count["broken"]
+    score = 100.0 * count["killed"] / scored if scored else 0.0
+    emit("mutants: %d killed, %d survived, %d equivalent, %d not applicable, %d do not build; "
+         "score %d/%d = %.1f %% (%.0f s)" % (count["killed"], count["survived"], count["equivalent"],
+                                              count["not applicable"], count["broken"], count["killed"], scored,
+                                              score, time.time() - start))
+    report.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
