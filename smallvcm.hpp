@@ -3230,6 +3230,7 @@ public:
         // take no physical memory. Later iterations keep the capacity.
         if (mLightVertices.capacity() == 0 && (mUseVC || mUseVM)) mLightVertices.reserve(4 * size_t(pathCount));
         mPathEnds.assign(size_t(pathCount), 0);
+        if (mPathRecords) mLightHistories.clear();
         for (int path = 0; path < pathCount; path++) {
             SubPathState light;
             GenerateLightSample(aRng, light);
@@ -3244,6 +3245,7 @@ public:
                 // The area pdf of this vertex: a change of measure, by the geometric cosine.
                 VcmMis::AfterSegment(mMis, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
                                      light.mPathLength > 1 || light.mIsFiniteLight);
+                if (mPathRecords) mLightHistories.back().push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId});
 
                 if (!bsdf.IsDelta()) {
                     // Store the vertex for connections and merging.
@@ -3266,7 +3268,9 @@ public:
                 }
                 // A vertex of length L is useful only if a path of length L + 1 may follow.
                 if (light.mPathLength + 2 > mOptions.mMaxPathLength) break;
-                if (!SampleScattering(aRng, bsdf, hitPoint, light, nullptr)) break;
+                uint32_t lightEvent = kEventNone;
+                if (!SampleScattering(aRng, bsdf, hitPoint, light, &lightEvent)) break;
+                if (mPathRecords && (lightEvent & kEventSpecular)) mLightHistories.back().back().mEvent = lightEvent;
             }
             mPathEnds[size_t(path)] = mLightVertices.size();
         }
@@ -3285,11 +3289,15 @@ public:
             const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aRng.GetVec2();
             SubPathState cam;
             GenerateCameraSample(raster, cam);
+            if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
             Ray ray{cam.mOrigin, cam.mDirection};
             for (;;) {
                 Hit hit;
                 if (!mScene.Intersect(ray, hit)) {
                     const Light* background = mScene.GetBackground();
+                    if (mPathRecords && background)
+                        mCameraHistory.push_back(PathVertex{ray.mDirection, Vec3(0.f), -1, int(background - &mScene.GetLight(0)),
+                                                            kEventNone, true});
                     if (background && cam.mPathLength >= mOptions.mMinPathLength)
                         AddCameraHitLight(pixel, cam, *background, ray.mDirection, Vec3(0.f));
                     break;
@@ -3298,6 +3306,7 @@ public:
                 const float cosAtHit = glm::dot(hit.mNormal, -ray.mDirection);
                 const float distance = hit.mDist + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
                 VcmMis::AfterSegment(mMis, cam.mMis, distance, cosAtHit, true);
+                if (mPathRecords) mCameraHistory.push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId, hit.mLightId});
 
                 if (hit.mLightId >= 0) {
                     if (cam.mPathLength >= mOptions.mMinPathLength)
@@ -3321,6 +3330,7 @@ public:
 
                 uint32_t event = kEventNone;
                 if (!SampleScattering(aRng, bsdf, hitPoint, cam, &event)) break;
+                if (mPathRecords && (event & kEventSpecular)) mCameraHistory.back().mEvent = event;
                 // PPM's camera path ends where it merged; only a specular component (of a
                 // mixed material) carries it on, to find the next non-specular vertex.
                 if (mPpm && !bsdf.IsDelta() && !(event & kEventSpecular)) break;
@@ -3333,6 +3343,28 @@ public:
     const VcmMisConstants& MisConstants() const { return mMis; }
     size_t LightVertexCount() const { return mLightVertices.size(); }
     size_t LightVertexCapacity() const { return mLightVertices.capacity(); }  // for the memory report
+
+    // Test hook: the full path of every weighted contribution but merges, with the MIS
+    // weight this renderer gave it, so a test can recompute that weight from the path's
+    // vertices alone (tests/test_vcm_mis.cpp). Merges are left out: their light and camera
+    // vertices differ by up to r, so no single path has their weight. Off (a null
+    // pointer, one branch per vertex and contribution) unless a test sets it; run
+    // iterations single-threaded (RunIteration) while it is set.
+    struct PathVertex {
+        Vec3 mPosition{0.f};  // for a light at infinity: the unit direction towards it
+        Vec3 mNormal{0.f};    // geometric normal; 0 at the camera, delta lights, infinity and NEE points
+        int mMaterialId = -1; // -1 at the ends
+        int mLightId = -1;    // the light at this point, if any
+        uint32_t mEvent = kEventNone;  // the specular component sampled here, if one was
+        bool mAtInfinity = false;
+    };
+    struct PathRecord {
+        Technique mTechnique = kUnidirectional;
+        int mLightVertexCount = 0;  // s: x_0 .. x_{s-1} come from the light side
+        float mWeight = 0.f;
+        std::vector<PathVertex> mVertices;  // x_0 (on the light) .. x_k (the camera)
+    };
+    void SetPathRecords(std::vector<PathRecord>* aRecords) { mPathRecords = aRecords; }
 
 private:
     // The state of a sub-path while it is traced.
@@ -3371,6 +3403,7 @@ private:
         const Vec2 rndDirection = aRng.GetVec2();
         const Vec2 rndPosition = aRng.GetVec2();
         LightEmission emission;
+        if (mPathRecords) mLightHistories.emplace_back();
         oState.mPathLength = 1;
         oState.mThroughput = Vec3(0.f);
         if (!light.Emit(mScene.GetSceneSphere(), rndDirection, rndPosition, emission) || !(emission.mEmissionPdfW > 0.f))
@@ -3383,6 +3416,10 @@ private:
         oState.mIsFiniteLight = light.IsFinite();
         oState.mMis = VcmMis::AtLightEmission(mMis, emission.mDirectPdfA, emission.mEmissionPdfW, emission.mCosAtLight,
                                               light.IsDelta(), light.IsFinite());
+        if (mPathRecords)
+            mLightHistories.back().push_back(light.IsFinite()
+                ? PathVertex{emission.mPosition, light.IsDelta() ? Vec3(0.f) : emission.mNormal, -1, int(&light - &mScene.GetLight(0))}
+                : PathVertex{-emission.mDirection, Vec3(0.f), -1, int(&light - &mScene.GetLight(0)), kEventNone, true});
         // Light tracing alone splats the emitting point itself (see the section's notes).
         if (mLightTraceOnly && !light.IsDelta() && light.IsFinite() && mOptions.mMinPathLength <= 1)
             SplatEmitterPoint(light, emission, lightPickProb);
@@ -3513,6 +3550,11 @@ private:
         const Vec2 rnd = aRng.GetVec2();
         LightSample sample;
         if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd, sample) || IsBlack(sample.mRadiance)) return;
+        if (mPathRecords)
+            mNextEventVertex = light.IsFinite() ? PathVertex{aHitPoint + sample.mDirToLight * sample.mDistance, Vec3(0.f), -1,
+                                                             int(&light - &mScene.GetLight(0))}
+                                                : PathVertex{sample.mDirToLight, Vec3(0.f), -1,
+                                                             int(&light - &mScene.GetLight(0)), kEventNone, true};
         float cosToLight, bsdfDirPdfW, bsdfRevPdfW;
         const Vec3 bsdfFactor = aBsdf.Evaluate(sample.mDirToLight, cosToLight, &bsdfDirPdfW, &bsdfRevPdfW);
         if (IsBlack(bsdfFactor)) return;
@@ -3604,6 +3646,7 @@ private:
     // aLightVertices (s) and aPathLength place it in BPT's pyramid; -1 for merges.
     void RecordTechnique(Technique aTechnique, int aPixel, int aLightVertices, int aPathLength,
                          const Vec3& aUnweighted, float aWeight) {
+        if (mPathRecords && aLightVertices >= 0) RecordPath(aTechnique, aPixel, aLightVertices, aWeight);
         if (!mOptions.mTechniqueLayers) return;
         mFilm.AddToLayer(mTechniqueLayers[aTechnique], aPixel, aUnweighted * aWeight);
         if (mLongerPathsLayer < 0 || aLightVertices < 0) return;
@@ -3614,6 +3657,31 @@ private:
         mFilm.AddToLayer(mPyramidLayers[aPathLength][aLightVertices][0], aPixel, aUnweighted * aWeight);
         mFilm.AddToLayer(mPyramidLayers[aPathLength][aLightVertices][1], aPixel, aUnweighted);
     }
+
+    // The test hook (SetPathRecords): x_0 .. x_s of a contribution with s light vertices
+    // (from the light sub-path of this pixel, or of the one being traced for light
+    // tracing; x_0 alone for next-event estimation), then the camera sub-path backwards.
+    void RecordPath(Technique aTechnique, int aPixel, int aLightVertices, float aWeight) {
+        PathRecord record;
+        record.mTechnique = aTechnique;
+        record.mLightVertexCount = aLightVertices;
+        record.mWeight = aWeight;
+        std::vector<PathVertex>& path = record.mVertices;
+        if (aTechnique == kNextEvent) path.push_back(mNextEventVertex);
+        else if (aLightVertices > 0) {
+            const std::vector<PathVertex>& light = aTechnique == kLightTracing ? mLightHistories.back()
+                                                                                : mLightHistories[size_t(aPixel)];
+            path.assign(light.begin(), light.begin() + aLightVertices);
+        }
+        if (aTechnique == kLightTracing) path.push_back(PathVertex{mScene.mCamera.Position()});
+        else path.insert(path.end(), mCameraHistory.rbegin(), mCameraHistory.rend());
+        mPathRecords->push_back(std::move(record));
+    }
+
+    std::vector<PathRecord>* mPathRecords = nullptr;
+    std::vector<std::vector<PathVertex>> mLightHistories;  // per light sub-path, x_0 first
+    std::vector<PathVertex> mCameraHistory;                // the camera first
+    PathVertex mNextEventVertex;
 
     bool mUseVC = false, mUseVM = false, mPpm = false, mLightTraceOnly = false;
     float mBaseRadius = 0.f;

@@ -262,8 +262,8 @@ MUTANTS = [
          find="const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdfPdfW);",
          replace="const float weight = LightSampleWeight(directPdfW, bsdfPdfW);"),
     dict(id="M80", cls="mis", what="connection weight without the camera side",
-         find="return 1.f / (wLight + 1.f + wCamera);\n}\n\n// Vertex merging",
-         replace="return 1.f / (wLight + 1.f);\n}\n\n// Vertex merging"),
+         find="const float wCamera = c.Mis(aLightBsdfDirPdfA) *",
+         replace="const float wCamera = 0.f * c.Mis(aLightBsdfDirPdfA) *"),
 ]
 for _m in MUTANTS:
     _m["class"] = _m.pop("cls")

@@ -46,8 +46,8 @@ CXXFLAGS = ["-std=c++17", "-O2", "-w", "-I."]
 # The timeouts are about 10x what a stage takes unmutated on 2 shared cores: a mutant
 # that makes a walk endless is killed by the timeout, as it would be in CI.
 STAGES = [
-    ("units", ["test_sampling", "test_bsdf", "test_camera", "test_vcm_mis", "test_lights", "test_transport_units"],
-     "[sampling],[bsdf],[camera],[mis],[lights],[transport_units]", 120),
+    ("units", ["test_sampling", "test_bsdf", "test_camera", "test_vcm_mis", "test_lights", "test_exercises"],
+     "[sampling],[bsdf],[camera],[mis],[lights],[exercise]", 120),
     ("scenes", ["test_integrators", "test_transport"],
      "[transport],[integrators]", 400),
     ("photons+stability", ["test_photon_mapping", "test_stability"], "[photon_mapping],[stability]", 300),
@@ -56,7 +56,7 @@ STAGES = [
 # The rest of the suite (every other test file; built with the Makefile, which also
 # builds build/smallvcm for the command-line tests): everything except the golden
 # images and what the stages above already ran.
-REST_SPEC = "~[regression]~[sampling]~[bsdf]~[camera]~[mis]~[lights]~[transport_units]~[transport]" \
+REST_SPEC = "~[regression]~[sampling]~[bsdf]~[camera]~[mis]~[lights]~[exercise]~[transport]" \
             "~[integrators]~[photon_mapping]~[stability]~[figures]~[convergence]"
 REST_TIMEOUT = 900
 
@@ -179,7 +179,7 @@ def shared_objects(tree, jobs):
     return objdir
 
 
-def test_mutant(tree, shared, mutant, header, jobs):
+def test_mutant(tree, shared, mutant, header, jobs, stage_count):
     """('killed' | 'survived' | 'broken', stage, details)."""
     with open(os.path.join(tree, HEADER), "w") as f:
         f.write(mutated_header(header, mutant))
@@ -195,7 +195,7 @@ def test_mutant(tree, shared, mutant, header, jobs):
         if code != 0:
             return "broken", "build", "the implementation unit does not compile: " + out[-500:]
     objects = []
-    for name, sources, spec, timeout in STAGES:
+    for name, sources, spec, timeout in STAGES[:stage_count]:
         error = compile_objects(tree, sources, objdir, jobs)
         if error:
             return "broken", name, error.splitlines()[0]
@@ -212,6 +212,8 @@ def test_mutant(tree, shared, mutant, header, jobs):
             return "killed", name, "timed out after %d s" % timeout
         if code != 0:
             return "killed", name, "; ".join(failed_tests(junit, out))
+    if stage_count <= len(STAGES):
+        return "survived", "(%d stages only)" % stage_count, ""
     # The rest of the suite, with the Makefile.
     code, out = run(["make", "-j%d" % jobs, "--no-print-directory", "build/tests/run_tests", "build/smallvcm",
                      "CXXFLAGS=" + " ".join(CXXFLAGS[:-1])], tree, 1200)
@@ -233,6 +235,8 @@ def main():
     parser.add_argument("--list", action="store_true", help="list the mutants and whether each applies, then stop")
     parser.add_argument("--check", action="store_true", help="like --list, exit 1 if any does not apply")
     parser.add_argument("--jobs", type=int, default=2, help="parallel compilations (default 2)")
+    parser.add_argument("--stages", type=int, default=len(STAGES) + 1,
+                        help="run only the first N stages (a quick survey; survivors then are 'survived (N stages)')")
     parser.add_argument("--keep", action="store_true", help="keep the temporary tree (its path is printed)")
     parser.add_argument("--report", default=os.path.join(ROOT, "build", "mutants", "report.txt"),
                         help="where the report is written (default build/mutants/report.txt)")
@@ -284,7 +288,7 @@ def main():
             if why:
                 outcome, stage, details = "not applicable", "", why
             else:
-                outcome, stage, details = test_mutant(tree, shared, m, header, args.jobs)
+                outcome, stage, details = test_mutant(tree, shared, m, header, args.jobs, args.stages)
                 if outcome == "survived" and m.get("equivalent"):
                     outcome, details = "equivalent", m["equivalent"]
                 elif outcome == "killed" and m.get("equivalent"):
