@@ -145,7 +145,7 @@ test: deps
 # input, command line, MIS weights, golden images: about 11 s on 2 cores after a build),
 # plus the coursework graders ([exercise]: tiny furnaces and brute-force MIS, ~2 s).
 # make test stays the whole suite.
-UNIT_TAGS := ~[figures] ~[convergence] ~[bench] ~[integrators] ~[stability] ~[photon_mapping] ~[my_path_tracer]
+UNIT_TAGS := ~[figures] ~[convergence] ~[bench] ~[integrators] ~[stability] ~[photon_mapping] ~[my_path_tracer] ~[transport]
 unit: deps
 	$(MAKE) -j$(JOBS) --no-print-directory $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/tests/run_tests
 	cd tests && ../$(BUILD)/tests/run_tests "$(UNIT_TAGS)"

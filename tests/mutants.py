@@ -157,7 +157,8 @@ def prepare_tree(workdir):
 
 
 def shared_objects(tree, jobs):
-    """catch_main.o and the implementation unit, compiled once from the unmutated header."""
+    """catch_main.o and the implementation unit, compiled once from the unmutated header
+    (or copied from build/ when the suite's are current)."""
     objdir = os.path.join(tree, "shared-obj")
     os.makedirs(objdir, exist_ok=True)
     commands = [
@@ -167,11 +168,15 @@ def shared_objects(tree, jobs):
     reuse = os.path.join(ROOT, "build", "tests", "catch_main.o")
     if os.path.exists(reuse):  # Catch2's main does not include the header: reuse the suite's
         shutil.copy2(reuse, os.path.join(objdir, "catch_main.o"))
-        commands = commands[1:]
+        commands = [c for c in commands if "tests/catch_main.cpp" not in c]
+    # The suite's implementation unit, if it is newer than the header and its source.
+    impl = os.path.join(ROOT, "build", "smallvcm_impl.o")
+    if os.path.exists(impl) and all(os.path.getmtime(impl) > os.path.getmtime(os.path.join(ROOT, f))
+                                    for f in (HEADER, "examples/smallvcm_impl.cpp")):
+        shutil.copy2(impl, os.path.join(objdir, "smallvcm_impl.o"))
+        commands = [c for c in commands if "examples/smallvcm_impl.cpp" not in c]
     processes = [subprocess.Popen(c, cwd=tree, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-                 for c in commands[:jobs]]
-    for c in commands[jobs:]:
-        processes.append(subprocess.Popen(c, cwd=tree, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
+                 for c in commands]
     for p in processes:
         out, _ = p.communicate()
         if p.returncode != 0:

@@ -978,8 +978,18 @@ struct RecordedComparison {
 
 // Renders one iteration of aCase's algorithm on Cornell scene aSceneIndex at aSize x aSize
 // with the path records on, and compares each recorded weight with the brute force.
+// Scene 5 is scene 1 (area light, mirror ceiling) with a point light added near the
+// centre of the box: two lights of two kinds, each picked with probability 1/2.
+Scene RecordingScene(int aSceneIndex, int aSize) {
+    if (aSceneIndex < kSceneCount) return testutil::LoadCornell(aSceneIndex, aSize, aSize);
+    Scene scene = testutil::LoadCornell(1, aSize, aSize);
+    scene.AddPointLight(scene.GetSceneSphere().mCenter + Vec3(0.1f, 0.2f, 0.3f) * scene.GetSceneSphere().mRadius, Vec3(3.f));
+    scene.Finalize();
+    return scene;
+}
+
 RecordedComparison CompareRecordedWeights(int aSceneIndex, const MisCase& aCase, int aSize, uint64_t aSeed) {
-    const Scene scene = testutil::LoadCornell(aSceneIndex, aSize, aSize);
+    const Scene scene = RecordingScene(aSceneIndex, aSize);
     RenderOptions options;
     options.mAlgorithm = aCase.useVC && aCase.useVM ? Algorithm::kVertexConnectionMerging
                          : aCase.useVC             ? Algorithm::kBidirectionalPathTracing
@@ -1041,22 +1051,23 @@ RecordedComparison CompareRecordedWeights(int aSceneIndex, const MisCase& aCase,
 
 TEST_CASE("The weights VertexCM gives its own paths equal a brute-force sum over all techniques of those paths", "[mis]") {
     // Every Cornell scene (sun, area + mirror ceiling, point, background, default: every
-    // light type but the sphere, mirrors, glass, glossy floor), VCM, BPT and BPM with both
-    // heuristics, one iteration at 24 x 24 with paths of up to kMaxSegments segments.
+    // light type but the sphere, mirrors, glass, glossy floor) and one with two lights (the
+    // pick probability), VCM, BPT and BPM with both heuristics, one iteration at 24 x 24
+    // with paths of up to kMaxSegments segments.
     const MisCase cases[] = {kMisCases[0], kMisCases[1], kMisCases[2], kMisCases[3], kMisCases[4]};
     int total = 0;
     int byLength[kMaxSegments + 1] = {};
-    for (int s = 0; s < kSceneCount; s++) {
+    for (int s = 0; s <= kSceneCount; s++) {
         for (const MisCase& misCase : cases) {
             const RecordedComparison c = CompareRecordedWeights(s, misCase, 24, 11u + uint64_t(s));
             total += c.compared;
             for (int k = 1; k <= kMaxSegments; k++) byLength[k] += c.byLength[k];
             std::printf("[mis] recorded: scene %-14s %-12s %5d paths (hit %d, nee %d, connection %d, lt %d), %d unusable, "
-                        "max rel. error %.2e, %d failures\n", kSceneNames[s], misCase.name, c.compared,
+                        "max rel. error %.2e, %d failures\n", s < kSceneCount ? kSceneNames[s] : "5 area+point", misCase.name, c.compared,
                         c.byTechnique[int(Kind::kCameraHitsLight)], c.byTechnique[int(Kind::kNextEvent)],
                         c.byTechnique[int(Kind::kConnection)], c.byTechnique[int(Kind::kLightTracing)], c.unusable,
                         c.maxRelError, c.failures);
-            INFO("scene " << kSceneNames[s] << ", " << misCase.name << ": " << c.compared << " recorded paths, "
+            INFO("scene " << (s < kSceneCount ? kSceneNames[s] : "5 area+point") << ", " << misCase.name << ": " << c.compared << " recorded paths, "
                           << c.failures << " disagree; largest relative error: " << c.worst);
             CHECK(c.failures == 0);
             // A record the brute force cannot read (a sampled light point hidden from
