@@ -43,9 +43,12 @@ MUTANTS = [
     dict(id="M10", cls="length", what="camera sub-paths go one vertex beyond the maximum (NEE makes max+1)",
          find="if (cam.mPathLength >= mOptions.mMaxPathLength) break;",
          replace="if (cam.mPathLength > mOptions.mMaxPathLength) break;"),
-    dict(id="M11", cls="length", what="light sub-paths stop one vertex early",
+    dict(id="M11", cls="length", what="light sub-paths go on one vertex longer than useful",
          find="if (light.mPathLength + 2 > mOptions.mMaxPathLength) break;",
-         replace="if (light.mPathLength + 1 > mOptions.mMaxPathLength) break;"),
+         replace="if (light.mPathLength + 1 > mOptions.mMaxPathLength) break;",
+         equivalent="the extra vertex has path length max, so every use of it is filtered out by the "
+                    "length checks of light tracing (L + 1 <= max), connections (L + t + 1 <= max) and "
+                    "merges (L + t <= max, t >= 1): it only costs time (survived 3 stages, 2026-11-25)"),
     dict(id="M12", cls="length", what="vertex connections count one segment too few",
          find="const int pathLength = vertex.mPathLength + aCamera.mPathLength + 1;",
          replace="const int pathLength = vertex.mPathLength + aCamera.mPathLength;"),
