@@ -931,7 +931,7 @@ private:
 // [SECTION] Scene: materials, lights, camera
 // =====================================================================================
 // Provides: Material (SmallVCM's sum of Lambert, normalised Phong, mirror and Fresnel
-// glass), the five light kinds, the pinhole Camera with SmallVCM's conventions, and
+// glass), the six light kinds, the pinhole Camera with SmallVCM's conventions, and
 // Scene, which owns them all with the geometry and answers ray queries.
 // Relies on: Geometry. Invariant after Scene::Finalize(): every triangle has a valid
 // unit normal, every light's sampling data is built, the BVH is current.
@@ -1043,16 +1043,33 @@ struct SceneSphere {
     float mInvRadiusSqr = 1.f;
 };
 
-enum class LightType { kArea, kSphere, kPoint, kDirectional, kBackground };
+enum class LightType { kArea, kSphere, kPoint, kSpot, kDirectional, kBackground };
 inline const char* LightTypeName(LightType aType) {
     switch (aType) {
     case LightType::kArea: return "area";
     case LightType::kSphere: return "sphere";
     case LightType::kPoint: return "point";
+    case LightType::kSpot: return "spot";
     case LightType::kDirectional: return "directional";
     case LightType::kBackground: return "background";
     }
     return "unknown";
+}
+
+// The spot light's cone (glTF KHR_lights_punctual): angles from the axis in radians,
+// 0 <= inner < outer <= pi/2 as the extension requires, and outer at least
+// kMinSpotConeAngle: below it 1 - cos(outer), the cone's solid angle over 2 pi, keeps too
+// few float digits (5e-5 at 0.01 rad, 1e-3 relative) for its sampling pdf.
+inline constexpr float kMinSpotConeAngle = 0.01f;
+// The problem with a spot light's cone angles, or nullptr when they are valid.
+inline const char* SpotConeProblem(float aInnerConeAngle, float aOuterConeAngle) {
+    if (!std::isfinite(aInnerConeAngle) || !std::isfinite(aOuterConeAngle)) return "a cone angle is not finite (in single precision)";
+    if (aInnerConeAngle < 0.f) return "innerConeAngle is negative (it must be >= 0)";
+    if (!(aOuterConeAngle <= 0.5f * kPi)) return "outerConeAngle exceeds pi/2";
+    if (!(aInnerConeAngle < aOuterConeAngle)) return "innerConeAngle is not less than outerConeAngle";
+    if (aOuterConeAngle < kMinSpotConeAngle)
+        return "outerConeAngle is below 0.01 rad (0.57 degrees), narrower than single precision samples accurately";
+    return nullptr;
 }
 
 // Next-event estimation sample: a point on the light seen from a receiving point.
@@ -1079,15 +1096,29 @@ struct LightEmission {
 // One struct for every kind of light, dispatched by a switch: no virtual calls in the
 // integrators' inner loops, and each kind's three operations sit side by side.
 // Emission quantities per kind:  area, sphere, background: radiance (W m^-2 sr^-1);
-// point: radiant intensity (W/sr); directional: irradiance on a perpendicular surface.
-// For delta lights (point, directional) the "pdfs" follow SmallVCM's convention: the
-// point light's mDirectPdfW is d^2 so that radiance / pdf gives I / d^2, the directional
-// light's is 1.
+// point, spot: radiant intensity (W/sr; a spot's on its axis); directional: irradiance
+// on a perpendicular surface. For delta lights (point, spot, directional) the "pdfs"
+// follow SmallVCM's convention: the point and spot lights' mDirectPdfW is d^2 so that
+// radiance / pdf gives I / d^2, the directional light's is 1.
+//
+// Spot light (glTF KHR_lights_punctual, "Inner and Outer Cone Angles"): a point light
+// whose intensity in a direction at angle theta from the axis is I s(cos theta), with the
+// extension's reference falloff, the square of a ramp linear in the cosine:
+//     s(c) = clamp((c - cos(outer)) / d, 0, 1)^2,  d = max(0.001, cos(inner) - cos(outer))
+// (the max is the reference code's guard against equal angles). Its power is
+//     Phi = I * Integral s dw = 2 pi I [(1 - c1) + (c1 - cos(outer))^3 / (3 d^2)],
+//     c1 = min(1, cos(outer) + d)  (where the ramp reaches 1),
+// i.e. 2 pi I [(1 - cos(inner)) + (cos(inner) - cos(outer)) / 3] without the guard.
+// Light sub-paths start uniformly inside the outer cone, pdf 1 / (2 pi (1 - cos(outer))),
+// carrying I s(cos theta) / pdf: unbiased, since s = 0 outside the cone.
 struct Light {
     LightType mType = LightType::kPoint;
     Vec3 mEmission{0.f};
-    Vec3 mPosition{0.f};          // point light
-    Vec3 mDirection{0.f, 0.f, -1.f}; // directional light: the direction light travels
+    Vec3 mPosition{0.f};          // point and spot lights
+    Vec3 mDirection{0.f, 0.f, -1.f}; // directional light and spot axis: the direction light travels
+    float mSpotInnerConeAngle = 0.f, mSpotOuterConeAngle = 0.25f * kPi;  // radians (glTF defaults)
+    // Set by Scene::Finalize from the angles: cos(outer) and 1 / d of the falloff above.
+    float mSpotCosOuter = 0.f, mSpotFalloffScale = 0.f;
     // Area light: its triangles, sampled by area.
     std::vector<Vec3> mTriangleP0, mTriangleE1, mTriangleE2, mTriangleNormal;
     std::vector<float> mTriangleCdf;  // cumulative area, normalised to 1
@@ -1096,7 +1127,21 @@ struct Light {
     Vec3 mSphereCenter{0.f};
     float mSphereRadius = 0.f;
 
-    bool IsDelta() const { return mType == LightType::kPoint || mType == LightType::kDirectional; }
+    bool IsDelta() const { return mType == LightType::kPoint || mType == LightType::kSpot || mType == LightType::kDirectional; }
+
+    // The spot falloff s(cos theta) above; aCosTheta is the cosine to the axis.
+    float SpotFalloff(float aCosTheta) const {
+        const float ramp = std::min(std::max((aCosTheta - mSpotCosOuter) * mSpotFalloffScale, 0.f), 1.f);
+        return ramp * ramp;
+    }
+    // The integral of the falloff over the sphere of directions (the spot's power over
+    // its axial intensity, formula above), in double, from the same float parameters
+    // that SpotFalloff uses.
+    double SpotFalloffSolidAngle() const {
+        const double cosOuter = double(mSpotCosOuter), ramp = 1.0 / double(mSpotFalloffScale);
+        const double full = std::min(1.0, cosOuter + ramp);
+        return 2.0 * 3.14159265358979323846 * ((1.0 - full) + std::pow(full - cosOuter, 3.0) / (3.0 * ramp * ramp));
+    }
     bool IsFinite() const { return mType != LightType::kDirectional && mType != LightType::kBackground; }
 
     // Samples a point of the light for next-event estimation from aReceiver.
@@ -1121,16 +1166,26 @@ struct Light {
             oSample.mRadiance = mEmission;
             return true;
         }
-        case LightType::kPoint: {
+        case LightType::kPoint:
+        case LightType::kSpot: {
             const Vec3 toLight = mPosition - aReceiver;
             const float distSqr = glm::dot(toLight, toLight);
             if (!(distSqr > 0.f)) return false;
             oSample.mDistance = std::sqrt(distSqr);
             oSample.mDirToLight = toLight / oSample.mDistance;
             oSample.mDirectPdfW = distSqr;
-            oSample.mEmissionPdfW = UniformSpherePdfW();
             oSample.mCosAtLight = 1.f;
-            oSample.mRadiance = mEmission;
+            if (mType == LightType::kPoint) {
+                oSample.mEmissionPdfW = UniformSpherePdfW();
+                oSample.mRadiance = mEmission;
+                return true;
+            }
+            // The spot: intensity I s(cos theta) towards the receiver, and the pdf with
+            // which Emit starts a light sub-path in this direction (uniform in the cone).
+            const float falloff = SpotFalloff(glm::dot(mDirection, -oSample.mDirToLight));
+            if (!(falloff > 0.f)) return false;
+            oSample.mEmissionPdfW = UniformConePdfW(mSpotCosOuter);
+            oSample.mRadiance = mEmission * falloff;
             return true;
         }
         case LightType::kDirectional:
@@ -1181,6 +1236,18 @@ struct Light {
             oEmission.mCosAtLight = 1.f;
             oEmission.mEnergy = mEmission;
             return true;
+        case LightType::kSpot: {
+            // Uniform in the outer cone; outside it the falloff is 0 (see above).
+            const Vec3 local = SampleUniformConeW(aRndDirection, mSpotCosOuter, &oEmission.mEmissionPdfW);
+            const float falloff = SpotFalloff(local.z);
+            if (!(falloff > 0.f)) return false;
+            oEmission.mPosition = mPosition;
+            oEmission.mDirection = Frame(mDirection).ToWorld(local);
+            oEmission.mDirectPdfA = 1.f;
+            oEmission.mCosAtLight = 1.f;
+            oEmission.mEnergy = mEmission * falloff;
+            return true;
+        }
         case LightType::kDirectional:
         case LightType::kBackground: {
             // Parallel rays start on a disc of the scene's radius, perpendicular to their
@@ -1392,6 +1459,20 @@ public:
         mLights.push_back(light);
         return int(mLights.size()) - 1;
     }
+    // A spot light at aPosition shining along aAxis (need not be unit length), with the
+    // intensity aIntensity on its axis and glTF's cone angles in radians (see Light).
+    int AddSpotLight(const Vec3& aPosition, const Vec3& aAxis, const Vec3& aIntensity, float aInnerConeAngle,
+                     float aOuterConeAngle) {
+        Light light;
+        light.mType = LightType::kSpot;
+        light.mPosition = aPosition;
+        light.mDirection = glm::normalize(aAxis);
+        light.mEmission = aIntensity;
+        light.mSpotInnerConeAngle = aInnerConeAngle;
+        light.mSpotOuterConeAngle = aOuterConeAngle;
+        mLights.push_back(light);
+        return int(mLights.size()) - 1;
+    }
     int AddDirectionalLight(const Vec3& aTravelDirection, const Vec3& aIrradiance) {
         Light light;
         light.mType = LightType::kDirectional;
@@ -1462,6 +1543,18 @@ public:
             light.mTriangleNormal.clear(); light.mTriangleCdf.clear();
             light.mArea = 0.f;
             if (light.mType == LightType::kBackground) mBackgroundLightId = int(id);
+            if (light.mType == LightType::kSpot) {
+                const std::string which = where + ": light " + std::to_string(id) + " (spot)";
+                if (const char* problem = SpotConeProblem(light.mSpotInnerConeAngle, light.mSpotOuterConeAngle))
+                    throw Error(which + ": " + problem);
+                if (!IsFinite(light.mPosition) || !IsFinite(light.mDirection) ||
+                    !(std::abs(glm::length(light.mDirection) - 1.f) < 1e-3f))
+                    throw Error(which + " has a non-finite position or an axis that is not a unit vector");
+                const double cosInner = std::cos(double(light.mSpotInnerConeAngle));
+                const double cosOuter = std::cos(double(light.mSpotOuterConeAngle));
+                light.mSpotCosOuter = float(cosOuter);
+                light.mSpotFalloffScale = float(1.0 / std::max(0.001, cosInner - cosOuter));
+            }
         }
         for (const Triangle& triangle : mTriangles) {
             if (triangle.mLightId < 0) continue;
@@ -1616,6 +1709,7 @@ private:
         switch (light.mType) {
         case LightType::kArea: case LightType::kSphere: power = brightest * double(kPi) * double(light.mArea); break;
         case LightType::kPoint: power = brightest * 4.0 * double(kPi); break;
+        case LightType::kSpot: power = brightest * light.SpotFalloffSolidAngle(); break;
         case LightType::kDirectional: power = brightest * discArea; break;
         case LightType::kBackground: power = brightest * 4.0 * double(kPi) * discArea; break;
         }
@@ -4728,6 +4822,7 @@ private:
         if (json.is_object()) {  // otherwise tinygltf says what is wrong with it
             CheckVersionAndExtensions(json);
             CheckDeclaredBuffers(json);
+            CheckSpotAnglesAreNumbers(json);
         }
 
         tinygltf::TinyGLTF gltf;
@@ -4841,6 +4936,26 @@ private:
     // file is read only if it is as long as some buffer says, and a data URI is decoded
     // only if its text is no longer than its byteLength needs. (tinygltf itself reads a
     // whole file, or decodes a whole URI, before it compares the size.)
+    // tinygltf keeps the default of a spot cone angle that is not a number ("0.5" as a
+    // string): such a file would silently render another cone, so it is refused here.
+    void CheckSpotAnglesAreNumbers(const nlohmann::json& aJson) {
+        const nlohmann::json* lights = &aJson;
+        for (const char* key : {"extensions", "KHR_lights_punctual", "lights"}) {
+            if (!lights->is_object() || !lights->contains(key)) return;
+            lights = &(*lights)[key];
+        }
+        if (!lights->is_array()) return;  // tinygltf says what is wrong
+        for (size_t l = 0; l < lights->size(); l++) {
+            const nlohmann::json& light = (*lights)[l];
+            if (!light.is_object() || !light.contains("spot")) continue;
+            const nlohmann::json& spot = light["spot"];
+            if (!spot.is_object()) Fail("light " + std::to_string(l) + ": 'spot' must be an object");
+            for (const char* angle : {"innerConeAngle", "outerConeAngle"})
+                if (spot.contains(angle) && !spot[angle].is_number())
+                    Fail("light " + std::to_string(l) + ": spot." + angle + " must be a number (radians)");
+        }
+    }
+
     void CheckDeclaredBuffers(const nlohmann::json& aJson) {
         if (!aJson.contains("buffers") || !aJson["buffers"].is_array()) return;  // tinygltf says what is wrong
         const nlohmann::json& buffers = aJson["buffers"];
@@ -5452,12 +5567,23 @@ private:
         CheckColor(emission, what + ": color * intensity", false);
         if (light.type == "point") {
             mScene.AddPointLight(ToFloat(glm::dvec3(aWorld[3]), aWhat + ": the point light position"), emission);
+        } else if (light.type == "spot") {
+            // Cone angles as the extension defines them (defaults inner 0, outer pi/4);
+            // the light shines down its node's local -Z, scale does not change the cone.
+            const float inner = float(light.spot.innerConeAngle), outer = float(light.spot.outerConeAngle);
+            if (const char* problem = SpotConeProblem(inner, outer))
+                Fail(what + " (spot, innerConeAngle " + ShortNumber(light.spot.innerConeAngle) + ", outerConeAngle " +
+                     ShortNumber(light.spot.outerConeAngle) + "): " + problem);
+            glm::dvec3 axis;
+            if (!Direction(-glm::dvec3(aWorld[2]), axis)) Fail(aWhat + ": the spot light's node has a degenerate transform");
+            mScene.AddSpotLight(ToFloat(glm::dvec3(aWorld[3]), aWhat + ": the spot light position"), Vec3(axis), emission,
+                                inner, outer);
         } else if (light.type == "directional") {
             glm::dvec3 direction;
             if (!Direction(-glm::dvec3(aWorld[2]), direction)) Fail(aWhat + ": the directional light's node has a degenerate transform");
             mScene.AddDirectionalLight(Vec3(direction), emission);
         } else {
-            Fail(what + ": light type '" + Excerpt(light.type) + "' is not supported (point and directional are)");
+            Fail(what + ": light type '" + Excerpt(light.type) + "' is not supported (point, spot and directional are)");
         }
     }
 

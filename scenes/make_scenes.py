@@ -457,6 +457,15 @@ def to_gltf(scene):
                        "color": list(color), "intensity": intensity})
         nodes.append({"name": "point light", "translation": f32_vec(pos),
                       "extensions": {"KHR_lights_punctual": {"light": len(lights) - 1}}})
+    if scene.get("spot") is not None:
+        pos, travel, color, intensity, inner, outer = scene["spot"]
+        lights.append({"name": "spot light", "type": "spot", "color": list(color),
+                       "intensity": intensity,
+                       "spot": {"innerConeAngle": inner, "outerConeAngle": outer}})
+        matrix = direction_matrix(travel)   # the light shines down its local -Z
+        matrix[12:15] = f32_vec(pos)
+        nodes.append({"name": "spot light", "matrix": matrix,
+                      "extensions": {"KHR_lights_punctual": {"light": len(lights) - 1}}})
 
     # Buffer: positions then indices (positions are 12-byte aligned, so the
     # index view starts 4-byte aligned), then normals if any.
@@ -563,6 +572,19 @@ def build_sds_glass_sphere():
     return scene
 
 
+def build_spot_light():
+    """The empty white Cornell box (mask 4: no light box, no spheres) lit by a spot
+    light (KHR_lights_punctual) instead of the point light: hung under the ceiling,
+    tilted towards the back right, inner cone 0.35 rad, outer 0.6 rad, so that the
+    image shows the full-intensity disc, the falloff ring and the dark outside on the
+    floor and the back wall. Only diffuse surfaces: every estimator can render it (the
+    tests compare pt, lt, bpt and vcm on it). Intensity 20 W/sr on the axis."""
+    scene = cornell_variant(LIGHT_POINT, "spot light in the empty white box", [])
+    scene["point"] = None
+    scene["spot"] = ((0.0, -0.3, 1.2), (0.35, 0.45, -1.0), (1.0, 1.0, 1.0), 20.0, 0.35, 0.6)
+    return scene
+
+
 # Veach's glossy plates (Veach 1997, fig. 9.2): four plates of four Phong exponents,
 # four sphere lights of four radii whose radiance scales as 1/r^2 (equal power).
 PLATE_EXPONENTS = [20.0, 150.0, 1200.0, 10000.0]     # nearest (roughest) to farthest
@@ -665,6 +687,7 @@ def build_smooth_sphere_box():
 # (file name, builder) of the figure scenes.
 FIGURE_SCENES = [
     ("veach_plates.gltf", build_veach_plates),
+    ("spot_light.gltf", build_spot_light),
     ("indirect_room.gltf", build_indirect_room),
     ("sds_glass_sphere.gltf", build_sds_glass_sphere),
     ("diffuse_box.gltf", lambda: cornell_variant(

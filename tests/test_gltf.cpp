@@ -223,6 +223,8 @@ TEST_CASE("Cornell light emission matches SmallVCM's lights", "[gltf]") {
                 break;
             case LightType::kSphere:
                 FAIL("no Cornell scene has a sphere light");
+            case LightType::kSpot:
+                FAIL("no Cornell scene has a spot light");
             }
         }
         // The emitting triangles are the last two (light-box bottom), one light each.

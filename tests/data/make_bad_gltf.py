@@ -394,9 +394,37 @@ def with_punctual(light, node=POINT_LIGHT_NODE):
     return change
 
 
-bad("light_spot.gltf", "a KHR_lights_punctual spot light", "light type 'spot' is not supported")(
-    lambda: modified(with_punctual({"type": "spot", "intensity": 1.0,
-                                    "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}})))
+SPOT_LIGHT_NODE = {"name": "spot light", "translation": [0, 0, 0.5],
+                   "extensions": {"KHR_lights_punctual": {"light": 0}}}
+
+
+def spot(spot_properties):
+    """A spot light (shining down -z of an unrotated node) with these cone properties."""
+    return modified(with_punctual({"type": "spot", "name": "lamp", "intensity": 1.0, "spot": spot_properties},
+                                  SPOT_LIGHT_NODE))
+
+
+bad("light_spot_inner_negative.gltf", "a spot light with innerConeAngle -0.1",
+    "light 0 'lamp' (spot, innerConeAngle -0.1, outerConeAngle 0.5): innerConeAngle is negative")(
+    lambda: spot({"innerConeAngle": -0.1, "outerConeAngle": 0.5}))
+bad("light_spot_inner_not_less.gltf", "a spot light with innerConeAngle 0.5 = outerConeAngle",
+    "innerConeAngle is not less than outerConeAngle")(
+    lambda: spot({"innerConeAngle": 0.5, "outerConeAngle": 0.5}))
+bad("light_spot_inner_default_above_outer.gltf", "a spot light with outerConeAngle -0.2 (the inner default 0 "
+    "is then not less)", "innerConeAngle is not less than outerConeAngle")(
+    lambda: spot({"outerConeAngle": -0.2}))
+bad("light_spot_outer_above_half_pi.gltf", "a spot light with outerConeAngle 2 (> pi/2)",
+    "outerConeAngle exceeds pi/2")(
+    lambda: spot({"innerConeAngle": 0.2, "outerConeAngle": 2.0}))
+bad("light_spot_outer_huge.gltf", "a spot light with outerConeAngle 1e300 (infinite in float32)",
+    "a cone angle is not finite")(
+    lambda: spot({"innerConeAngle": 0.2, "outerConeAngle": 1e300}))
+bad("light_spot_outer_tiny.gltf", "a spot light with outerConeAngle 0.001 (below the 0.01 rad single "
+    "precision samples accurately)", "outerConeAngle is below 0.01 rad")(
+    lambda: spot({"outerConeAngle": 0.001}))
+bad("light_spot_angle_string.gltf", "a spot light whose innerConeAngle is the string \"0.1\"",
+    "light 0: spot.innerConeAngle must be a number (radians)")(
+    lambda: spot({"innerConeAngle": "0.1", "outerConeAngle": 0.5}))
 bad("light_range.gltf", "a point light with range 10", "'range' is not supported")(
     lambda: modified(with_punctual({"type": "point", "intensity": 1.0, "range": 10.0})))
 bad("light_index_out_of_range.gltf", "a node refers to light 3 (there is 1)",

@@ -136,6 +136,11 @@ void CheckScene(const smallvcm::Scene& aScene) {
         case LightType::kPoint:
             if (!Finite(l.mPosition)) Finding("a point light's position is not finite");
             break;
+        case LightType::kSpot:
+            if (!Finite(l.mPosition) || !Unit(l.mDirection)) Finding("a spot light's position or axis is not finite");
+            if (!(l.mSpotInnerConeAngle >= 0.f && l.mSpotInnerConeAngle < l.mSpotOuterConeAngle &&
+                  l.mSpotOuterConeAngle <= 0.5f * kPi)) Finding("a spot light's cone angles are out of range");
+            break;
         case LightType::kDirectional:
             if (!Unit(l.mDirection)) Finding("a directional light's direction is not a finite unit vector");
             break;

@@ -1,0 +1,265 @@
+// [lights] The lights of the Scene section against their analytic definitions: the spot
+// light's falloff as next-event estimation sees it, the power its light sub-paths carry,
+// and next-event estimation and emission describing the same light. [lights][integrators]
+// (excluded from `make unit` with the other whole-scene checks): the estimators agree on
+// scenes lit by these lights, region by region.
+#include "test_util.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <memory>
+#include <vector>
+
+using namespace smallvcm;
+using namespace testutil;
+
+namespace {
+
+constexpr double kPiD = 3.14159265358979323846;
+
+// The KHR_lights_punctual reference falloff, written out again in double from the
+// extension's text (not from the header): clamp((c - cos outer) / d, 0, 1)^2 with
+// d = max(0.001, cos inner - cos outer).
+double ReferenceSpotFalloff(double aCos, double aInner, double aOuter) {
+    const double d = std::max(0.001, std::cos(aInner) - std::cos(aOuter));
+    const double ramp = std::min(std::max((aCos - std::cos(aOuter)) / d, 0.0), 1.0);
+    return ramp * ramp;
+}
+
+// Integral of the reference falloff over the directions whose cosine to the axis lies in
+// [aCosLow, aCosHigh]: 2 pi Integral s(c) dc, by Simpson's rule on 20000 intervals (the
+// integrand is piecewise quadratic, so this is exact up to rounding within each piece
+// and 1e-9 across the two kinks).
+double ReferenceSpotFlux(double aCosLow, double aCosHigh, double aInner, double aOuter) {
+    const int n = 20000;
+    const double h = (aCosHigh - aCosLow) / n;
+    double sum = ReferenceSpotFalloff(aCosLow, aInner, aOuter) + ReferenceSpotFalloff(aCosHigh, aInner, aOuter);
+    for (int i = 1; i < n; i++) sum += (i % 2 ? 4.0 : 2.0) * ReferenceSpotFalloff(aCosLow + i * h, aInner, aOuter);
+    return 2.0 * kPiD * sum * h / 3.0;
+}
+
+// A scene holding one spot light at the origin shining down -z (and a floor far below,
+// since a scene needs geometry).
+Scene SpotScene(float aInner, float aOuter, const Vec3& aIntensity) {
+    Scene scene;
+    Material white;
+    white.mDiffuseReflectance = Vec3(0.5f);
+    const int material = scene.AddMaterial(white);
+    scene.AddTriangle(Vec3(-10.f, -10.f, -5.f), Vec3(10.f, -10.f, -5.f), Vec3(0.f, 10.f, -5.f), material);
+    scene.AddSpotLight(Vec3(0.f), Vec3(0.f, 0.f, -1.f), aIntensity, aInner, aOuter);
+    scene.Finalize();
+    return scene;
+}
+
+// Per-iteration block means of one renderer: each iteration is an independent estimate
+// of the image, so the spread of a block's per-iteration values gives its standard error
+// (the same statistics as test_integrators.cpp's region-by-region agreement).
+struct BlockMeans {
+    int mBlocks = 0, mIterations = 0;
+    std::vector<glm::dvec3> mSum, mSumSqr;
+    glm::dvec3 Mean(int aBlock) const { return mSum[size_t(aBlock)] / double(mIterations); }
+    glm::dvec3 StandardError(int aBlock) const {
+        const glm::dvec3 mean = Mean(aBlock);
+        const glm::dvec3 variance = (mSumSqr[size_t(aBlock)] / double(mIterations) - mean * mean) *
+                                    (double(mIterations) / double(mIterations - 1));
+        return glm::sqrt(glm::max(variance, glm::dvec3(0.0)) / double(mIterations));
+    }
+};
+
+BlockMeans RenderBlockMeans(const Scene& aScene, Algorithm aAlgorithm, int aIterations, int aBlockSize, uint64_t aSeed) {
+    RenderOptions options;
+    options.mAlgorithm = aAlgorithm;
+    options.mProgress = false;
+    std::unique_ptr<AbstractRenderer> renderer = CreateRenderer(aScene, options);
+    const int width = aScene.mCamera.Width(), height = aScene.mCamera.Height();
+    const int blocksX = width / aBlockSize;
+    BlockMeans stats;
+    stats.mBlocks = blocksX * (height / aBlockSize);
+    stats.mIterations = aIterations;
+    stats.mSum.assign(size_t(stats.mBlocks), glm::dvec3(0.0));
+    stats.mSumSqr = stats.mSum;
+    Image previous(width, height);
+    for (int i = 0; i < aIterations; i++) {
+        Rng rng = IterationRng(aSeed, i);
+        renderer->RunIteration(i, rng);
+        const Image cumulative = renderer->GetFilm().Resolve(1.0);
+        std::vector<glm::dvec3> blocks(stats.mSum.size(), glm::dvec3(0.0));
+        for (int y = 0; y < (height / aBlockSize) * aBlockSize; y++)
+            for (int x = 0; x < blocksX * aBlockSize; x++)
+                blocks[size_t((y / aBlockSize) * blocksX + x / aBlockSize)] +=
+                    (glm::dvec3(cumulative.At(x, y)) - glm::dvec3(previous.At(x, y))) / double(aBlockSize * aBlockSize);
+        for (size_t b = 0; b < blocks.size(); b++) {
+            stats.mSum[b] += blocks[b];
+            stats.mSumSqr[b] += blocks[b] * blocks[b];
+        }
+        previous = cumulative;
+    }
+    return stats;
+}
+
+// The largest |z| = |m_a - m_b| / sqrt(se_a^2 + se_b^2) over blocks and channels.
+double WorstZ(const BlockMeans& aA, const BlockMeans& aB) {
+    double worst = 0.0;
+    for (int b = 0; b < aA.mBlocks; b++) {
+        const glm::dvec3 difference = aA.Mean(b) - aB.Mean(b);
+        const glm::dvec3 se = glm::sqrt(aA.StandardError(b) * aA.StandardError(b) + aB.StandardError(b) * aB.StandardError(b));
+        for (int c = 0; c < 3; c++) {
+            if (se[c] == 0.0) {
+                CHECK(difference[c] == Approx(0.0).margin(1e-6));
+                continue;
+            }
+            worst = std::max(worst, std::abs(difference[c]) / se[c]);
+        }
+    }
+    return worst;
+}
+
+// pt, lt and vcm against bpt, per 4x4 block and channel. SEs from 256 independent
+// iterations (1024 for pt); 192 z-values per comparison: |z| < 5 keeps a false alarm
+// near 1e-4 per comparison for normal errors, as in test_integrators.cpp. Only scenes
+// whose surfaces are all diffuse come here, so every estimator samples every path.
+void CheckEstimatorsAgree(const Scene& aScene, const char* aWhat) {
+    const BlockMeans bpt = RenderBlockMeans(aScene, Algorithm::kBidirectionalPathTracing, 256, 4, 101);
+    for (Algorithm other : {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kVertexConnectionMerging}) {
+        const int iterations = other == Algorithm::kPathTracing ? 1024 : 256;
+        const double worstZ = WorstZ(RenderBlockMeans(aScene, other, iterations, 4, 202), bpt);
+        INFO(aWhat << ": " << AlgorithmShortName(other) << " vs bpt, worst |z| " << worstZ);
+        CHECK(worstZ < 5.0);
+    }
+}
+
+} // namespace
+
+TEST_CASE("A spot light's next-event estimate is I s(cos theta) cos / d^2 inside the inner cone, in the falloff ring, and zero outside", "[lights]") {
+    const float inner = 0.3f, outer = 0.6f;
+    const Vec3 intensity(2.f, 3.f, 5.f);
+    const Scene scene = SpotScene(inner, outer, intensity);
+    const Light& light = scene.GetLight(0);
+    REQUIRE(light.mType == LightType::kSpot);
+    CHECK(light.IsDelta());
+    CHECK(light.IsFinite());
+    const double distance = 1.7;
+    // 0 and 0.2: inside the inner cone (s = 1); 0.35, 0.45, 0.55: the falloff ring;
+    // 0.65 and 1.2: outside the outer cone (no sample).
+    for (double theta : {0.0, 0.2, 0.35, 0.45, 0.55, 0.65, 1.2}) {
+        const Vec3 direction(float(std::sin(theta)), 0.f, float(-std::cos(theta)));
+        const Vec3 receiver = float(distance) * direction;
+        LightSample sample;
+        const bool lit = light.Illuminate(scene.GetSceneSphere(), receiver, Vec2(0.3f, 0.7f), sample);
+        const double falloff = ReferenceSpotFalloff(std::cos(theta), inner, outer);
+        INFO("theta " << theta << ", reference falloff " << falloff);
+        if (theta < inner) CHECK(falloff == 1.0);
+        if (theta > inner && theta < outer) CHECK((falloff > 0.0 && falloff < 1.0));
+        if (falloff == 0.0) {
+            CHECK_FALSE(lit);
+            continue;
+        }
+        REQUIRE(lit);
+        // A receiver facing the light: irradiance E = radiance * cos(0) / pdf = I s / d^2.
+        const glm::dvec3 irradiance = glm::dvec3(sample.mRadiance) / double(sample.mDirectPdfW);
+        for (int c = 0; c < 3; c++)
+            CHECK(irradiance[c] == Approx(double(intensity[c]) * falloff / (distance * distance)).epsilon(2e-5));
+        CHECK(glm::length(sample.mDirToLight + direction) < 1e-6f);
+        CHECK(sample.mDistance == Approx(distance).epsilon(1e-6));
+        // Emission starts light sub-paths uniformly inside the outer cone.
+        CHECK(sample.mEmissionPdfW == Approx(1.0 / (2.0 * kPiD * (1.0 - std::cos(double(outer))))).epsilon(1e-5));
+        CHECK(sample.mCosAtLight == 1.f);
+    }
+}
+
+TEST_CASE("A spot light's power and falloff solid angle follow the closed form, with the reference code's guard for nearly equal angles", "[lights]") {
+    struct Cone { float inner, outer; };
+    // glTF's defaults; a typical cone; the widest allowed; nearly equal angles, where
+    // cos inner - cos outer = 4.8e-4 < 0.001 and the reference code's max() applies.
+    for (const Cone& cone : {Cone{0.f, 0.25f * kPi}, Cone{0.3f, 0.6f}, Cone{1.2f, 0.5f * kPi}, Cone{0.5f, 0.501f}}) {
+        const Scene scene = SpotScene(cone.inner, cone.outer, Vec3(1.f));
+        const double numeric = ReferenceSpotFlux(std::cos(double(cone.outer)), 1.0, cone.inner, cone.outer);
+        INFO("inner " << cone.inner << ", outer " << cone.outer << ": numeric " << numeric);
+        CHECK(scene.GetLight(0).SpotFalloffSolidAngle() == Approx(numeric).epsilon(1e-5));
+    }
+}
+
+TEST_CASE("Light sub-paths from a spot light carry its analytic power, ring by ring, and next-event estimation sees each emitted direction with the same intensity and pdf", "[lights]") {
+    struct Cone { float inner, outer; };
+    for (const Cone& cone : {Cone{0.f, 0.25f * kPi}, Cone{0.3f, 0.6f}, Cone{0.5f, 0.501f}}) {
+        const Vec3 intensity(4.f);
+        const Scene scene = SpotScene(cone.inner, cone.outer, intensity);
+        const Light& light = scene.GetLight(0);
+        const double cosOuter = std::cos(double(cone.outer));
+        // Eight rings of equal width in cos theta over the outer cone, plus the whole.
+        const int rings = 8, samples = 200000;
+        std::vector<std::vector<double>> flux(rings + 1, std::vector<double>(size_t(samples), 0.0));
+        Rng rng(12345, 3);
+        int mismatches = 0;
+        float worstDifference = 0.f;
+        for (int i = 0; i < samples; i++) {
+            LightEmission emission;
+            const Vec2 rndDirection = rng.GetVec2(), rndPosition = rng.GetVec2();
+            if (!light.Emit(scene.GetSceneSphere(), rndDirection, rndPosition, emission)) continue;
+            // Emitted flux estimate of this sample: energy / pdf (one channel: grey light).
+            const double value = double(emission.mEnergy.x) / double(emission.mEmissionPdfW);
+            const double cosTheta = -double(emission.mDirection.z);
+            const int ring = std::min(rings - 1, int((cosTheta - cosOuter) / (1.0 - cosOuter) * rings));
+            flux[size_t(std::max(0, ring))][size_t(i)] = value;
+            flux[size_t(rings)][size_t(i)] = value;
+            // The same direction, seen by next-event estimation from a point along it.
+            // The falloff is evaluated from two float cosines of the same direction (the
+            // sampled one, and the axis dotted with the normalised direction to the light):
+            // they differ by ~1e-7, times ds/dc <= 2 / d <= 2000 (d >= 0.001).
+            LightSample sample;
+            const bool lit = light.Illuminate(scene.GetSceneSphere(), emission.mPosition + 1.5f * emission.mDirection,
+                                              Vec2(0.5f), sample);
+            const float difference = std::abs((lit ? sample.mRadiance.x : 0.f) - emission.mEnergy.x) / intensity.x;
+            worstDifference = std::max(worstDifference, difference);
+            if (difference > 1e-3f || (lit && std::abs(sample.mEmissionPdfW - emission.mEmissionPdfW) > 1e-6f * emission.mEmissionPdfW) ||
+                emission.mDirectPdfA != 1.f || emission.mCosAtLight != 1.f)
+                mismatches++;
+        }
+        INFO("largest |NEE intensity - emitted intensity| / I: " << worstDifference);
+        CHECK(mismatches == 0);
+        for (int r = 0; r <= rings; r++) {
+            const double low = r < rings ? cosOuter + (1.0 - cosOuter) * r / rings : cosOuter;
+            const double high = r < rings ? cosOuter + (1.0 - cosOuter) * (r + 1) / rings : 1.0;
+            const double analytic = double(intensity.x) * ReferenceSpotFlux(low, high, cone.inner, cone.outer);
+            const MeanAndError estimate = MeanOf(flux[size_t(r)]);
+            // 4 standard errors of the mean of 200000 independent samples (measured from
+            // their spread), plus 1e-5 relative for float rounding of cos(outer).
+            INFO("inner " << cone.inner << ", outer " << cone.outer << ", ring " << r << ": estimate " << estimate.mean
+                 << " +- " << estimate.standardError << ", analytic " << analytic << ", z "
+                 << (estimate.mean - analytic) / estimate.standardError);
+            CHECK(std::abs(estimate.mean - analytic) <= 4.0 * estimate.standardError + 1e-5 * analytic);
+        }
+        CHECK(double(intensity.x) * light.SpotFalloffSolidAngle() ==
+              Approx(double(intensity.x) * ReferenceSpotFlux(cosOuter, 1.0, cone.inner, cone.outer)).epsilon(1e-5));
+    }
+}
+
+TEST_CASE("The spot scene's light points down its node's -Z with the file's cone and intensity", "[lights]") {
+    const Scene scene = LoadGltfScene("../scenes/spot_light.gltf");
+    REQUIRE(scene.LightCount() == 1);
+    const Light& light = scene.GetLight(0);
+    REQUIRE(light.mType == LightType::kSpot);
+    CHECK(glm::length(light.mPosition - Vec3(0.f, -0.3f, 1.2f)) < 1e-6f);
+    CHECK(glm::length(light.mDirection - glm::normalize(Vec3(0.35f, 0.45f, -1.f))) < 1e-6f);
+    CHECK(light.mSpotInnerConeAngle == Approx(0.35f));
+    CHECK(light.mSpotOuterConeAngle == Approx(0.6f));
+    CHECK(light.mEmission == Vec3(20.f));
+}
+
+TEST_CASE("A spot light with angles outside the extension's ranges is refused when the scene is finalized", "[lights]") {
+    struct Cone { float inner, outer; const char* problem; };
+    for (const Cone& cone : {Cone{-0.1f, 0.5f, "innerConeAngle is negative"}, Cone{0.5f, 0.5f, "is not less than"},
+                             Cone{0.2f, 1.6f, "exceeds pi/2"}, Cone{0.f, 0.005f, "below 0.01 rad"},
+                             Cone{0.f, std::nanf(""), "not finite"}}) {
+        INFO("inner " << cone.inner << ", outer " << cone.outer);
+        CHECK_THROWS_WITH(SpotScene(cone.inner, cone.outer, Vec3(1.f)),
+                          Catch::Contains("light 0 (spot)") && Catch::Contains(cone.problem));
+    }
+}
+
+TEST_CASE("pt, lt, bpt and vcm agree region by region on the spot-light scene", "[lights][integrators]") {
+    Scene scene = LoadGltfScene("../scenes/spot_light.gltf");
+    scene.mCamera.SetResolution(32, 32);
+    CheckEstimatorsAgree(scene, "spot_light.gltf");
+}
