@@ -78,6 +78,7 @@
 //    outputs oFoo, as in SmallVCM and the report's notation (dVCM, dVC, dVM, eta).
 //  * Non-specular surfaces are one-sided: they reflect only on the side their
 //    geometric normal (counter-clockwise winding) points to. Emitters are one-sided too
+//    (unless built two-sided: glTF doubleSided emissive materials)
 //    and reflect only if their material says so (SmallVCM's lights, and glTF emitters
 //    without a SMALLVCM_material, are black).
 //  * Raster y = 0 is the top image row. Film values are radiance, no tone mapping.
@@ -1119,7 +1120,10 @@ struct Light {
     float mSpotInnerConeAngle = 0.f, mSpotOuterConeAngle = 0.25f * kPi;  // radians (glTF defaults)
     // Set by Scene::Finalize from the angles: cos(outer) and 1 / d of the falloff above.
     float mSpotCosOuter = 0.f, mSpotFalloffScale = 0.f;
-    // Area light: its triangles, sampled by area.
+    // Area light: its triangles, sampled by area. Two-sided (glTF doubleSided) it emits
+    // mEmission from both sides; emission then picks a side with probability 1/2, so its
+    // direction pdf is cos / (2 pi) and its power 2 pi A L. Sphere lights emit outwards only.
+    bool mTwoSided = false;
     std::vector<Vec3> mTriangleP0, mTriangleE1, mTriangleE2, mTriangleNormal;
     std::vector<float> mTriangleCdf;  // cumulative area, normalised to 1
     float mArea = 0.f;
@@ -1128,6 +1132,15 @@ struct Light {
     float mSphereRadius = 0.f;
 
     bool IsDelta() const { return mType == LightType::kPoint || mType == LightType::kSpot || mType == LightType::kDirectional; }
+
+    // Area and sphere lights: the cosine between the surface normal aNormal and a direction
+    // aOutgoing leaving the surface, on the side that emits (<= 0: that side does not).
+    float EmittingCosine(const Vec3& aNormal, const Vec3& aOutgoing) const {
+        const float cosine = glm::dot(aNormal, aOutgoing);
+        return mTwoSided ? std::abs(cosine) : cosine;
+    }
+    // The probability with which Emit picks the side a direction leaves from.
+    float SideProbability() const { return mTwoSided ? 0.5f : 1.f; }
 
     // The spot falloff s(cos theta) above; aCosTheta is the cosine to the axis.
     float SpotFalloff(float aCosTheta) const {
@@ -1158,10 +1171,10 @@ struct Light {
             if (!(distSqr > 0.f)) return false;
             oSample.mDistance = std::sqrt(distSqr);
             oSample.mDirToLight = toLight / oSample.mDistance;
-            const float cosNormalDir = glm::dot(normal, -oSample.mDirToLight);
-            if (cosNormalDir <= kEpsCosine) return false;  // one-sided emitters
+            const float cosNormalDir = EmittingCosine(normal, -oSample.mDirToLight);
+            if (cosNormalDir <= kEpsCosine) return false;  // the side facing the receiver does not emit
             oSample.mDirectPdfW = PdfAtoW(1.f / mArea, oSample.mDistance, cosNormalDir);
-            oSample.mEmissionPdfW = cosNormalDir * kInvPi / mArea;
+            oSample.mEmissionPdfW = cosNormalDir * kInvPi * SideProbability() / mArea;
             oSample.mCosAtLight = cosNormalDir;
             oSample.mRadiance = mEmission;
             return true;
@@ -1216,14 +1229,21 @@ struct Light {
         case LightType::kSphere: {
             Vec3 normal;
             SamplePosition(aRndPosition, oEmission.mPosition, normal);
+            if (mTwoSided) {
+                // The side by the first direction number, whose rest, rescaled to [0, 1),
+                // then picks the direction.
+                const bool back = aRndDirection.x >= 0.5f;
+                aRndDirection.x = std::min(2.f * aRndDirection.x - (back ? 1.f : 0.f), 0.99999994f);
+                if (back) normal = -normal;
+            }
             float directionPdfW;
             Vec3 localDirection = SampleCosHemisphereW(aRndDirection, &directionPdfW);
             // SmallVCM clamps the cosine so that the pdf stays positive at the horizon.
             localDirection.z = std::max(localDirection.z, kEpsCosine);
             directionPdfW = localDirection.z * kInvPi;
             oEmission.mDirection = Frame(normal).ToWorld(localDirection);
-            oEmission.mNormal = normal;
-            oEmission.mEmissionPdfW = directionPdfW / mArea;
+            oEmission.mNormal = normal;  // of the emitting side
+            oEmission.mEmissionPdfW = directionPdfW * SideProbability() / mArea;
             oEmission.mDirectPdfA = 1.f / mArea;
             oEmission.mCosAtLight = localDirection.z;
             oEmission.mEnergy = mEmission * localDirection.z;
@@ -1279,10 +1299,10 @@ struct Light {
         switch (mType) {
         case LightType::kArea:
         case LightType::kSphere: {
-            const float cosOutL = glm::dot(aHitNormal, -aRayDirection);
+            const float cosOutL = EmittingCosine(aHitNormal, -aRayDirection);
             if (cosOutL <= 0.f) return Vec3(0.f);
             if (oDirectPdfA) *oDirectPdfA = 1.f / mArea;
-            if (oEmissionPdfW) *oEmissionPdfW = cosOutL * kInvPi / mArea;
+            if (oEmissionPdfW) *oEmissionPdfW = cosOutL * kInvPi * SideProbability() / mArea;
             return mEmission;
         }
         case LightType::kBackground: {
@@ -1432,11 +1452,13 @@ public:
         mSpheres.push_back(sphere);
         return int(mSpheres.size()) - 1;
     }
-    // All the given triangles become one light of constant radiance, sampled by area.
-    int AddAreaLight(const std::vector<int>& aTriangleIds, const Vec3& aRadiance) {
+    // All the given triangles become one light of constant radiance, sampled by area,
+    // emitting from their front sides (aTwoSided: from both).
+    int AddAreaLight(const std::vector<int>& aTriangleIds, const Vec3& aRadiance, bool aTwoSided = false) {
         Light light;
         light.mType = LightType::kArea;
         light.mEmission = aRadiance;
+        light.mTwoSided = aTwoSided;
         const int id = int(mLights.size());
         for (int t : aTriangleIds) mTriangles.at(size_t(t)).mLightId = id;
         mLights.push_back(light);
@@ -1707,7 +1729,9 @@ private:
         const double discArea = double(kPi) * Sqr(double(mSceneSphere.mRadius));
         double power = 0.0;
         switch (light.mType) {
-        case LightType::kArea: case LightType::kSphere: power = brightest * double(kPi) * double(light.mArea); break;
+        case LightType::kArea: case LightType::kSphere:
+            power = brightest * double(kPi) * double(light.mArea) / double(light.SideProbability());
+            break;
         case LightType::kPoint: power = brightest * 4.0 * double(kPi); break;
         case LightType::kSpot: power = brightest * light.SpotFalloffSolidAngle(); break;
         case LightType::kDirectional: power = brightest * discArea; break;
@@ -3604,8 +3628,8 @@ private:
         dirToCamera /= distance;
         Vec2 raster;
         if (!camera.WorldToRaster(aEmission.mPosition, raster) || !camera.CheckRaster(raster)) return;
-        const float cosAtLight = glm::dot(aEmission.mNormal, dirToCamera);
-        if (cosAtLight <= kEpsCosine) return;  // emitters are one-sided
+        const float cosAtLight = aLight.EmittingCosine(aEmission.mNormal, dirToCamera);
+        if (cosAtLight <= kEpsCosine) return;  // the side facing the camera does not emit
         // L_e G W_e / p_A(x0) / N_L, with G W_e the camera's area pdf of the point.
         const float positionPdfA = aLightPickProb / aLight.mArea;
         const Vec3 contribution = aLight.mEmission * (CameraPdfA(dirToCamera, distance, cosAtLight) /
@@ -5202,6 +5226,7 @@ private:
                 emission *= float(NumberOr(strength->second, "emissiveStrength", 1.0));
             CheckColor(emission, what + ": the emission", false);
             mMaterialEmission.push_back(emission);
+            mMaterialEmitsTwoSided.push_back(source.doubleSided);
             // Emitters are black (SmallVCM's lights do not reflect) unless an explicit
             // SMALLVCM_material gives them a reflectance.
             if (!IsBlack(emission) && extension == source.extensions.end()) {
@@ -5222,6 +5247,7 @@ private:
             material.mPhongExponent = 0.f;
             mDefaultMaterial = mScene.AddMaterial(material);
             mMaterialEmission.push_back(Vec3(0.f));
+            mMaterialEmitsTwoSided.push_back(false);
         }
         return mDefaultMaterial;
     }
@@ -5454,7 +5480,7 @@ private:
                                          "normals to it)");
             // An emissive primitive instance is one area light over all its triangles.
             if (!IsBlack(mMaterialEmission[size_t(material)]) && !triangleIds.empty())
-                mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)]);
+                mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)], mMaterialEmitsTwoSided[size_t(material)]);
             // Whether its outside reflects depends on the material: say which.
             const bool twoSided = mScene.mMaterials[size_t(material)].mTwoSided;
             if (LooksInsideOut(world, indices, flip) && mReport.mNotes.size() < 64)
@@ -5689,6 +5715,7 @@ private:
     tinygltf::Model mModel;
     Scene mScene;
     std::vector<Vec3> mMaterialEmission;  // per scene material
+    std::vector<bool> mMaterialEmitsTwoSided;  // per scene material: glTF doubleSided (area lights only)
     std::map<std::string, int> mApproximated;  // feature -> occurrences, for one note
     std::unordered_map<int, int> mTextureIndex;  // glTF texture -> scene texture
     static constexpr uint64_t kMaxTexturePixels = uint64_t(1) << 26;  // 64 Mpixel: 768 MB of linear texels

@@ -361,6 +361,8 @@ def to_gltf(scene):
               "pbrMetallicRoughness": pbr}
         if emissive:
             gm["emissiveFactor"] = [1.0, 1.0, 1.0]
+            if scene.get("two_sided_emitters"):
+                gm["doubleSided"] = True
             ext["KHR_materials_emissive_strength"] = {
                 "emissiveStrength": scene["emission"][mid]}
         gm["extensions"] = ext
@@ -585,6 +587,22 @@ def build_spot_light():
     return scene
 
 
+def build_two_sided_emitter():
+    """The empty white Cornell box (mask 4, no point light) lit by one 0.6 x 0.6 lamp
+    whose emissive material is doubleSided: it hangs in the middle, tilted 60 degrees so
+    that its front faces the floor and the back wall, its BACK the camera and the ceiling:
+    a renderer that ignores doubleSided shows a black lamp lighting only the floor. Both
+    sides emit radiance 10. Only diffuse surfaces (the tests compare pt, lt, bpt and vcm
+    on it)."""
+    scene = cornell_variant(LIGHT_POINT, "two-sided lamp in the empty white box", [])
+    scene["point"] = None
+    scene["walls"].append(("two-sided lamp (emitter)", [(EMITTER_0, quad(
+        (-0.3, 0.05, 0.0), (0.0, 0.3, 0.6 * math.sin(math.radians(60.0))), (0.6, 0.0, 0.0)))]))
+    scene["emission"] = {EMITTER_0: 10.0}
+    scene["two_sided_emitters"] = True
+    return scene
+
+
 # Veach's glossy plates (Veach 1997, fig. 9.2): four plates of four Phong exponents,
 # four sphere lights of four radii whose radiance scales as 1/r^2 (equal power).
 PLATE_EXPONENTS = [20.0, 150.0, 1200.0, 10000.0]     # nearest (roughest) to farthest
@@ -688,6 +706,7 @@ def build_smooth_sphere_box():
 FIGURE_SCENES = [
     ("veach_plates.gltf", build_veach_plates),
     ("spot_light.gltf", build_spot_light),
+    ("two_sided_emitter.gltf", build_two_sided_emitter),
     ("indirect_room.gltf", build_indirect_room),
     ("sds_glass_sphere.gltf", build_sds_glass_sphere),
     ("diffuse_box.gltf", lambda: cornell_variant(

@@ -1,6 +1,7 @@
 // [lights] The lights of the Scene section against their analytic definitions: the spot
 // light's falloff as next-event estimation sees it, the power its light sub-paths carry,
-// and next-event estimation and emission describing the same light. [lights][integrators]
+// two-sided area lights (glTF doubleSided), and next-event estimation, hits and emission
+// describing the same light. [lights][integrators]
 // (excluded from `make unit` with the other whole-scene checks): the estimators agree on
 // scenes lit by these lights, region by region.
 #include "test_util.hpp"
@@ -48,6 +49,22 @@ Scene SpotScene(float aInner, float aOuter, const Vec3& aIntensity) {
     const int material = scene.AddMaterial(white);
     scene.AddTriangle(Vec3(-10.f, -10.f, -5.f), Vec3(10.f, -10.f, -5.f), Vec3(0.f, 10.f, -5.f), material);
     scene.AddSpotLight(Vec3(0.f), Vec3(0.f, 0.f, -1.f), aIntensity, aInner, aOuter);
+    scene.Finalize();
+    return scene;
+}
+
+// A unit square at z = 0 whose front faces +z, one area light of radiance aRadiance,
+// one- or two-sided (and a floor far below, away from the square).
+Scene SquareLightScene(bool aTwoSided, const Vec3& aRadiance) {
+    Scene scene;
+    Material black;
+    const int lamp = scene.AddMaterial(black);
+    const int a = scene.AddTriangle(Vec3(-0.5f, -0.5f, 0.f), Vec3(0.5f, -0.5f, 0.f), Vec3(0.5f, 0.5f, 0.f), lamp);
+    const int b = scene.AddTriangle(Vec3(0.5f, 0.5f, 0.f), Vec3(-0.5f, 0.5f, 0.f), Vec3(-0.5f, -0.5f, 0.f), lamp);
+    scene.AddAreaLight({a, b}, aRadiance, aTwoSided);
+    Material white;
+    white.mDiffuseReflectance = Vec3(0.5f);
+    scene.AddTriangle(Vec3(-10.f, -10.f, -5.f), Vec3(10.f, -10.f, -5.f), Vec3(0.f, 10.f, -5.f), scene.AddMaterial(white));
     scene.Finalize();
     return scene;
 }
@@ -262,4 +279,95 @@ TEST_CASE("pt, lt, bpt and vcm agree region by region on the spot-light scene", 
     Scene scene = LoadGltfScene("../scenes/spot_light.gltf");
     scene.mCamera.SetResolution(32, 32);
     CheckEstimatorsAgree(scene, "spot_light.gltf");
+}
+
+TEST_CASE("A two-sided area light is seen alike from both sides by next-event estimation and by a hit, with half the one-sided emission pdf; a one-sided one is dark from behind", "[lights]") {
+    const Vec3 radiance(3.f);
+    for (bool twoSided : {false, true}) {
+        const Scene scene = SquareLightScene(twoSided, radiance);
+        const Light& light = scene.GetLight(0);
+        CHECK(light.mTwoSided == twoSided);
+        for (float side : {1.f, -1.f}) {
+            INFO((twoSided ? "two-sided" : "one-sided") << ", receiver on the " << (side > 0.f ? "front" : "back"));
+            // A receiver 1 above or below (0.1, 0.2); the sample lands somewhere on the square.
+            const Vec3 receiver(0.1f, 0.2f, side);
+            LightSample sample;
+            const bool lit = light.Illuminate(scene.GetSceneSphere(), receiver, Vec2(0.3f, 0.6f), sample);
+            const bool emits = twoSided || side > 0.f;
+            REQUIRE(lit == emits);
+            // The ray from the receiver hits the square's side that faces it.
+            float directPdfA = 0.f, emissionPdfW = 0.f;
+            const Vec3 hitRadiance = light.GetRadiance(scene.GetSceneSphere(), Vec3(0.f, 0.f, -side), Vec3(0.f, 0.f, 1.f),
+                                                       &directPdfA, &emissionPdfW);
+            if (!emits) {
+                CHECK(IsBlack(hitRadiance));
+                continue;
+            }
+            CHECK(sample.mRadiance == radiance);
+            CHECK(hitRadiance == radiance);
+            const float cosAtLight = std::abs(sample.mDirToLight.z);
+            CHECK(sample.mCosAtLight == Approx(cosAtLight));
+            CHECK(sample.mDirectPdfW == Approx(sample.mDistance * sample.mDistance / cosAtLight).epsilon(1e-5));
+            const float sideProbability = twoSided ? 0.5f : 1.f;
+            CHECK(sample.mEmissionPdfW == Approx(cosAtLight / kPi * sideProbability).epsilon(1e-5));
+            CHECK(directPdfA == Approx(1.f));
+            CHECK(emissionPdfW == Approx(1.f / kPi * sideProbability).epsilon(1e-6));  // cos = 1 for this ray
+        }
+    }
+}
+
+TEST_CASE("Light sub-paths from a two-sided area light leave both sides equally often and carry twice the one-sided power", "[lights]") {
+    const Vec3 radiance(2.f);
+    for (bool twoSided : {false, true}) {
+        const Scene scene = SquareLightScene(twoSided, radiance);
+        const Light& light = scene.GetLight(0);
+        const int samples = 100000;
+        std::vector<double> flux, down;
+        Rng rng(777, 5);
+        int mismatches = 0;
+        for (int i = 0; i < samples; i++) {
+            LightEmission emission;
+            const Vec2 rndDirection = rng.GetVec2(), rndPosition = rng.GetVec2();
+            REQUIRE(light.Emit(scene.GetSceneSphere(), rndDirection, rndPosition, emission));
+            flux.push_back(double(emission.mEnergy.x) / double(emission.mEmissionPdfW));
+            down.push_back(emission.mDirection.z < 0.f ? 1.0 : 0.0);
+            // A camera ray arriving along the emitted direction reversed, at this point,
+            // must find the same radiance and report the same emission pdf.
+            float directPdfA = 0.f, emissionPdfW = 0.f;
+            const Vec3 hitRadiance = light.GetRadiance(scene.GetSceneSphere(), -emission.mDirection, Vec3(0.f, 0.f, 1.f),
+                                                       &directPdfA, &emissionPdfW);
+            if (hitRadiance != radiance || std::abs(emissionPdfW - emission.mEmissionPdfW) > 1e-5f * emission.mEmissionPdfW ||
+                std::abs(emission.mDirectPdfA - directPdfA) > 1e-6f)
+                mismatches++;
+        }
+        CHECK(mismatches == 0);
+        // Energy / pdf = L cos / (cos side-probability / (pi A)) = L pi A / side-probability
+        // for every sample (the horizon clamp aside): the power, 2 pi A L when two-sided.
+        const MeanAndError power = MeanOf(flux);
+        const double expected = double(radiance.x) * kPiD * 1.0 * (twoSided ? 2.0 : 1.0);
+        INFO((twoSided ? "two-sided" : "one-sided") << ": power " << power.mean << " +- " << power.standardError
+             << ", expected " << expected);
+        CHECK(power.mean == Approx(expected).epsilon(1e-5));
+        // The share leaving the back: 1/2 within 4 binomial standard errors (0.0016 at
+        // 1e5 samples), or none at all.
+        const MeanAndError backShare = MeanOf(down);
+        INFO("share leaving the back " << backShare.mean << " +- " << backShare.standardError);
+        if (twoSided) CHECK(std::abs(backShare.mean - 0.5) <= 4.0 * std::sqrt(0.25 / samples));
+        else CHECK(backShare.mean == 0.0);
+    }
+}
+
+TEST_CASE("A glTF emissive material with doubleSided makes a two-sided light; the Cornell lights stay one-sided", "[lights]") {
+    const Scene scene = LoadGltfScene("../scenes/two_sided_emitter.gltf");
+    REQUIRE(scene.LightCount() == 1);
+    CHECK(scene.GetLight(0).mType == LightType::kArea);
+    CHECK(scene.GetLight(0).mTwoSided);
+    for (int i = 0; i < 5; i++)
+        for (const Light& light : LoadGltfScene(CornellPath(i)).mLights) CHECK_FALSE(light.mTwoSided);
+}
+
+TEST_CASE("pt, lt, bpt and vcm agree region by region on the two-sided emitter scene", "[lights][integrators]") {
+    Scene scene = LoadGltfScene("../scenes/two_sided_emitter.gltf");
+    scene.mCamera.SetResolution(32, 32);
+    CheckEstimatorsAgree(scene, "two_sided_emitter.gltf");
 }
