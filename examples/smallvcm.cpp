@@ -84,7 +84,8 @@ void PrintHelp() {
         std::printf("                        %-*s %s\n", nameWidth, integrator->mName.c_str(), integrator->mDescription.c_str());
     std::printf(
         "  -i ITERATIONS       number of iterations, one sample per pixel each (default 1)\n"
-        "  -t SECONDS          time budget; with -t and no -i, runs until the time is up\n"
+        "  -t SECONDS          time budget: without -i, runs until the time is up; with -i too, stops\n"
+        "                        at whichever limit comes first (iterations done or time up)\n"
         "  -o FILE             output image: .png, .hdr or .pfm, in any case (default smallvcm.png),\n"
         "                        written with a sidecar FILE.json saying how it was made\n"
         "  --exposure EV       PNG only: scale radiance by 2^EV before tone mapping (default 0, in [-32, 32])\n"
@@ -376,6 +377,13 @@ std::vector<smallvcm::OutputFile> OutputFiles(const CommandLine& aCl, const smal
     return files;
 }
 
+// For the summary line: " (+ N layers, listed in FILE-stem.layers.json)" when --layers.
+std::string LayersWritten(const CommandLine& aCl, const std::vector<smallvcm::OutputFile>& aFiles) {
+    if (!aCl.mOptions.mTechniqueLayers) return "";
+    const size_t layers = (aFiles.size() - 3) / 2;  // the image, its sidecar and the index are not layers
+    return " (+ " + std::to_string(layers) + " layer" + (layers == 1 ? "" : "s") + ", listed in " + LayerIndexPath(aCl.mOutput) + ")";
+}
+
 // smallvcm merge [-q] [--exposure EV] [--tonemap clamp|aces] OUT RUN1 RUN2 ...
 int MergeMain(int argc, char** argv) {
     bool quiet = false;
@@ -463,14 +471,15 @@ int main(int argc, char** argv) {
         if (result.mStopped)
             std::fprintf(stderr, "smallvcm: interrupted (%s): writing the %d iteration%s accumulated so far\n",
                          stopSignal == SIGTERM ? "SIGTERM" : "SIGINT", result.mIterations, result.mIterations == 1 ? "" : "s");
-        smallvcm::WriteFilesTogether(OutputFiles(cl, result, RenderRecord(cl, report, result, threads, stopSignal)));
+        const std::vector<smallvcm::OutputFile> files = OutputFiles(cl, result, RenderRecord(cl, report, result, threads, stopSignal));
+        smallvcm::WriteFilesTogether(files);
         if (!cl.mQuiet)
-            std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s; %zu triangles and %zu "
+            std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s%s; %zu triangles and %zu "
                         "spheres loaded in %.2f s; %s\n", scenePath.c_str(),
                         cl.mIntegrator->mName.c_str(), cl.mWidth, cl.mHeight, result.mIterations,
                         result.mIterations == 1 ? "" : "s", result.mSeconds, result.mSeconds / std::max(1, result.mIterations),
-                        smallvcm::MeanValue(result.mImage), cl.mOutput.c_str(), scene.mTriangles.size(), scene.mSpheres.size(),
-                        loadSeconds, report.mCamera.c_str());
+                        smallvcm::MeanValue(result.mImage), cl.mOutput.c_str(), LayersWritten(cl, files).c_str(),
+                        scene.mTriangles.size(), scene.mSpheres.size(), loadSeconds, report.mCamera.c_str());
         // A signal that came while the image was written (held back until then) counts too.
         if (gStopSignal.load() != 0) return 128 + gStopSignal.load();
     } catch (const Error& e) {

@@ -354,6 +354,10 @@ TEST_CASE("SIGTERM and SIGINT stop the render, write what was accumulated and ex
         CHECK(image.mWidth == 32);
         CHECK(smallvcm::MeanValue(image) > 0.0);
         CHECK_FALSE(AnyPartial(folder));
+        const nlohmann::json sidecar = nlohmann::json::parse(ReadText(output + ".json"));
+        CHECK(sidecar["run"]["stopped_early"] == true);
+        CHECK(sidecar["run"]["stop_signal"] == (signal == SIGTERM ? "SIGTERM" : "SIGINT"));
+        CHECK(sidecar["iterations"].get<int>() >= 1);
     }
 }
 
@@ -871,4 +875,47 @@ TEST_CASE("The sidecar of a linked-in integrator names it and records every sett
     const Json e = ReadJson(output + ".json")["estimator"];
     CHECK(e["algorithm"] == "mypt");
     for (const char* key : {"max_path_length", "mis", "radius_factor", "radius_alpha", "photons", "knn", "max_radius"}) CHECK(e.contains(key));
+}
+
+// -------------------------------------------------------------------------------------
+// Command-line rough edges
+// -------------------------------------------------------------------------------------
+
+TEST_CASE("The summary line says 1 iteration, 2 iterations, and counts the layers written", "[cli]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "out.pfm";
+    const Run one = RunProgram("-s 2 -a pt -i 1 -r 8x8 -j 1 -o " + Quote(output));
+    INFO(one);
+    CHECK(one.mStdout.find(", 1 iteration in ") != std::string::npos);
+    CHECK(one.mStdout.find("iterations") == std::string::npos);
+    const Run two = RunProgram("-s 2 -a pt -i 2 -r 8x8 -j 1 --layers -o " + Quote(output));
+    INFO(two);
+    CHECK(two.mStdout.find(", 2 iterations in ") != std::string::npos);
+    CHECK(two.mStdout.find("-> " + output + " (+ 2 layers, listed in " + folder / "out.layers.json" + ")") != std::string::npos);
+}
+
+TEST_CASE("-i with -t stops at whichever limit comes first", "[cli]") {
+    // Render's rule (the render loop): a thread takes no new iteration once the iteration
+    // budget is used up or the time is up. So -i 3 -t 100 ends after 3 iterations, long
+    // before 100 s, and -i 1e8 -t 0.5 ends when the time is up, long before 1e8
+    // iterations. The 60-second limit only catches a program that ignores one of them;
+    // no speed is asserted.
+    TemporaryFolder folder;
+    const std::string first = folder / "iterations_first.pfm";
+    const Run fewIterations = RunProgram("-s 2 -a pt -r 8x8 -j 2 -q -i 3 -t 100 -o " + Quote(first), 60);
+    INFO(fewIterations);
+    REQUIRE(fewIterations.mExitCode == 0);
+    const Json a = ReadJson(first + ".json");
+    CHECK(a["iterations"] == 3);
+    CHECK(a["seconds"].get<double>() < 100.0);
+    CHECK(a["run"]["seconds_budget"] == 100.0);
+    const std::string second = folder / "time_first.pfm";
+    const Run shortTime = RunProgram("-s 2 -a pt -r 8x8 -j 2 -q -i 100000000 -t 0.5 -o " + Quote(second), 60);
+    INFO(shortTime);
+    REQUIRE(shortTime.mExitCode == 0);
+    const Json b = ReadJson(second + ".json");
+    CHECK(b["iterations"].get<int64_t>() >= 1);
+    CHECK(b["iterations"].get<int64_t>() < 100000000);
+    CHECK(b["seconds"].get<double>() >= 0.5);
+    CHECK(b["run"]["stopped_early"] == false);  // the budget ended it, not a signal
 }
