@@ -60,6 +60,13 @@
 //  smallvcm::Error, whose what() is one line naming the file or option and the problem.
 //  Nothing else in the library throws on purpose.
 //
+//  Your own integrator: a class derived from AbstractRenderer that overrides
+//  RunIteration(iteration, rng) renders through the same loop as the built-ins:
+//      smallvcm::Render(scene, options, smallvcm::MakeIntegrator<MyTracer>("mine", "my tracer"));
+//  RegisterIntegrator (or a static IntegratorRegistration) makes it known by name, to
+//  FindIntegrator and to the command line's -a. [SECTION] Integrator interface states the
+//  contract; docs/writing-an-integrator.md walks through examples/my_path_tracer.hpp.
+//
 // =====================================================================================
 //  CONFIGURATION MACROS (define before including)
 // =====================================================================================
@@ -2258,8 +2265,8 @@ private:
 //    number of iterations run: a film holds sums of per-iteration estimates.
 //  * Iteration and time budgets, threads, progress, cancellation (checked between
 //    iterations) and the RenderResult are Render()'s: a renderer only renders.
-//  * An exception thrown by RunIteration stops every thread; Render() rethrows its
-//    message as Error.
+//  * An exception thrown by RunIteration stops every thread after its current iteration;
+//    Render() rethrows its message as Error.
 
 enum class Algorithm {
     kEyeLight,
@@ -2305,6 +2312,7 @@ enum class MisHeuristic { kBalance, kPower };
 enum class DirectLightSampling { kMis, kLightOnly, kBsdfOnly };
 
 struct RenderOptions {
+    // The built-in Render(scene, options) runs; a built-in run as an Integrator sets its own.
     Algorithm mAlgorithm = Algorithm::kVertexConnectionMerging;
     int mIterations = 1;          // iterations to run (0: unlimited, then mSeconds must be > 0)
     double mSeconds = 0.0;        // time budget in seconds (0: none)
