@@ -130,7 +130,7 @@ $(BUILD)/check/tests/run_tests: $(BUILD)/check/tests/catch_main.o $(SAN_TEST_OBJ
 # make test: the Catch2 suite (tests tagged [.] are slow and run only when asked for),
 # then the sanitizer smoke stage: the sanitized command line renders every algorithm on
 # every Cornell scene and is fed every bad scene file, then the coursework kit's proof
-# (tools/exercises/kit.py prove: every exercise cut from the header compiles, fails its
+# (tests/exercises/kit.py prove: every exercise cut from the header compiles, fails its
 # own grader and passes the others'), then every figure program runs at quick settings
 # and the gallery check passes (tests/run_suite.sh says how each run counts). Ends with
 # the plain line "tests: N passed, N failed" that CI reads.
@@ -212,7 +212,7 @@ convergence: deps $(BUILD)/convergence
 	    --max-seconds 10 --clock cpu --out docs/performance/convergence.csv
 	/usr/bin/python3 docs/plot_convergence.py docs/performance/convergence.csv
 
-# The coursework kit (docs/exercises/README.md): tools/exercises/kit.py, Python 3 only.
+# The coursework kit (docs/exercises/README.md): tests/exercises/kit.py, Python 3 only.
 #   make exercise NAME=<name>|all [OUT=dir]  a student copy of the header with that exercise's
 #       marked code replaced by its stub, into build/exercise/<name>/ or OUT (NAME=a,b works)
 #   make grade STUDENT=path/to/smallvcm.hpp [EXERCISE=<name>]  builds the graders (the tests
@@ -222,13 +222,13 @@ convergence: deps $(BUILD)/convergence
 #   make student-figures STUDENT=... [QUICK=1] [ONLY=fig_mis,...]  the course figures built
 #       with that copy into build/student-figures/ (docs/exercises/README.md says how)
 exercise:
-	@/usr/bin/python3 tools/exercises/kit.py cut "$(NAME)" $(if $(OUT),--out "$(OUT)")
+	@/usr/bin/python3 tests/exercises/kit.py cut "$(NAME)" $(if $(OUT),--out "$(OUT)")
 grade:
-	@/usr/bin/python3 tools/exercises/kit.py grade $(if $(EXERCISE),--exercise "$(EXERCISE)") "$(STUDENT)"
+	@/usr/bin/python3 tests/exercises/kit.py grade $(if $(EXERCISE),--exercise "$(EXERCISE)") "$(STUDENT)"
 compare:
-	@/usr/bin/python3 tools/exercises/kit.py compare "$(STUDENT)" -- $(ARGS)
+	@/usr/bin/python3 tests/exercises/kit.py compare "$(STUDENT)" -- $(ARGS)
 student-figures:
-	@/usr/bin/python3 tools/exercises/kit.py figures "$(STUDENT)" $(if $(QUICK),--quick) $(if $(ONLY),--only "$(ONLY)")
+	@/usr/bin/python3 tests/exercises/kit.py figures "$(STUDENT)" $(if $(QUICK),--quick) $(if $(ONLY),--only "$(ONLY)")
 
 clean:
 	rm -rf $(BUILD)

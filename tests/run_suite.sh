@@ -12,7 +12,7 @@
 #             their fix, tests/test_gltf.cpp checks which), and no run may
 #             print a sanitizer report (AddressSanitizer / UndefinedBehaviorSanitizer) or
 #             fail a SMALLVCM_CHECKS invariant.
-#   --exercises the coursework kit's proof (tools/exercises/kit.py prove): the markers
+#   --exercises the coursework kit's proof (tests/exercises/kit.py prove): the markers
 #             pair up, bad input is refused as documented, and every exercise cut from the
 #             header compiles, fails its own grader and passes the others' (each check
 #             one test; 72 tests, 40-57 s of CPU, most of it compiling the graders per cut)
@@ -117,7 +117,7 @@ fi
 if [ "${1:-}" = "--exercises" ]; then
   shift
   log=$(mktemp)
-  /usr/bin/python3 ../tools/exercises/kit.py prove 2>&1 | tee "$log"
+  /usr/bin/python3 ../tests/exercises/kit.py prove 2>&1 | tee "$log"
   code=${PIPESTATUS[0]}
   ok=$(sed -nE 's/^prove: ([0-9]+) passed, ([0-9]+) failed.*/\1/p' "$log" | tail -n 1)
   bad=$(sed -nE 's/^prove: ([0-9]+) passed, ([0-9]+) failed.*/\2/p' "$log" | tail -n 1)

@@ -7,7 +7,7 @@
 // in a student's terms. In the normal suite they check the reference.
 //
 // Each grader touches only its own exercise's code and code no exercise cuts (the kit's
-// proof, `tools/exercises/kit.py prove`, cuts each exercise and checks that the others'
+// proof, `tests/exercises/kit.py prove`, cuts each exercise and checks that the others'
 // graders still pass). That is why the light-tracing and photon-mapping graders use a
 // point light (an area light's emission samples the cosine hemisphere, exercise 01) and
 // the path-tracing grader uses Lambert surfaces only.

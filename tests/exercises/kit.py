@@ -22,7 +22,7 @@ The header marks each exercise's code with comment lines
     ...
     // END EXERCISE <name>[/<part>]
 
-(no nesting; an exercise may have several parts). tools/exercises/stubs/<name>.inc holds,
+(no nesting; an exercise may have several parts). tests/exercises/stubs/<name>.inc holds,
 after a line "// STUB <name>[/<part>]", the code that replaces each region in the student
 copy: it compiles, runs and returns an obviously wrong but safe value, with a TODO naming
 the handout. The markers stay in the student copy, so a cut copy can be cut again.
@@ -44,7 +44,7 @@ import xml.etree.ElementTree as ET
 import zlib
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-STUB_DIR = os.path.join(ROOT, "tools", "exercises", "stubs")
+STUB_DIR = os.path.join(ROOT, "tests", "exercises", "stubs")
 HEADER = os.path.join(ROOT, "smallvcm.hpp")
 BUILD = os.path.join(ROOT, "build")
 
@@ -185,10 +185,10 @@ def check_header(lines, label):
             raise KitError(f"{label}: exercise {name} has no marked region", 1)
         for region_id in ids:
             if region_id not in stubs:
-                raise KitError(f"{label}: region {region_id} has no stub in tools/exercises/stubs/{name}.inc", 1)
+                raise KitError(f"{label}: region {region_id} has no stub in tests/exercises/stubs/{name}.inc", 1)
         for stub_id in stubs:
             if stub_id not in ids:
-                raise KitError(f"tools/exercises/stubs/{name}.inc: stub {stub_id} has no region in {label}", 1)
+                raise KitError(f"tests/exercises/stubs/{name}.inc: stub {stub_id} has no region in {label}", 1)
     return regions
 
 
