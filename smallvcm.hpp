@@ -1680,9 +1680,11 @@ public:
     }
 
     // The base-colour texel at a hit (white for untextured materials).
-    Vec3 BaseColorTexel(const Hit& aHit) const {
-        const int texture = mMaterials[size_t(aHit.mMaterialId)].mBaseColorTexture;
-        return texture < 0 ? Vec3(1.f) : mTextures[size_t(texture)].Lookup(aHit.mUv);
+    Vec3 BaseColorTexel(const Hit& aHit) const { return BaseColorTexel(aHit.mMaterialId, aHit.mUv); }
+    // The same from a material and texture coordinates (what a stored light vertex keeps).
+    Vec3 BaseColorTexel(int aMaterialId, const Vec2& aUv) const {
+        const int texture = mMaterials[size_t(aMaterialId)].mBaseColorTexture;
+        return texture < 0 ? Vec3(1.f) : mTextures[size_t(texture)].Lookup(aUv);
     }
 
     // Ray leaving a surface point: the origin moves off the surface along the direction.
@@ -3384,6 +3386,7 @@ public:
                         vertex.mDirFix = -ray.mDirection;
                         vertex.mNormal = hit.mNormal;
                         vertex.mShadingNormal = hit.mShadingNormal;
+                        vertex.mUv = hit.mUv;
                         vertex.mMis = light.mMis;
                         mLightVertices.push_back(vertex);
                     }
@@ -3505,10 +3508,10 @@ private:
     };
 
 public:
-    // A stored light vertex: what a connection or a merge needs, in 80 bytes. The BSDF
+    // A stored light vertex: what a connection or a merge needs, in 88 bytes. The BSDF
     // is not stored (it would double the size): a connection rebuilds it from the
-    // incoming direction, normals and material -- exactly the inputs it was made from --
-    // and a merge needs only the incoming direction.
+    // incoming direction, normals, material and texture coordinates -- exactly the inputs
+    // it was made from -- and a merge needs only the incoming direction.
     struct LightVertex {
         Vec3 mHitPoint{0.f};
         int mPathLength = 0;
@@ -3517,6 +3520,7 @@ public:
         Vec3 mDirFix{0.f};  // the exact direction it arrived from (minus the ray direction)
         Vec3 mNormal{0.f};  // geometric normal of the hit
         Vec3 mShadingNormal{0.f};
+        Vec2 mUv{0.f};  // where to read the base-colour texture (8 bytes; the texel itself would take 12)
         SubpathMis mMis;
     };
 
@@ -3720,8 +3724,13 @@ private:
             if (IsBlack(cameraFactor)) continue;
             cameraBsdfDirPdfW *= aBsdf.ContinuationProb();
             cameraBsdfRevPdfW *= aBsdf.ContinuationProb();
+            // The light side's BSDF as the light sub-path saw it, texel included; an
+            // untextured material gets no texel, as in Bsdf::Setup from a hit.
+            const Material& lightMaterial = mScene.GetMaterial(vertex.mMaterialId);
+            const Vec3 lightTexel = mScene.BaseColorTexel(vertex.mMaterialId, vertex.mUv);
             Bsdf lightBsdf;
-            lightBsdf.Setup(vertex.mDirFix, vertex.mNormal, vertex.mShadingNormal, mScene.GetMaterial(vertex.mMaterialId), true);
+            lightBsdf.Setup(vertex.mDirFix, vertex.mNormal, vertex.mShadingNormal, lightMaterial, true,
+                            lightMaterial.mBaseColorTexture >= 0 ? &lightTexel : nullptr);
             float cosLight, lightBsdfDirPdfW, lightBsdfRevPdfW;
             const Vec3 lightFactor = lightBsdf.Evaluate(-direction, cosLight, &lightBsdfDirPdfW, &lightBsdfRevPdfW);
             if (IsBlack(lightFactor)) continue;

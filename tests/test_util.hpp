@@ -136,6 +136,40 @@ inline MeanAndError MeanOf(const std::vector<double>& aValues) {
     return e;
 }
 
+// Mean radiance (channel average) over regions of the image, per batch: aBatches
+// independent renders (seeds aSeed, aSeed + 1, ...) of aIterations each on 2 threads, so
+// that the spread of the batch means gives each region's standard error (MeanOf).
+// aRegionOfPixel[p] is pixel p's region in [0, aRegionCount), or -1 for none. Returns
+// [region][batch], and one more row, index aRegionCount, for the whole image.
+inline std::vector<std::vector<double>> RegionBatchMeans(const Scene& aScene, Algorithm aAlgorithm, int aBatches,
+                                                         int aIterations, uint64_t aSeed,
+                                                         const std::vector<int>& aRegionOfPixel, int aRegionCount) {
+    std::vector<std::vector<double>> means(size_t(aRegionCount) + 1);
+    for (int b = 0; b < aBatches; b++) {
+        RenderOptions options;
+        options.mAlgorithm = aAlgorithm;
+        options.mIterations = aIterations;
+        options.mSeed = aSeed + uint64_t(b);
+        options.mThreads = 2;
+        options.mProgress = false;
+        const RenderResult result = Render(aScene, options);
+        std::vector<double> sums(size_t(aRegionCount) + 1, 0.0);
+        std::vector<int> counts(size_t(aRegionCount), 0);
+        for (size_t p = 0; p < result.mImage.mPixels.size(); p++) {
+            const Vec3& c = result.mImage.mPixels[p];
+            const double value = (double(c.x) + double(c.y) + double(c.z)) / 3.0;
+            sums[size_t(aRegionCount)] += value;
+            const int region = aRegionOfPixel[p];
+            if (region < 0) continue;
+            sums[size_t(region)] += value;
+            counts[size_t(region)]++;
+        }
+        for (int r = 0; r < aRegionCount; r++) means[size_t(r)].push_back(sums[size_t(r)] / counts[size_t(r)]);
+        means[size_t(aRegionCount)].push_back(sums[size_t(aRegionCount)] / double(result.mImage.mPixels.size()));
+    }
+    return means;
+}
+
 // Upper quantile of the chi-square distribution with aDof degrees of freedom at
 // significance 1e-3, by the Wilson-Hilferty approximation: (X / k)^(1/3) is nearly
 // normal with mean 1 - 2/(9k) and variance 2/(9k), so the quantile is
