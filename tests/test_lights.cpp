@@ -69,56 +69,10 @@ Scene SquareLightScene(bool aTwoSided, const Vec3& aRadiance) {
     return scene;
 }
 
-// Per-iteration block means of one renderer: each iteration is an independent estimate
-// of the image, so the spread of a block's per-iteration values gives its standard error
-// (the same statistics as test_integrators.cpp's region-by-region agreement).
-struct BlockMeans {
-    int mBlocks = 0, mIterations = 0;
-    std::vector<glm::dvec3> mSum, mSumSqr;
-    glm::dvec3 Mean(int aBlock) const { return mSum[size_t(aBlock)] / double(mIterations); }
-    glm::dvec3 StandardError(int aBlock) const {
-        const glm::dvec3 mean = Mean(aBlock);
-        const glm::dvec3 variance = (mSumSqr[size_t(aBlock)] / double(mIterations) - mean * mean) *
-                                    (double(mIterations) / double(mIterations - 1));
-        return glm::sqrt(glm::max(variance, glm::dvec3(0.0)) / double(mIterations));
-    }
-};
-
-BlockMeans RenderBlockMeans(const Scene& aScene, Algorithm aAlgorithm, int aIterations, int aBlockSize, uint64_t aSeed) {
-    RenderOptions options;
-    options.mAlgorithm = aAlgorithm;
-    options.mProgress = false;
-    std::unique_ptr<AbstractRenderer> renderer = CreateRenderer(aScene, options);
-    const int width = aScene.mCamera.Width(), height = aScene.mCamera.Height();
-    const int blocksX = width / aBlockSize;
-    BlockMeans stats;
-    stats.mBlocks = blocksX * (height / aBlockSize);
-    stats.mIterations = aIterations;
-    stats.mSum.assign(size_t(stats.mBlocks), glm::dvec3(0.0));
-    stats.mSumSqr = stats.mSum;
-    Image previous(width, height);
-    for (int i = 0; i < aIterations; i++) {
-        Rng rng = IterationRng(aSeed, i);
-        renderer->RunIteration(i, rng);
-        const Image cumulative = renderer->GetFilm().Resolve(1.0);
-        std::vector<glm::dvec3> blocks(stats.mSum.size(), glm::dvec3(0.0));
-        for (int y = 0; y < (height / aBlockSize) * aBlockSize; y++)
-            for (int x = 0; x < blocksX * aBlockSize; x++)
-                blocks[size_t((y / aBlockSize) * blocksX + x / aBlockSize)] +=
-                    (glm::dvec3(cumulative.At(x, y)) - glm::dvec3(previous.At(x, y))) / double(aBlockSize * aBlockSize);
-        for (size_t b = 0; b < blocks.size(); b++) {
-            stats.mSum[b] += blocks[b];
-            stats.mSumSqr[b] += blocks[b] * blocks[b];
-        }
-        previous = cumulative;
-    }
-    return stats;
-}
-
 // The largest |z| = |m_a - m_b| / sqrt(se_a^2 + se_b^2) over blocks and channels.
-double WorstZ(const BlockMeans& aA, const BlockMeans& aB) {
+double WorstZ(const BlockStatistics& aA, const BlockStatistics& aB) {
     double worst = 0.0;
-    for (int b = 0; b < aA.mBlocks; b++) {
+    for (int b = 0; b < aA.BlockCount(); b++) {
         const glm::dvec3 difference = aA.Mean(b) - aB.Mean(b);
         const glm::dvec3 se = glm::sqrt(aA.StandardError(b) * aA.StandardError(b) + aB.StandardError(b) * aB.StandardError(b));
         for (int c = 0; c < 3; c++) {
@@ -137,10 +91,10 @@ double WorstZ(const BlockMeans& aA, const BlockMeans& aB) {
 // near 1e-4 per comparison for normal errors, as in test_integrators.cpp. Only scenes
 // whose surfaces are all diffuse come here, so every estimator samples every path.
 void CheckEstimatorsAgree(const Scene& aScene, const char* aWhat) {
-    const BlockMeans bpt = RenderBlockMeans(aScene, Algorithm::kBidirectionalPathTracing, 256, 4, 101);
+    const BlockStatistics bpt = RenderBlocks(aScene, Algorithm::kBidirectionalPathTracing, 256, 4, 101);
     for (Algorithm other : {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kVertexConnectionMerging}) {
         const int iterations = other == Algorithm::kPathTracing ? 1024 : 256;
-        const double worstZ = WorstZ(RenderBlockMeans(aScene, other, iterations, 4, 202), bpt);
+        const double worstZ = WorstZ(RenderBlocks(aScene, other, iterations, 4, 202), bpt);
         INFO(aWhat << ": " << AlgorithmShortName(other) << " vs bpt, worst |z| " << worstZ);
         CHECK(worstZ < 5.0);
     }

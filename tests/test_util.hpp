@@ -272,4 +272,55 @@ inline std::vector<std::string> SplitCsvLine(const std::string& aLine) {
     return fields;
 }
 
+// Per-iteration statistics of block means: each iteration is an independent estimate of
+// the image, so the spread of a block's per-iteration values gives its standard error.
+struct BlockStatistics {
+    int mBlocksX = 0, mBlocksY = 0, mIterations = 0;
+    std::vector<glm::dvec3> mSum, mSumSqr;
+
+    int BlockCount() const { return mBlocksX * mBlocksY; }
+
+    glm::dvec3 Mean(int aBlock) const { return mSum[size_t(aBlock)] / double(mIterations); }
+    glm::dvec3 StandardError(int aBlock) const {
+        const glm::dvec3 mean = Mean(aBlock);
+        const glm::dvec3 variance = (mSumSqr[size_t(aBlock)] / double(mIterations) - mean * mean) *
+                                    (double(mIterations) / double(mIterations - 1));
+        return glm::sqrt(glm::max(variance, glm::dvec3(0.0)) / double(mIterations));
+    }
+};
+
+// Runs aIterations single iterations of one renderer and records, per block of
+// aBlockSize x aBlockSize pixels, the sum and sum of squares of the block's mean.
+inline BlockStatistics RenderBlocks(const Scene& aScene, Algorithm aAlgorithm, int aIterations, int aBlockSize, uint64_t aSeed) {
+    RenderOptions options;
+    options.mAlgorithm = aAlgorithm;
+    options.mProgress = false;
+    std::unique_ptr<AbstractRenderer> renderer = CreateRenderer(aScene, options);
+    const int width = aScene.mCamera.Width(), height = aScene.mCamera.Height();
+    BlockStatistics stats;
+    stats.mBlocksX = width / aBlockSize;
+    stats.mBlocksY = height / aBlockSize;
+    stats.mIterations = aIterations;
+    stats.mSum.assign(size_t(stats.mBlocksX * stats.mBlocksY), glm::dvec3(0.0));
+    stats.mSumSqr = stats.mSum;
+    Image previous(width, height);
+    for (int i = 0; i < aIterations; i++) {
+        Rng rng = IterationRng(aSeed, i);
+        renderer->RunIteration(i, rng);
+        const Image cumulative = renderer->GetFilm().Resolve(1.0);
+        std::vector<glm::dvec3> blocks(stats.mSum.size(), glm::dvec3(0.0));
+        for (int y = 0; y < stats.mBlocksY * aBlockSize; y++)
+            for (int x = 0; x < stats.mBlocksX * aBlockSize; x++) {
+                const glm::dvec3 value = glm::dvec3(cumulative.At(x, y)) - glm::dvec3(previous.At(x, y));
+                blocks[size_t((y / aBlockSize) * stats.mBlocksX + x / aBlockSize)] += value / double(aBlockSize * aBlockSize);
+            }
+        for (size_t b = 0; b < blocks.size(); b++) {
+            stats.mSum[b] += blocks[b];
+            stats.mSumSqr[b] += blocks[b] * blocks[b];
+        }
+        previous = cumulative;
+    }
+    return stats;
+}
+
 } // namespace testutil
