@@ -379,6 +379,17 @@ def to_gltf(scene):
     nodes.append({"name": "camera", "camera": 0,
                   "matrix": camera_matrix(position, forward, up_hint)})
 
+    # The POSITION accessor of a primitive's vertices (bufferView 0), with the bounds the
+    # glTF spec requires.
+    def add_positions(verts):
+        accessors.append({"bufferView": 0, "byteOffset": len(positions),
+                          "componentType": 5126, "count": len(verts), "type": "VEC3",
+                          "min": [f32_json(min(v[i] for v in verts)) for i in range(3)],
+                          "max": [f32_json(max(v[i] for v in verts)) for i in range(3)]})
+        for v in verts:
+            positions.extend(struct.pack("<3f", *v))
+        return len(accessors) - 1
+
     def add_primitive(mid, triangles):
         """One primitive: unique vertices in first-use order, triangle order kept."""
         verts, idx = [], []
@@ -388,13 +399,7 @@ def to_gltf(scene):
                 if key not in verts:
                     verts.append(key)
                 idx.append(verts.index(key))
-        pos_acc = len(accessors)
-        accessors.append({"bufferView": 0, "byteOffset": len(positions),
-                          "componentType": 5126, "count": len(verts), "type": "VEC3",
-                          "min": [f32_json(min(v[i] for v in verts)) for i in range(3)],
-                          "max": [f32_json(max(v[i] for v in verts)) for i in range(3)]})
-        for v in verts:
-            positions.extend(struct.pack("<3f", *v))
+        pos_acc = add_positions(verts)
         idx_acc = len(accessors)
         accessors.append({"bufferView": 1, "byteOffset": len(indices),
                           "componentType": 5125, "count": len(idx), "type": "SCALAR"})
@@ -424,13 +429,7 @@ def to_gltf(scene):
     normals = bytearray()
     for smooth in scene.get("smooth", []):
         verts = [f32_point(p) for p in smooth["positions"]]
-        pos_acc = len(accessors)
-        accessors.append({"bufferView": 0, "byteOffset": len(positions),
-                          "componentType": 5126, "count": len(verts), "type": "VEC3",
-                          "min": [f32_json(min(v[i] for v in verts)) for i in range(3)],
-                          "max": [f32_json(max(v[i] for v in verts)) for i in range(3)]})
-        for v in verts:
-            positions.extend(struct.pack("<3f", *v))
+        pos_acc = add_positions(verts)
         normal_acc = len(accessors)
         accessors.append({"bufferView": 2, "byteOffset": len(normals),
                           "componentType": 5126, "count": len(verts), "type": "VEC3"})

@@ -14,10 +14,6 @@ using namespace testutil;
 
 namespace {
 
-const Algorithm kEstimators[] = {Algorithm::kPathTracing, Algorithm::kLightTracing,
-                                 Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
-                                 Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging};
-
 // Blocks whose every pixel sees, first, a purely diffuse surface. Light tracing cannot
 // render specular surfaces seen directly, and on glossy ones (the Cornell floor, Phong
 // exponent 90, reflecting the spheres) its estimate is right in expectation but so
@@ -58,7 +54,7 @@ TEST_CASE("Every estimator renders the emissive furnace's analytic radiance", "[
     const int maxPathLength = 6;
     const double expected = emitted * (1.0 - std::pow(albedo, maxPathLength)) / (1.0 - albedo);
     const Scene scene = MakeEmissiveFurnace(albedo, emitted, 32, 32);
-    for (Algorithm algorithm : kEstimators) {
+    for (Algorithm algorithm : kTransportEstimators) {
         const RenderResult result = RenderWith(scene, algorithm, 8, 11, maxPathLength);
         const MeanAndError stats = PixelStatistics(result.mImage);
         INFO(AlgorithmShortName(algorithm) << ": mean " << stats.mean << " +- " << stats.standardError << ", expected " << expected);
@@ -75,7 +71,7 @@ TEST_CASE("Every estimator renders the point-light furnace's analytic radiance",
     const int maxPathLength = 8;
     const double expected = 1.0 - std::pow(0.5, maxPathLength - 1);
     const Scene scene = MakePointLightFurnace(32, 32);
-    for (Algorithm algorithm : kEstimators) {
+    for (Algorithm algorithm : kTransportEstimators) {
         const RenderResult result = RenderWith(scene, algorithm, 8, 13, maxPathLength);
         const MeanAndError stats = PixelStatistics(result.mImage);
         INFO(AlgorithmShortName(algorithm) << ": mean " << stats.mean << " +- " << stats.standardError << ", expected " << expected);
@@ -158,7 +154,7 @@ TEST_CASE("The unbiased estimators agree region by region on every Cornell scene
 TEST_CASE("No estimator writes NaN, infinity or a negative value on any scene", "[integrators]") {
     for (int sceneIndex = 0; sceneIndex < 5; sceneIndex++) {
         const Scene scene = LoadCornell(sceneIndex, 24, 16);
-        for (Algorithm algorithm : kEstimators) {
+        for (Algorithm algorithm : kTransportEstimators) {
             RenderOptions options;
             options.mAlgorithm = algorithm;
             options.mIterations = 4;

@@ -30,10 +30,6 @@ using namespace testutil;
 
 namespace {
 
-const Algorithm kAllEstimators[] = {Algorithm::kPathTracing, Algorithm::kLightTracing,
-                                    Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
-                                    Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging};
-
 RenderResult RenderLengths(const Scene& aScene, Algorithm aAlgorithm, int aMinLength, int aMaxLength, int aIterations,
                            uint64_t aSeed, bool aLayers = false) {
     RenderOptions options;
@@ -132,7 +128,7 @@ TEST_CASE("Every estimator renders the emissive furnace's L_k = Le a^(k-1) for e
     const Scene scene = MakeEmissiveFurnace(albedo, emitted, 16, 16);
     for (int k = 1; k <= 4; k++) {
         const double expected = emitted * std::pow(albedo, k - 1);
-        for (Algorithm algorithm : kAllEstimators) {
+        for (Algorithm algorithm : kTransportEstimators) {
             const MeanAndError stats = IndependentRenders(scene, algorithm, k, k, 100u + uint64_t(k));
             std::printf("[transport] length %d %-4s mean %.5f +- %.5f (expected %.5f)\n", k, AlgorithmShortName(algorithm),
                         stats.mean, stats.standardError, expected);
@@ -183,7 +179,7 @@ TEST_CASE("Furnaces whose emission is split over several lights render the same 
     SECTION("three area lights") {
         const Scene scene = MakeSplitEmissiveFurnace(0.5f, 1.f, 3, 16);
         const double expected = (1.0 - std::pow(0.5, maxLength)) / 0.5;
-        for (Algorithm algorithm : kAllEstimators) {
+        for (Algorithm algorithm : kTransportEstimators) {
             const MeanAndError stats = IndependentRenders(scene, algorithm, 0, maxLength, 31u);
             INFO(AlgorithmShortName(algorithm) << ": mean " << stats.mean << " +- " << stats.standardError << ", expected " << expected);
             CHECK(WithinNoise(stats, expected));
@@ -195,7 +191,7 @@ TEST_CASE("Furnaces whose emission is split over several lights render the same 
         scene.AddPointLight(Vec3(0.f), Vec3(0.75f * kPi));
         scene.Finalize();
         const double expected = 1.0 - std::pow(0.5, maxLength - 1);
-        for (Algorithm algorithm : kAllEstimators) {
+        for (Algorithm algorithm : kTransportEstimators) {
             const MeanAndError stats = IndependentRenders(scene, algorithm, 0, maxLength, 37u);
             INFO(AlgorithmShortName(algorithm) << ": mean " << stats.mean << " +- " << stats.standardError << ", expected " << expected);
             CHECK(WithinNoise(stats, expected));
@@ -211,7 +207,7 @@ TEST_CASE("An emitter is one-sided for every estimator: seen and sampled only fr
     // shows the scene sees the light at all).
     const Scene away = MakeFloorAndEmitter(false, 16);
     const Scene towards = MakeFloorAndEmitter(true, 16);
-    for (Algorithm algorithm : kAllEstimators) {
+    for (Algorithm algorithm : kTransportEstimators) {
         const double dark = ImageSum(RenderLengths(away, algorithm, 0, 6, 4, 5u).mImage);
         const double lit = ImageSum(RenderLengths(towards, algorithm, 0, 6, 4, 5u).mImage);
         INFO(AlgorithmShortName(algorithm) << ": sum of the image " << dark << " facing away, " << lit << " facing the floor");

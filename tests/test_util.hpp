@@ -95,6 +95,12 @@ inline Scene MakePointLightFurnace(int aWidth, int aHeight) {
     return scene;
 }
 
+// The six estimators of light transport that every whole-scene agreement test compares
+// (the eye light estimates nothing; the classic photon maps pm and pmfg are biased).
+inline constexpr Algorithm kTransportEstimators[] = {
+    Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kProgressivePhotonMapping,
+    Algorithm::kBidirectionalPhotonMapping, Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging};
+
 inline RenderResult RenderWith(const Scene& aScene, Algorithm aAlgorithm, int aIterations, uint64_t aSeed = 7,
                                int aMaxPathLength = 10) {
     RenderOptions options;
