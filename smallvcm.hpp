@@ -1433,6 +1433,14 @@ inline uint64_t& RayCounter() {
     return count;
 }
 
+// One light picked for a sample (Scene::PickLight): the light, its index, and the
+// probability it was picked with.
+struct LightPick {
+    const Light* mLight = nullptr;
+    int mId = -1;
+    float mProb = 0.f;
+};
+
 // The scene: geometry, materials, lights and camera. Build it by filling the vectors
 // (or with LoadGltfScene) and call Finalize() once before rendering.
 class Scene {
@@ -1636,6 +1644,14 @@ public:
     float RayEpsilon() const { return mRayEpsilon; }
     int LightCount() const { return int(mLights.size()); }
     const Light& GetLight(int aId) const { return mLights[size_t(aId)]; }
+    // Every estimator that samples a light picks it here, uniformly: aRnd in [0, 1)
+    // chooses one, with probability LightPickProb(), which the light's pdfs then include.
+    LightPick PickLight(float aRnd) const {
+        const int lightCount = LightCount();
+        const int id = std::min(int(aRnd * float(lightCount)), lightCount - 1);
+        return LightPick{&mLights[size_t(id)], id, LightPickProb()};
+    }
+    float LightPickProb() const { return 1.f / float(LightCount()); }
     const Light* GetBackground() const { return mBackgroundLightId >= 0 ? &mLights[size_t(mBackgroundLightId)] : nullptr; }
     const Material& GetMaterial(int aId) const { return mMaterials[size_t(aId)]; }
     const Bvh& GetBvh() const { return mBvh; }
@@ -2450,95 +2466,110 @@ public:
 
     void RunIteration(int /*aIteration*/, Rng& aRng) override {
         const Camera& camera = mScene.mCamera;
-        const int lightCount = mScene.LightCount();
-        const float lightPickProb = 1.f / float(lightCount);
         for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
             const int x = pixel % camera.Width(), y = pixel / camera.Width();
-            Ray ray = camera.GenerateRay(Vec2(float(x), float(y)) + aRng.GetVec2());
-            Vec3 throughput(1.f);
-            float lastPdfW = 1.f;
-            bool lastSpecular = true;   // the camera counts as specular: no MIS at length 1
-            bool firstSpecular = false;
-            for (int pathLength = 1;; pathLength++) {
-                Hit hit;
-                if (!mScene.Intersect(ray, hit)) {
-                    // The ray left the scene: the background light, if any, by BSDF sampling.
-                    const Light* background = mScene.GetBackground();
-                    if (background && pathLength >= mOptions.mMinPathLength) {
-                        float directPdfW = 0.f;
-                        const Vec3 radiance = background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection,
-                                                                      Vec3(0.f), &directPdfW, nullptr);
-                        const float weight = lastSpecular ? 1.f : BsdfHitWeight(lastPdfW, directPdfW * lightPickProb);
-                        AddContribution(pixel, pathLength, firstSpecular, throughput * radiance * weight);
-                    }
-                    break;
-                }
-                const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
-
-                if (hit.mLightId >= 0) {
-                    // A light, found by BSDF sampling: MIS against next-event estimation,
-                    // whose area pdf is converted to solid angle at the previous vertex.
-                    if (pathLength >= mOptions.mMinPathLength) {
-                        const Light& light = mScene.GetLight(hit.mLightId);
-                        float directPdfA = 0.f;
-                        const Vec3 radiance = light.GetRadiance(mScene.GetSceneSphere(), ray.mDirection, hit.mNormal,
-                                                                &directPdfA, nullptr);
-                        if (!IsBlack(radiance)) {
-                            float weight = 1.f;
-                            if (!lastSpecular) {
-                                const float cosAtLight = glm::dot(hit.mNormal, -ray.mDirection);
-                                const float distance = hit.mDist + mScene.RayEpsilon();
-                                const float directPdfW = PdfAtoW(directPdfA, distance, cosAtLight) * lightPickProb;
-                                weight = BsdfHitWeight(lastPdfW, directPdfW);
-                            }
-                            AddContribution(pixel, pathLength, firstSpecular, throughput * radiance * weight);
-                        }
-                    }
-                    // The path goes on only if the emitter's material reflects (the
-                    // Cornell lights are black; the furnace test's walls are not).
-                }
-
-                Bsdf bsdf;
-                bsdf.Setup(ray, hit, mScene, false);
-                if (!bsdf.IsValid() || pathLength >= mOptions.mMaxPathLength) break;
-
-                // BEGIN EXERCISE pt_nee_mis
-                // Next-event estimation: one light picked uniformly, one point on it.
-                if (!bsdf.IsDelta() && pathLength + 1 >= mOptions.mMinPathLength &&
-                    mOptions.mDirectLight != DirectLightSampling::kBsdfOnly) {
-                    const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
-                    LightSample sample;
-                    const Vec2 rnd = aRng.GetVec2();
-                    if (light.Illuminate(mScene.GetSceneSphere(), hitPoint, rnd, sample) && !IsBlack(sample.mRadiance)) {
-                        float cosToLight, bsdfPdfW;
-                        const Vec3 factor = bsdf.Evaluate(sample.mDirToLight, cosToLight, &bsdfPdfW);
-                        if (!IsBlack(factor)) {
-                            bsdfPdfW *= bsdf.ContinuationProb();
-                            const float directPdfW = sample.mDirectPdfW * lightPickProb;
-                            const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdfPdfW);
-                            const Vec3 contribution = throughput * factor * sample.mRadiance * (weight * cosToLight / directPdfW);
-                            if (!mScene.Occluded(hitPoint, sample.mDirToLight, sample.mDistance))
-                                AddContribution(pixel, pathLength + 1, false, contribution);
-                        }
-                    }
-                }
-                // END EXERCISE pt_nee_mis
-
-                // Continue the path by sampling the BSDF, then Russian roulette.
-                ScatterSample scatter;
-                if (!SampleScatteringWithRoulette(bsdf, aRng, scatter)) break;
-                throughput *= scatter.mWeight;
-                lastPdfW = scatter.mPdfW;
-                lastSpecular = scatter.IsSpecular();
-                if (pathLength == 1) firstSpecular = lastSpecular;
-                ray = mScene.SpawnRay(hitPoint, scatter.mDirection);
-            }
+            TraceCameraPath(aRng, pixel, camera.GenerateRay(Vec2(float(x), float(y)) + aRng.GetVec2()));
         }
     }
 
 private:
     static constexpr const char* kLayerNames[5] = {"emitted", "direct_nonspecular", "direct_specular",
                                                    "indirect_nonspecular", "indirect_specular"};
+
+    // What a camera path carries from one vertex to the next.
+    struct PathState {
+        Vec3 mThroughput{1.f};
+        int mPathLength = 1;        // segments so far, counting the one being traced
+        float mLastPdfW = 1.f;      // BSDF pdf (roulette included) of the last direction
+        bool mLastSpecular = true;  // the camera counts as specular: no MIS at length 1
+        bool mFirstSpecular = false;// the component sampled at the first vertex (layers)
+    };
+
+    // One camera path, the estimator's steps at each vertex: the light it hits (BSDF
+    // sampling's share of direct light), next-event estimation (the light sample's
+    // share), and the continuation by BSDF sampling with Russian roulette.
+    void TraceCameraPath(Rng& aRng, int aPixel, Ray aRay) {
+        for (PathState path;; path.mPathLength++) {
+            Hit hit;
+            if (!mScene.Intersect(aRay, hit)) {
+                AddBackgroundHit(aPixel, path, aRay.mDirection);
+                return;
+            }
+            const Vec3 hitPoint = aRay.mOrigin + aRay.mDirection * hit.mDist;
+            // The path goes on after a light only if the emitter's material reflects (the
+            // Cornell lights are black; the furnace test's walls are not).
+            if (hit.mLightId >= 0 && path.mPathLength >= mOptions.mMinPathLength) AddEmitterHit(aPixel, path, aRay, hit);
+            Bsdf bsdf;
+            bsdf.Setup(aRay, hit, mScene, false);
+            if (!bsdf.IsValid() || path.mPathLength >= mOptions.mMaxPathLength) return;
+            ConnectToLight(aRng, aPixel, path, hitPoint, bsdf);
+            if (!ContinuePath(aRng, bsdf, hitPoint, path, aRay)) return;
+        }
+    }
+
+    // The ray left the scene: the background light, if any, found by BSDF sampling.
+    void AddBackgroundHit(int aPixel, const PathState& aPath, const Vec3& aDirection) {
+        const Light* background = mScene.GetBackground();
+        if (!background || aPath.mPathLength < mOptions.mMinPathLength) return;
+        float directPdfW = 0.f;
+        const Vec3 radiance = background->GetRadiance(mScene.GetSceneSphere(), aDirection, Vec3(0.f), &directPdfW, nullptr);
+        const float weight = aPath.mLastSpecular ? 1.f : BsdfHitWeight(aPath.mLastPdfW, directPdfW * mScene.LightPickProb());
+        AddContribution(aPixel, aPath.mPathLength, aPath.mFirstSpecular, aPath.mThroughput * radiance * weight);
+    }
+
+    // A light hit by the path, found by BSDF sampling: MIS against next-event
+    // estimation, whose area pdf is converted to solid angle at the previous vertex.
+    void AddEmitterHit(int aPixel, const PathState& aPath, const Ray& aRay, const Hit& aHit) {
+        const Light& light = mScene.GetLight(aHit.mLightId);
+        float directPdfA = 0.f;
+        const Vec3 radiance = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, aHit.mNormal, &directPdfA, nullptr);
+        if (IsBlack(radiance)) return;
+        float weight = 1.f;
+        if (!aPath.mLastSpecular) {
+            const float cosAtLight = glm::dot(aHit.mNormal, -aRay.mDirection);
+            const float distance = aHit.mDist + mScene.RayEpsilon();
+            const float directPdfW = PdfAtoW(directPdfA, distance, cosAtLight) * mScene.LightPickProb();
+            weight = BsdfHitWeight(aPath.mLastPdfW, directPdfW);
+        }
+        AddContribution(aPixel, aPath.mPathLength, aPath.mFirstSpecular, aPath.mThroughput * radiance * weight);
+    }
+
+    // Next-event estimation: one light picked, one point on it, a shadow ray; its MIS
+    // weight against the BSDF sample that could have hit the same point.
+    void ConnectToLight(Rng& aRng, int aPixel, const PathState& aPath, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+        // BEGIN EXERCISE pt_nee_mis
+        if (aBsdf.IsDelta() || aPath.mPathLength + 1 < mOptions.mMinPathLength ||
+            mOptions.mDirectLight == DirectLightSampling::kBsdfOnly)
+            return;
+        const LightPick pick = mScene.PickLight(aRng.GetFloat());
+        const Light& light = *pick.mLight;
+        LightSample sample;
+        const Vec2 rnd = aRng.GetVec2();
+        if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd, sample) || IsBlack(sample.mRadiance)) return;
+        float cosToLight, bsdfPdfW;
+        const Vec3 factor = aBsdf.Evaluate(sample.mDirToLight, cosToLight, &bsdfPdfW);
+        if (IsBlack(factor)) return;
+        bsdfPdfW *= aBsdf.ContinuationProb();
+        const float directPdfW = sample.mDirectPdfW * pick.mProb;
+        const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdfPdfW);
+        const Vec3 contribution = aPath.mThroughput * factor * sample.mRadiance * (weight * cosToLight / directPdfW);
+        if (!mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance))
+            AddContribution(aPixel, aPath.mPathLength + 1, false, contribution);
+        // END EXERCISE pt_nee_mis
+    }
+
+    // Continues the path by sampling the BSDF, then Russian roulette. False: it ends.
+    bool ContinuePath(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, PathState& ioPath, Ray& oRay) const {
+        ScatterSample scatter;
+        if (!SampleScatteringWithRoulette(aBsdf, aRng, scatter)) return false;
+        ioPath.mThroughput *= scatter.mWeight;
+        ioPath.mLastPdfW = scatter.mPdfW;
+        ioPath.mLastSpecular = scatter.IsSpecular();
+        if (ioPath.mPathLength == 1) ioPath.mFirstSpecular = ioPath.mLastSpecular;
+        oRay = mScene.SpawnRay(aHitPoint, scatter.mDirection);
+        return true;
+    }
+
 
     // w = p^b / (p^b + q^b), written as 1 / (1 + (q/p)^b): squaring the pdfs of a small
     // light seen from afar (1e17 and more) would overflow to inf / inf = NaN.
@@ -2802,10 +2833,10 @@ private:
 inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLength, Rng& aRng,
                          PhotonMap& oGlobal, PhotonMap& oCaustic) {
     std::vector<Photon> global, caustic;
-    const int lightCount = aScene.LightCount();
-    const float lightPickProb = 1.f / float(lightCount);
     for (int p = 0; p < aPhotonCount; p++) {
-        const Light& light = aScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
+        const LightPick pick = aScene.PickLight(aRng.GetFloat());
+        const Light& light = *pick.mLight;
+        const float lightPickProb = pick.mProb;
         const Vec2 rndDirection = aRng.GetVec2();
         const Vec2 rndPosition = aRng.GetVec2();
         LightEmission emission;
@@ -2848,40 +2879,15 @@ public:
         }
     }
 
+    // The estimator's two steps: the photon maps of this iteration, then one camera path
+    // per pixel that reads them.
     void RunIteration(int /*aIteration*/, Rng& aRng) override {
         TracePhotons(mScene, mOptions.mPhotonCount, mOptions.mMaxPathLength, aRng, mGlobal, mCaustic);
         mGlobalHintSqr = mCausticHintSqr = 0.f;  // an iteration depends on its random numbers only
         const Camera& camera = mScene.mCamera;
         for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
             const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aRng.GetVec2();
-            Ray ray = camera.GenerateRay(raster);
-            Vec3 throughput(1.f);
-            bool afterSpecular = false;
-            // Follow the camera path through specular bounces to non-specular vertices.
-            for (int pathLength = 1; pathLength <= mOptions.mMaxPathLength; pathLength++) {
-                Hit hit;
-                if (!mScene.Intersect(ray, hit)) {
-                    const Light* background = mScene.GetBackground();
-                    if (background && pathLength >= mOptions.mMinPathLength)
-                        Add(pixel, afterSpecular ? kSpecular : kEmitted,
-                            throughput * background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection, Vec3(0.f), nullptr, nullptr));
-                    break;
-                }
-                const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
-                if (hit.mLightId >= 0 && pathLength >= mOptions.mMinPathLength)
-                    Add(pixel, afterSpecular ? kSpecular : kEmitted,
-                        throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), ray.mDirection, hit.mNormal, nullptr, nullptr));
-                Bsdf bsdf;
-                bsdf.Setup(ray, hit, mScene, false);
-                if (!bsdf.IsValid()) break;
-                if (!bsdf.IsDelta()) {
-                    if (mFinalGather) EstimatePartitioned(aRng, pixel, pathLength, hitPoint, bsdf, throughput, afterSpecular);
-                    else Add(pixel, kPhotons, throughput * Estimate(mGlobal, hitPoint, bsdf, pathLength));
-                }
-                // Only specular components carry the camera path on (by ray tracing).
-                if (!ContinueSpecular(aRng, bsdf, hitPoint, throughput, ray)) break;
-                afterSpecular = true;
-            }
+            TraceCameraPath(aRng, pixel, camera.GenerateRay(raster));
         }
     }
 
@@ -2891,6 +2897,37 @@ public:
 private:
     enum Layer { kEmitted = 0, kDirect, kCaustics, kIndirect, kSpecular, kPhotons, kLayerCount };
     static constexpr const char* kLayerNames[kLayerCount] = {"emitted", "direct", "caustics", "indirect", "specular", "photons"};
+
+    // Follows the camera path through specular bounces (by ray tracing) and estimates
+    // with the photon maps at each non-specular vertex; lights it sees count their emission.
+    void TraceCameraPath(Rng& aRng, int aPixel, Ray aRay) {
+        Vec3 throughput(1.f);
+        bool afterSpecular = false;
+        for (int pathLength = 1; pathLength <= mOptions.mMaxPathLength; pathLength++) {
+            Hit hit;
+            if (!mScene.Intersect(aRay, hit)) {
+                const Light* background = mScene.GetBackground();
+                if (background && pathLength >= mOptions.mMinPathLength)
+                    Add(aPixel, afterSpecular ? kSpecular : kEmitted,
+                        throughput * background->GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, Vec3(0.f), nullptr, nullptr));
+                return;
+            }
+            const Vec3 hitPoint = aRay.mOrigin + aRay.mDirection * hit.mDist;
+            if (hit.mLightId >= 0 && pathLength >= mOptions.mMinPathLength)
+                Add(aPixel, afterSpecular ? kSpecular : kEmitted,
+                    throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.mNormal, nullptr, nullptr));
+            Bsdf bsdf;
+            bsdf.Setup(aRay, hit, mScene, false);
+            if (!bsdf.IsValid()) return;
+            if (!bsdf.IsDelta()) {
+                if (mFinalGather) EstimatePartitioned(aRng, aPixel, pathLength, hitPoint, bsdf, throughput, afterSpecular);
+                else Add(aPixel, kPhotons, throughput * Estimate(mGlobal, hitPoint, bsdf, pathLength));
+            }
+            // Only specular components carry the camera path on (by ray tracing).
+            if (!ContinueSpecular(aRng, bsdf, hitPoint, throughput, aRay)) return;
+            afterSpecular = true;
+        }
+    }
 
     void Add(int aPixel, Layer aLayer, const Vec3& aContribution) {
         mFilm.AddColor(aPixel, aContribution);
@@ -2918,28 +2955,41 @@ private:
         return true;
     }
 
+    // pmfg at the first non-specular camera vertex x: the partition of the "improved
+    // photon mapping" slide, each part of the light reaching x counted once.
     void EstimatePartitioned(Rng& aRng, int aPixel, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
                              const Vec3& aThroughput, bool aAfterSpecular) {
         auto layer = [&](Layer aPart) { return aAfterSpecular ? kSpecular : aPart; };
-        // Direct: one light sample.
-        if (aPathLength + 1 <= mOptions.mMaxPathLength && aPathLength + 1 >= mOptions.mMinPathLength) {
-            const int lightCount = mScene.LightCount();
-            const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
-            LightSample sample;
-            if (light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2(), sample) && !IsBlack(sample.mRadiance)) {
-                float cosToLight;
-                const Vec3 factor = aBsdf.Evaluate(sample.mDirToLight, cosToLight);
-                if (!IsBlack(factor) && !mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance))
-                    Add(aPixel, layer(kDirect), aThroughput * factor * sample.mRadiance *
-                                                    (cosToLight * float(lightCount) / sample.mDirectPdfW));
-            }
-        } else {
-            aRng.GetFloat();
-            aRng.GetVec2();
-        }
+        AddDirectLight(aRng, aPixel, layer(kDirect), aPathLength, aHitPoint, aBsdf, aThroughput);
         // Caustics: the caustic map here.
         Add(aPixel, layer(kCaustics), aThroughput * Estimate(mCaustic, aHitPoint, aBsdf, aPathLength));
-        // Indirect: final gathering from the global map.
+        FinalGather(aRng, aPixel, layer(kIndirect), aPathLength, aHitPoint, aBsdf, aThroughput);
+    }
+
+    // Direct light: one light sample (next-event estimation), no MIS, as no other part
+    // counts light that reaches x straight from a light.
+    void AddDirectLight(Rng& aRng, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
+                        const Vec3& aThroughput) {
+        if (aPathLength + 1 > mOptions.mMaxPathLength || aPathLength + 1 < mOptions.mMinPathLength) {
+            aRng.GetFloat();  // the same random numbers drawn either way
+            aRng.GetVec2();
+            return;
+        }
+        const Light& light = *mScene.PickLight(aRng.GetFloat()).mLight;
+        LightSample sample;
+        if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2(), sample) || IsBlack(sample.mRadiance))
+            return;
+        float cosToLight;
+        const Vec3 factor = aBsdf.Evaluate(sample.mDirToLight, cosToLight);
+        if (!IsBlack(factor) && !mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance))
+            Add(aPixel, aLayer, aThroughput * factor * sample.mRadiance *
+                                    (cosToLight * float(mScene.LightCount()) / sample.mDirectPdfW));
+    }
+
+    // Indirect light by final gathering: one sample of x's non-specular part, followed
+    // through specular bounces to a non-specular y, where the global map estimates.
+    void FinalGather(Rng& aRng, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
+                     const Vec3& aThroughput) {
         Vec3 direction;
         float pdfW, cosThetaOut;
         uint32_t event;
@@ -2955,7 +3005,7 @@ private:
             bsdf.Setup(ray, hit, mScene, false);
             if (!bsdf.IsValid()) return;
             if (!bsdf.IsDelta()) {
-                Add(aPixel, layer(kIndirect), gatherThroughput * Estimate(mGlobal, hitPoint, bsdf, length));
+                Add(aPixel, aLayer, gatherThroughput * Estimate(mGlobal, hitPoint, bsdf, length));
                 return;
             }
             if (!ContinueSpecular(aRng, bsdf, hitPoint, gatherThroughput, ray)) return;
@@ -3342,130 +3392,15 @@ public:
         // END EXERCISE ppm_merging/radius
     }
 
+    // One iteration of the estimator, in the three stages of the section's notes.
     void RunIteration(int aIteration, Rng& aRng) override {
-        const Camera& camera = mScene.mCamera;
-        const int pathCount = camera.PixelCount();
+        const int pathCount = mScene.mCamera.PixelCount();
         const float radius = MergeRadius(aIteration);
         mMis = VcmMisConstants::Make(mOptions.mMis, mUseVC, mUseVM, float(pathCount), radius);
-
-        // ---------------------------------------------------------------------------
-        // Stage 1: light sub-paths
-        // ---------------------------------------------------------------------------
-        mLightVertices.clear();
-        // Room for 4 stored vertices per light path before the first iteration (the
-        // Cornell scenes store 0.5 to 2.2 at the defaults), so the vector does not grow
-        // by copying itself while it is filled: reserved pages that are never written
-        // take no physical memory. Later iterations keep the capacity.
-        if (mLightVertices.capacity() == 0 && (mUseVC || mUseVM)) mLightVertices.reserve(4 * size_t(pathCount));
-        mPathEnds.assign(size_t(pathCount), 0);
-        if (mPathRecords) mLightHistories.clear();
-        for (int path = 0; path < pathCount; path++) {
-            SubPathState light;
-            GenerateLightSample(aRng, light);
-            for (;;) {
-                const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
-                Hit hit;
-                if (!mScene.Intersect(ray, hit)) break;
-                const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
-                Bsdf bsdf;
-                bsdf.Setup(ray, hit, mScene, true);
-                if (!bsdf.IsValid()) break;
-                // The area pdf of this vertex: a change of measure, by the geometric cosine.
-                VcmMis::AfterSegment(mMis, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
-                                     light.mPathLength > 1 || light.mIsFiniteLight);
-                if (mPathRecords) mLightHistories.back().push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId});
-
-                if (!bsdf.IsDelta()) {
-                    // Store the vertex for connections and merging.
-                    if (mUseVC || mUseVM) {
-                        LightVertex vertex;
-                        vertex.mHitPoint = hitPoint;
-                        vertex.mPathLength = light.mPathLength;
-                        vertex.mThroughput = light.mThroughput;
-                        vertex.mMaterialId = hit.mMaterialId;
-                        vertex.mDirFix = -ray.mDirection;
-                        vertex.mNormal = hit.mNormal;
-                        vertex.mShadingNormal = hit.mShadingNormal;
-                        vertex.mUv = hit.mUv;
-                        vertex.mMis = light.mMis;
-                        mLightVertices.push_back(vertex);
-                    }
-                    // Light tracing: connect to the camera (t = 1); the path has mPathLength + 1 segments, within both limits.
-                    if ((mUseVC || mLightTraceOnly) && light.mPathLength + 1 >= mOptions.mMinPathLength &&
-                        light.mPathLength + 1 <= mOptions.mMaxPathLength)
-                        ConnectToCamera(light, hitPoint, bsdf);
-                }
-                // A vertex of length L is useful only if a path of length L + 1 may follow.
-                if (light.mPathLength + 2 > mOptions.mMaxPathLength) break;
-                uint32_t lightEvent = kEventNone;
-                if (!SampleScattering(aRng, bsdf, hitPoint, light, &lightEvent)) break;
-                if (mPathRecords && (lightEvent & kEventSpecular)) mLightHistories.back().back().mEvent = lightEvent;
-            }
-            mPathEnds[size_t(path)] = mLightVertices.size();
-        }
-
-        // ---------------------------------------------------------------------------
-        // Stage 2: the range-search structure over the light vertices
-        // ---------------------------------------------------------------------------
-        if (mUseVM)
-            mGrid.Build(mLightVertices.size(), radius, [&](size_t i) { return mLightVertices[i].mHitPoint; });
+        TraceLightSubpaths(aRng, pathCount);
+        if (mUseVM) BuildRangeSearch(radius);
         if (mLightTraceOnly) return;
-
-        // ---------------------------------------------------------------------------
-        // Stage 3: camera sub-paths
-        // ---------------------------------------------------------------------------
-        for (int pixel = 0; pixel < pathCount; pixel++) {
-            const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aRng.GetVec2();
-            SubPathState cam;
-            GenerateCameraSample(raster, cam);
-            if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
-            Ray ray{cam.mOrigin, cam.mDirection};
-            for (;;) {
-                Hit hit;
-                if (!mScene.Intersect(ray, hit)) {
-                    const Light* background = mScene.GetBackground();
-                    if (mPathRecords && background)
-                        mCameraHistory.push_back(PathVertex{ray.mDirection, Vec3(0.f), -1, int(background - &mScene.GetLight(0)),
-                                                            kEventNone, true});
-                    if (background && cam.mPathLength >= mOptions.mMinPathLength)
-                        AddCameraHitLight(pixel, cam, *background, ray.mDirection, Vec3(0.f));
-                    break;
-                }
-                const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
-                const float cosAtHit = glm::dot(hit.mNormal, -ray.mDirection);
-                const float distance = hit.mDist + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
-                VcmMis::AfterSegment(mMis, cam.mMis, distance, cosAtHit, true);
-                if (mPathRecords) mCameraHistory.push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId, hit.mLightId});
-
-                if (hit.mLightId >= 0) {
-                    if (cam.mPathLength >= mOptions.mMinPathLength)
-                        AddCameraHitLight(pixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.mNormal);
-                    // Continues only if the emitter's material reflects (see PathTracer).
-                }
-                Bsdf bsdf;
-                bsdf.Setup(ray, hit, mScene, false);
-                if (!bsdf.IsValid()) break;
-                // A vertex of length L is useful only for paths of length >= L + 1.
-                if (cam.mPathLength >= mOptions.mMaxPathLength) break;
-
-                if (!bsdf.IsDelta()) {
-                    if (mUseVC) {
-                        if (cam.mPathLength + 1 >= mOptions.mMinPathLength)
-                            ConnectToLight(aRng, pixel, cam, hitPoint, bsdf);
-                        ConnectToLightVertices(pixel, cam, hitPoint, bsdf);
-                    }
-                    if (mUseVM) MergeWithLightVertices(pixel, cam, hitPoint, bsdf);
-                }
-
-                uint32_t event = kEventNone;
-                if (!SampleScattering(aRng, bsdf, hitPoint, cam, &event)) break;
-                if (mPathRecords && (event & kEventSpecular)) mCameraHistory.back().mEvent = event;
-                // PPM's camera path ends where it merged; only a specular component (of a
-                // mixed material) carries it on, to find the next non-specular vertex.
-                if (mPpm && !bsdf.IsDelta() && !(event & kEventSpecular)) break;
-                ray = mScene.SpawnRay(cam.mOrigin, cam.mDirection);
-            }
-        }
+        for (int pixel = 0; pixel < pathCount; pixel++) TraceCameraSubpath(aRng, pixel);
     }
 
     // --- what tests and tools may inspect ----------------------------------------------
@@ -3525,11 +3460,145 @@ public:
     };
 
 private:
+    // --- stage 1: light sub-paths ----------------------------------------------------------
+    // Traces the N_L light sub-paths of the iteration (light sub-path p ends at
+    // mPathEnds[p] in mLightVertices).
+    void TraceLightSubpaths(Rng& aRng, int aPathCount) {
+        mLightVertices.clear();
+        // Room for 4 stored vertices per light path before the first iteration (the
+        // Cornell scenes store 0.5 to 2.2 at the defaults), so the vector does not grow
+        // by copying itself while it is filled: reserved pages that are never written
+        // take no physical memory. Later iterations keep the capacity.
+        if (mLightVertices.capacity() == 0 && (mUseVC || mUseVM)) mLightVertices.reserve(4 * size_t(aPathCount));
+        mPathEnds.assign(size_t(aPathCount), 0);
+        if (mPathRecords) mLightHistories.clear();
+        for (int path = 0; path < aPathCount; path++) {
+            TraceLightSubpath(aRng);
+            mPathEnds[size_t(path)] = mLightVertices.size();
+        }
+    }
+
+    // One light sub-path: each vertex updates the sub-path's MIS quantities
+    // [tech. rep. (34)-(36)]; a non-specular one is stored for connections and merging,
+    // and connected to the camera (light tracing, t = 1).
+    void TraceLightSubpath(Rng& aRng) {
+        SubPathState light;
+        GenerateLightSample(aRng, light);
+        for (;;) {
+            const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
+            Hit hit;
+            if (!mScene.Intersect(ray, hit)) return;
+            const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+            Bsdf bsdf;
+            bsdf.Setup(ray, hit, mScene, true);
+            if (!bsdf.IsValid()) return;
+            // The area pdf of this vertex: a change of measure, by the geometric cosine.
+            VcmMis::AfterSegment(mMis, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
+                                 light.mPathLength > 1 || light.mIsFiniteLight);
+            if (mPathRecords) mLightHistories.back().push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId});
+
+            if (!bsdf.IsDelta()) {
+                if (mUseVC || mUseVM) StoreLightVertex(light, ray, hit, hitPoint);
+                // Light tracing: connect to the camera (t = 1); the path has mPathLength + 1 segments, within both limits.
+                if ((mUseVC || mLightTraceOnly) && light.mPathLength + 1 >= mOptions.mMinPathLength &&
+                    light.mPathLength + 1 <= mOptions.mMaxPathLength)
+                    ConnectToCamera(light, hitPoint, bsdf);
+            }
+            // A vertex of length L is useful only if a path of length L + 1 may follow.
+            if (light.mPathLength + 2 > mOptions.mMaxPathLength) return;
+            uint32_t lightEvent = kEventNone;
+            if (!SampleScattering(aRng, bsdf, hitPoint, light, &lightEvent)) return;
+            if (mPathRecords && (lightEvent & kEventSpecular)) mLightHistories.back().back().mEvent = lightEvent;
+        }
+    }
+
+    // Stores a light vertex for connections and merging.
+    void StoreLightVertex(const SubPathState& aLight, const Ray& aRay, const Hit& aHit, const Vec3& aHitPoint) {
+        LightVertex vertex;
+        vertex.mHitPoint = aHitPoint;
+        vertex.mPathLength = aLight.mPathLength;
+        vertex.mThroughput = aLight.mThroughput;
+        vertex.mMaterialId = aHit.mMaterialId;
+        vertex.mDirFix = -aRay.mDirection;
+        vertex.mNormal = aHit.mNormal;
+        vertex.mShadingNormal = aHit.mShadingNormal;
+        vertex.mUv = aHit.mUv;
+        vertex.mMis = aLight.mMis;
+        mLightVertices.push_back(vertex);
+    }
+
+    // --- stage 2: the range-search structure over the light vertices (merging) ---------
+    void BuildRangeSearch(float aRadius) {
+        mGrid.Build(mLightVertices.size(), aRadius, [&](size_t i) { return mLightVertices[i].mHitPoint; });
+    }
+
+    // --- stage 3: camera sub-paths ---------------------------------------------------------
+    // One camera sub-path through aPixel; at each vertex the techniques that complete a
+    // path there: a light it hits (s = 0), and at a non-specular vertex next-event
+    // estimation (s = 1), connections to the light vertices (VC) and merging (VM).
+    void TraceCameraSubpath(Rng& aRng, int aPixel) {
+        const Camera& camera = mScene.mCamera;
+        const Vec2 raster = Vec2(float(aPixel % camera.Width()), float(aPixel / camera.Width())) + aRng.GetVec2();
+        SubPathState cam;
+        GenerateCameraSample(raster, cam);
+        if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
+        Ray ray{cam.mOrigin, cam.mDirection};
+        for (;;) {
+            Hit hit;
+            if (!mScene.Intersect(ray, hit)) {
+                AddBackgroundHit(aPixel, cam, ray.mDirection);
+                return;
+            }
+            const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+            const float cosAtHit = glm::dot(hit.mNormal, -ray.mDirection);
+            const float distance = hit.mDist + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
+            VcmMis::AfterSegment(mMis, cam.mMis, distance, cosAtHit, true);
+            if (mPathRecords) mCameraHistory.push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId, hit.mLightId});
+
+            // Continues after a light only if the emitter's material reflects (see PathTracer).
+            if (hit.mLightId >= 0 && cam.mPathLength >= mOptions.mMinPathLength)
+                AddCameraHitLight(aPixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.mNormal);
+            Bsdf bsdf;
+            bsdf.Setup(ray, hit, mScene, false);
+            if (!bsdf.IsValid()) return;
+            // A vertex of length L is useful only for paths of length >= L + 1.
+            if (cam.mPathLength >= mOptions.mMaxPathLength) return;
+
+            if (!bsdf.IsDelta()) {
+                if (mUseVC) {
+                    if (cam.mPathLength + 1 >= mOptions.mMinPathLength)
+                        ConnectToLight(aRng, aPixel, cam, hitPoint, bsdf);
+                    ConnectToLightVertices(aPixel, cam, hitPoint, bsdf);
+                }
+                if (mUseVM) MergeWithLightVertices(aPixel, cam, hitPoint, bsdf);
+            }
+
+            uint32_t event = kEventNone;
+            if (!SampleScattering(aRng, bsdf, hitPoint, cam, &event)) return;
+            if (mPathRecords && (event & kEventSpecular)) mCameraHistory.back().mEvent = event;
+            // PPM's camera path ends where it merged; only a specular component (of a
+            // mixed material) carries it on, to find the next non-specular vertex.
+            if (mPpm && !bsdf.IsDelta() && !(event & kEventSpecular)) return;
+            ray = mScene.SpawnRay(cam.mOrigin, cam.mDirection);
+        }
+    }
+
+    // The camera sub-path left the scene: the background light, if any, is hit (s = 0).
+    void AddBackgroundHit(int aPixel, const SubPathState& aCamera, const Vec3& aDirection) {
+        const Light* background = mScene.GetBackground();
+        if (mPathRecords && background)
+            mCameraHistory.push_back(PathVertex{aDirection, Vec3(0.f), -1, int(background - &mScene.GetLight(0)),
+                                                kEventNone, true});
+        if (background && aCamera.mPathLength >= mOptions.mMinPathLength)
+            AddCameraHitLight(aPixel, aCamera, *background, aDirection, Vec3(0.f));
+    }
+
+    // --- sub-path starts and steps -----------------------------------------------------------
 
     void GenerateLightSample(Rng& aRng, SubPathState& oState) {
-        const int lightCount = mScene.LightCount();
-        const float lightPickProb = 1.f / float(lightCount);
-        const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
+        const LightPick pick = mScene.PickLight(aRng.GetFloat());
+        const Light& light = *pick.mLight;
+        const float lightPickProb = pick.mProb;
         const Vec2 rndDirection = aRng.GetVec2();
         const Vec2 rndPosition = aRng.GetVec2();
         LightEmission emission;
@@ -3548,8 +3617,8 @@ private:
                                               light.IsDelta(), light.IsFinite());
         if (mPathRecords)
             mLightHistories.back().push_back(light.IsFinite()
-                ? PathVertex{emission.mPosition, light.IsDelta() ? Vec3(0.f) : emission.mNormal, -1, int(&light - &mScene.GetLight(0))}
-                : PathVertex{-emission.mDirection, Vec3(0.f), -1, int(&light - &mScene.GetLight(0)), kEventNone, true});
+                ? PathVertex{emission.mPosition, light.IsDelta() ? Vec3(0.f) : emission.mNormal, -1, pick.mId}
+                : PathVertex{-emission.mDirection, Vec3(0.f), -1, pick.mId, kEventNone, true});
         // Light tracing alone splats the emitting point itself (see the section's notes).
         if (mLightTraceOnly && !light.IsDelta() && light.IsFinite() && mOptions.mMinPathLength <= 1)
             SplatEmitterPoint(light, emission, lightPickProb);
@@ -3663,7 +3732,7 @@ private:
         // through specular vertices, which no merge can replace.
         float weight = 1.f;
         if (aCamera.mPathLength > 1 && !mPpm) {
-            const float lightPickProb = 1.f / float(mScene.LightCount());
+            const float lightPickProb = mScene.LightPickProb();
             weight = VcmMis::WeightCameraHitsLight(mMis, aCamera.mMis, directPdfA * lightPickProb,
                                                    emissionPdfW * lightPickProb);
         }
@@ -3674,17 +3743,16 @@ private:
 
     // Next-event estimation (s = 1): a point sampled on a light, connected by a shadow ray.
     void ConnectToLight(Rng& aRng, int aPixel, const SubPathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
-        const int lightCount = mScene.LightCount();
-        const float lightPickProb = 1.f / float(lightCount);
-        const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
+        const LightPick pick = mScene.PickLight(aRng.GetFloat());
+        const Light& light = *pick.mLight;
+        const float lightPickProb = pick.mProb;
         const Vec2 rnd = aRng.GetVec2();
         LightSample sample;
         if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd, sample) || IsBlack(sample.mRadiance)) return;
         if (mPathRecords)
-            mNextEventVertex = light.IsFinite() ? PathVertex{aHitPoint + sample.mDirToLight * sample.mDistance, Vec3(0.f), -1,
-                                                             int(&light - &mScene.GetLight(0))}
-                                                : PathVertex{sample.mDirToLight, Vec3(0.f), -1,
-                                                             int(&light - &mScene.GetLight(0)), kEventNone, true};
+            mNextEventVertex = light.IsFinite()
+                ? PathVertex{aHitPoint + sample.mDirToLight * sample.mDistance, Vec3(0.f), -1, pick.mId}
+                : PathVertex{sample.mDirToLight, Vec3(0.f), -1, pick.mId, kEventNone, true};
         float cosToLight, bsdfDirPdfW, bsdfRevPdfW;
         const Vec3 bsdfFactor = aBsdf.Evaluate(sample.mDirToLight, cosToLight, &bsdfDirPdfW, &bsdfRevPdfW);
         if (IsBlack(bsdfFactor)) return;
