@@ -4158,103 +4158,167 @@ inline void CheckRendererFilms(const Integrator& aIntegrator, const Camera& aCam
     }
 }
 
+namespace detail {
+
+inline constexpr const char* kRenderOutOfMemory =
+    "memory: out of memory while rendering (use fewer threads or a smaller resolution)";
+
+// One renderer per thread, all made before any thread starts, and checked to have films
+// that can be summed.
+inline std::vector<std::unique_ptr<AbstractRenderer>> CreateRenderers(const Scene& aScene, const RenderOptions& aOptions,
+                                                                      const Integrator& aIntegrator, int aThreadCount) {
+    std::vector<std::unique_ptr<AbstractRenderer>> renderers;
+    try {
+        for (int t = 0; t < aThreadCount; t++) {
+            renderers.push_back(aIntegrator.mCreateRenderer(aScene, aOptions));
+            if (!renderers.back()) throw Error("integrator '" + aIntegrator.mName + "': mCreateRenderer returned no renderer");
+        }
+    } catch (const std::bad_alloc&) {
+        throw Error(kRenderOutOfMemory);
+    }
+    CheckRendererFilms(aIntegrator, aScene.mCamera, renderers);
+    return renderers;
+}
+
+// The iterations of one render, shared out to its threads: with an iteration budget
+// thread t runs t, t + T, t + 2T, ...; with a time budget each takes the next one until
+// the time is up. Every thread stops at a stop request or at the first failure.
+class IterationSchedule {
+public:
+    using Clock = std::chrono::steady_clock;
+    IterationSchedule(const RenderOptions& aOptions, int aThreadCount, Clock::time_point aStart)
+        : mOptions(aOptions), mThreadCount(aThreadCount), mStart(aStart) {}
+
+    double Elapsed() const { return std::chrono::duration<double>(Clock::now() - mStart).count(); }
+    int Completed() const { return mCompleted.load(); }
+    uint64_t Rays() const { return mRays.load(); }
+
+    // Thread aThread's share, rendered with aRenderer; an exception stops every thread.
+    void Work(int aThread, AbstractRenderer& aRenderer) {
+        const uint64_t raysBefore = RayCounter();
+        try {
+            for (int k = 0;; k++) {
+                const int iteration = NextIteration(aThread, k);
+                if (iteration < 0) break;
+                Rng rng = IterationRng(mOptions.mSeed, iteration);
+                aRenderer.RunIteration(iteration, rng);
+                mCompleted++;
+            }
+        } catch (const std::bad_alloc&) {
+            if (!mFailed.exchange(true)) mFailure = kRenderOutOfMemory;
+        } catch (const std::exception& e) {
+            if (!mFailed.exchange(true)) mFailure = e.what();
+        }
+        mRays += RayCounter() - raysBefore;
+    }
+
+    // After every thread has ended: the first failure, as Error.
+    void ThrowIfFailed() const {
+        if (mFailed) throw Error(mFailure);
+    }
+
+private:
+    // The k-th iteration of thread aThread, or -1 when it is to stop.
+    int NextIteration(int aThread, int aK) {
+        int iteration;
+        if (mOptions.mSeconds > 0.0) {
+            if (Elapsed() >= mOptions.mSeconds) return -1;
+            iteration = mNextIteration.fetch_add(1);
+        } else {
+            iteration = aThread + aK * mThreadCount;
+        }
+        if (mOptions.mIterations > 0 && iteration >= mOptions.mIterations) return -1;
+        if (mFailed || (mOptions.mStopRequested && mOptions.mStopRequested->load())) return -1;
+        return iteration;
+    }
+
+    const RenderOptions& mOptions;
+    const int mThreadCount;
+    const Clock::time_point mStart;
+    std::atomic<int> mNextIteration{0};
+    std::atomic<int> mCompleted{0};
+    std::atomic<uint64_t> mRays{0};
+    std::atomic<bool> mFailed{false};
+    std::string mFailure;
+};
+
+// A progress line on stderr from a watcher thread, only on a terminal and only once the
+// render has taken longer than two seconds; erased when the render ends.
+class ProgressLine {
+public:
+    ProgressLine(const RenderOptions& aOptions, const std::string& aName, const IterationSchedule& aSchedule) {
+#if defined(__unix__) || defined(__APPLE__)
+        if (!aOptions.mProgress || !isatty(2)) return;
+        mWatcher = std::thread([this, &aOptions, &aName, &aSchedule] {
+            bool printed = false;
+            while (!mDone) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(250));
+                if (mDone || aSchedule.Elapsed() < 2.0) continue;
+                std::fprintf(stderr, "\r%s: iteration %d%s, %.1f s   ", aName.c_str(), aSchedule.Completed(),
+                             aOptions.mIterations > 0 ? ("/" + std::to_string(aOptions.mIterations)).c_str() : "",
+                             aSchedule.Elapsed());
+                printed = true;
+            }
+            if (printed) std::fprintf(stderr, "\r%60s\r", "");
+        });
+#else
+        (void)aOptions; (void)aName; (void)aSchedule;
+#endif
+    }
+    ~ProgressLine() {
+        mDone = true;
+        if (mWatcher.joinable()) mWatcher.join();
+    }
+    ProgressLine(const ProgressLine&) = delete;
+    ProgressLine& operator=(const ProgressLine&) = delete;
+
+private:
+    std::atomic<bool> mDone{false};
+    std::thread mWatcher;
+};
+
+// The films summed in thread order (so the sum does not depend on timing) and divided by
+// the iterations run: the image and its layers.
+inline void ResolveFilms(const std::vector<std::unique_ptr<AbstractRenderer>>& aRenderers, RenderResult& ioResult) {
+    Film& film = aRenderers[0]->GetFilm();
+    for (size_t t = 1; t < aRenderers.size(); t++) film.Accumulate(aRenderers[t]->GetFilm());
+    const double scale = ioResult.mIterations > 0 ? 1.0 / ioResult.mIterations : 0.0;
+    ioResult.mImage = film.Resolve(scale);
+    for (int l = 0; l < film.LayerCount(); l++) ioResult.mLayers.emplace_back(film.LayerName(l), film.Resolve(scale, l));
+}
+
+} // namespace detail
+
 // Runs aIntegrator: one renderer per thread, the budget of aOptions, and the result.
 inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions, const Integrator& aIntegrator) {
     ValidateRenderOptions(aOptions);
     if (!aIntegrator.mCreateRenderer) throw Error("integrator '" + aIntegrator.mName + "': has no mCreateRenderer");
     if (!aScene.IsFinalized()) throw Error("scene: Finalize() was not called");
-    using Clock = std::chrono::steady_clock;
-    const auto start = Clock::now();
-    auto elapsed = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+    const auto start = detail::IterationSchedule::Clock::now();
 
     int threadCount = aOptions.mThreads > 0 ? aOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));
     if (aOptions.mIterations > 0) threadCount = std::min(threadCount, aOptions.mIterations);
     CheckRenderMemory(aScene.mCamera, aOptions, aIntegrator, threadCount);
-    static const char* const kOutOfMemory = "memory: out of memory while rendering (use fewer threads or a smaller resolution)";
-    std::vector<std::unique_ptr<AbstractRenderer>> renderers;
-    try {
-        for (int t = 0; t < threadCount; t++) {
-            renderers.push_back(aIntegrator.mCreateRenderer(aScene, aOptions));
-            if (!renderers.back()) throw Error("integrator '" + aIntegrator.mName + "': mCreateRenderer returned no renderer");
-        }
-    } catch (const std::bad_alloc&) {
-        throw Error(kOutOfMemory);
-    }
-    CheckRendererFilms(aIntegrator, aScene.mCamera, renderers);
+    const std::vector<std::unique_ptr<AbstractRenderer>> renderers =
+        detail::CreateRenderers(aScene, aOptions, aIntegrator, threadCount);
 
-    const bool timed = aOptions.mSeconds > 0.0;
-    std::atomic<int> nextIteration{0};
-    std::atomic<int> completed{0};
-    std::atomic<bool> failed{false};
-    std::string failure;
-    std::atomic<uint64_t> rays{0};
-    auto work = [&](int aThread) {
-        const uint64_t raysBefore = RayCounter();
-        struct AddRays {  // on every exit from work()
-            std::atomic<uint64_t>& total; uint64_t before;
-            ~AddRays() { total += RayCounter() - before; }
-        } addRays{rays, raysBefore};
-        try {
-            for (int k = 0;; k++) {
-                int iteration;
-                if (timed) {
-                    if (elapsed() >= aOptions.mSeconds) break;
-                    iteration = nextIteration.fetch_add(1);
-                } else {
-                    iteration = aThread + k * threadCount;
-                }
-                if (aOptions.mIterations > 0 && iteration >= aOptions.mIterations) break;
-                if (failed || (aOptions.mStopRequested && aOptions.mStopRequested->load())) break;
-                Rng rng = IterationRng(aOptions.mSeed, iteration);
-                renderers[size_t(aThread)]->RunIteration(iteration, rng);
-                completed++;
-            }
-        } catch (const std::bad_alloc&) {
-            if (!failed.exchange(true)) failure = kOutOfMemory;
-        } catch (const std::exception& e) {
-            if (!failed.exchange(true)) failure = e.what();
-        }
-    };
-
-    std::vector<std::thread> threads;
-    for (int t = 1; t < threadCount; t++) threads.emplace_back(work, t);
-    // A progress line on stderr from a watcher thread, only on a terminal and only once
-    // the render has taken longer than two seconds.
-    std::atomic<bool> done{false};
-    std::thread watcher;
-#if defined(__unix__) || defined(__APPLE__)
-    if (aOptions.mProgress && isatty(2)) {
-        watcher = std::thread([&] {
-            bool printed = false;
-            while (!done) {
-                std::this_thread::sleep_for(std::chrono::milliseconds(250));
-                if (done || elapsed() < 2.0) continue;
-                std::fprintf(stderr, "\r%s: iteration %d%s, %.1f s   ", aIntegrator.mName.c_str(),
-                             completed.load(),
-                             aOptions.mIterations > 0 ? ("/" + std::to_string(aOptions.mIterations)).c_str() : "",
-                             elapsed());
-                printed = true;
-            }
-            if (printed) std::fprintf(stderr, "\r%60s\r", "");
-        });
+    detail::IterationSchedule schedule(aOptions, threadCount, start);
+    {
+        std::vector<std::thread> threads;
+        for (int t = 1; t < threadCount; t++)
+            threads.emplace_back([&schedule, &renderers, t] { schedule.Work(t, *renderers[size_t(t)]); });
+        const detail::ProgressLine progress(aOptions, aIntegrator.mName, schedule);
+        schedule.Work(0, *renderers[0]);
+        for (std::thread& thread : threads) thread.join();
     }
-#endif
-    work(0);
-    for (std::thread& thread : threads) thread.join();
-    done = true;
-    if (watcher.joinable()) watcher.join();
-    if (failed) throw Error(failure);
+    schedule.ThrowIfFailed();
 
     RenderResult result;
-    result.mIterations = completed.load();
-    result.mSeconds = elapsed();
-    result.mRays = rays.load();
+    result.mIterations = schedule.Completed();
+    result.mSeconds = schedule.Elapsed();
+    result.mRays = schedule.Rays();
     result.mStopped = aOptions.mStopRequested && aOptions.mStopRequested->load();
-    Film& film = renderers[0]->GetFilm();
-    for (size_t t = 1; t < renderers.size(); t++) film.Accumulate(renderers[t]->GetFilm());
-    const double scale = result.mIterations > 0 ? 1.0 / result.mIterations : 0.0;
-    result.mImage = film.Resolve(scale);
-    for (int l = 0; l < film.LayerCount(); l++) result.mLayers.emplace_back(film.LayerName(l), film.Resolve(scale, l));
+    detail::ResolveFilms(renderers, result);
     return result;
 }
 
