@@ -978,13 +978,6 @@ public:
         mHorizontalFovDegrees = aHorizontalFovDegrees;
         Update();
     }
-    // Sets the basis directly (an orthonormal right, up, forward, e.g. from a glTF node).
-    void SetBasis(const Vec3& aPosition, const Vec3& aRight, const Vec3& aUp, const Vec3& aForward,
-                  float aHorizontalFovDegrees) {
-        mPosition = aPosition; mRight = aRight; mUp = aUp; mForward = aForward;
-        mHorizontalFovDegrees = aHorizontalFovDegrees;
-        Update();
-    }
     void SetResolution(int aWidth, int aHeight) {
         if (aWidth <= 0 || aHeight <= 0) throw Error("resolution: width and height must be positive");
         // Pixel indices are ints, and a film of 16384x16384 is already 6 GiB a thread.
@@ -1417,8 +1410,10 @@ private:
 // A material is a sum of components, picked by sampling in proportion to the luminance
 // of their albedos (SmallVCM): Lambert, normalised Phong, Fresnel-weighted mirror, and
 // refraction. Evaluate and Pdf see only the non-specular part; the specular (delta)
-// components exist only through Sample. All pdfs here EXCLUDE Russian roulette; the
-// integrators multiply ContinuationProb() in, in both directions.
+// components exist only through Sample. Evaluate, EvaluatePath, Pdf and Sample give the
+// BSDF's own pdfs; Russian roulette enters them in one place, Bsdf::WithRoulette, through
+// which EvaluateWithRoulette, EvaluatePathWithRoulette and SampleScatteringWithRoulette
+// (what the integrators use) return pdfs that include it.
 //
 // Shading normals (Veach 1997, sec. 5.3). A smooth triangle shades with its interpolated
 // normal Ns while its surface, and so every change of measure, has the geometric normal
@@ -1481,36 +1476,52 @@ inline float AdjointShadingFactor(float aCosFixShading, float aCosFixGeometric, 
            (std::abs(aCosFixGeometric) * std::abs(aCosGenShading));
 }
 
+// The Bsdf towards one direction, as a technique that connects (or merges) a path at
+// its vertex needs it (Bsdf::EvaluateWithRoulette, EvaluatePathWithRoulette).
+struct BsdfEval {
+    Vec3 mValue{0.f};          // f, without the cosine (f_path from EvaluatePathWithRoulette)
+    float mCosThetaGen = 0.f;  // |cos| of the direction with the shading normal
+    float mDirPdfW = 0.f;      // pdf of sampling the direction, Russian roulette included
+    float mRevPdfW = 0.f;      // pdf of the reverse choice (the fixed direction given it), likewise
+    bool IsBlack() const { return smallvcm::IsBlack(mValue); }
+};
+
+// What a sub-path carries, which decides how a BSDF applies to it: radiance on camera
+// sub-paths (the fixed direction points towards the camera), importance on light
+// sub-paths (the fixed direction points towards the light; the adjoint BSDF, Veach 1997,
+// sec. 5.2 and 5.3, and the section's notes).
+enum class Transport { kRadiance, kImportance };
+
 class Bsdf {
 public:
     Bsdf() = default;
 
     // aRay is the ray that found aHit (its direction points into the surface).
-    // aFixIsLight: true on light sub-paths.
-    void Setup(const Ray& aRay, const Hit& aHit, const Scene& aScene, bool aFixIsLight) {
+    // aTransport: radiance on camera sub-paths, importance on light sub-paths.
+    void Setup(const Ray& aRay, const Hit& aHit, const Scene& aScene, Transport aTransport) {
         const Material& material = aScene.GetMaterial(aHit.mMaterialId);
-        if (material.mBaseColorTexture < 0) Setup(-aRay.mDirection, aHit.mNormal, aHit.mShadingNormal, material, aFixIsLight);
+        if (material.mBaseColorTexture < 0) Setup(-aRay.mDirection, aHit.mNormal, aHit.mShadingNormal, material, aTransport);
         else {
             const Vec3 texel = aScene.BaseColorTexel(aHit);
-            Setup(-aRay.mDirection, aHit.mNormal, aHit.mShadingNormal, material, aFixIsLight, &texel);
+            Setup(-aRay.mDirection, aHit.mNormal, aHit.mShadingNormal, material, aTransport, &texel);
         }
     }
     // The same from explicit data (what tests use): aWorldDirFix points away from the surface.
     // The Bsdf keeps a pointer to aMaterial, which must outlive it (a temporary is refused).
-    void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material&& aMaterial, bool aFixIsLight) = delete;
+    void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material&& aMaterial, Transport aTransport) = delete;
     void Setup(const Vec3& aWorldDirFix, const Vec3& aGeometricNormal, const Vec3& aShadingNormal,
-               const Material&& aMaterial, bool aFixIsLight) = delete;
+               const Material&& aMaterial, Transport aTransport) = delete;
     // A flat surface: the shading normal is the geometric one.
-    void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material& aMaterial, bool aFixIsLight,
+    void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material& aMaterial, Transport aTransport,
                const Vec3* aBaseColorTexel = nullptr) {
-        Setup(aWorldDirFix, aNormal, aNormal, aMaterial, aFixIsLight, aBaseColorTexel);
+        Setup(aWorldDirFix, aNormal, aNormal, aMaterial, aTransport, aBaseColorTexel);
     }
     // aGeometricNormal, aShadingNormal: unit length, on one side (Hit's invariant).
     // aBaseColorTexel: the material's texture at this point (see Material::mBaseColorTexture).
     void Setup(const Vec3& aWorldDirFix, const Vec3& aGeometricNormal, const Vec3& aShadingNormal,
-               const Material& aMaterial, bool aFixIsLight, const Vec3* aBaseColorTexel = nullptr) {
+               const Material& aMaterial, Transport aTransport, const Vec3* aBaseColorTexel = nullptr) {
         mMaterial = &aMaterial;
-        mFixIsLight = aFixIsLight;
+        mTransport = aTransport;
         mReflectance = Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance};
         if (aBaseColorTexel) {
             const Vec3& texel = *aBaseColorTexel;
@@ -1544,6 +1555,11 @@ public:
     bool IsValid() const { return mValid; }
     bool IsDelta() const { return mIsDelta; }
     float ContinuationProb() const { return mContinuationProb; }
+    // Russian roulette is part of how a path is sampled: it goes on from this vertex with
+    // probability ContinuationProb(), so a direction sampled here -- and the reverse
+    // choice, which MIS needs too -- has the BSDF's pdf times that probability. This is
+    // the one place where it enters a pdf.
+    float WithRoulette(float aPdfW) const { return aPdfW * mContinuationProb; }
     float CosThetaFix() const { return mLocalDirFix.z; }
     // The cosine of the fixed direction with the geometric normal (what a change of
     // measure at this vertex needs); CosThetaFix() itself on a flat surface.
@@ -1554,10 +1570,8 @@ public:
     float GeometricCos(const Vec3& aWorldDir, float aShadingCos) const {
         return mShaded ? std::abs(glm::dot(mGeometricNormal, aWorldDir)) : aShadingCos;
     }
-    bool IsShaded() const { return mShaded; }
     Vec3 WorldDirFix() const { return mFrame.ToWorld(mLocalDirFix); }
     const Material& GetMaterial() const { return *mMaterial; }
-    bool FixIsLight() const { return mFixIsLight; }
 
     // f(fix, gen) of the non-specular components (no cosine), |cos theta_gen|, and the
     // pdfs of sampling gen given fix (direct) and fix given gen (reverse), solid angle.
@@ -1573,7 +1587,7 @@ public:
             if (!SidesAgree(localDirGen.z, cosGenGeometric)) {  // a light leak: nothing
                 f = Vec3(0.f);
                 directPdfW = reversePdfW = 0.f;
-            } else if (mFixIsLight) {
+            } else if (mTransport == Transport::kImportance) {
                 f *= AdjointShadingFactor(mLocalDirFix.z, mCosFixGeometric, localDirGen.z, cosGenGeometric);
             }
         }
@@ -1590,8 +1604,24 @@ public:
     Vec3 EvaluatePath(const Vec3& aWorldDirGen, float* oDirectPdfW = nullptr, float* oReversePdfW = nullptr) const {
         float cosThetaGen;
         const Vec3 f = Evaluate(aWorldDirGen, cosThetaGen, oDirectPdfW, oReversePdfW);
-        if (!mShaded || IsBlack(f)) return f;
-        return f * (cosThetaGen / GeometricCos(aWorldDirGen, cosThetaGen));
+        return PathValue(f, aWorldDirGen, cosThetaGen);
+    }
+
+    // Evaluate towards aWorldDirGen with both pdfs as the path sees them (WithRoulette):
+    // what a connection to another vertex, a light or the camera needs.
+    BsdfEval EvaluateWithRoulette(const Vec3& aWorldDirGen) const {
+        BsdfEval eval;
+        float dirPdfW = 0.f, revPdfW = 0.f;
+        eval.mValue = Evaluate(aWorldDirGen, eval.mCosThetaGen, &dirPdfW, &revPdfW);
+        eval.mDirPdfW = WithRoulette(dirPdfW);
+        eval.mRevPdfW = WithRoulette(revPdfW);
+        return eval;
+    }
+    // The same with f_path (EvaluatePath): what a merge needs.
+    BsdfEval EvaluatePathWithRoulette(const Vec3& aWorldDirGen) const {
+        BsdfEval eval = EvaluateWithRoulette(aWorldDirGen);
+        eval.mValue = PathValue(eval.mValue, aWorldDirGen, eval.mCosThetaGen);
+        return eval;
     }
 
     // The pdf of sampling aWorldDirGen (or, with aReverse, of sampling the fixed
@@ -1622,11 +1652,17 @@ public:
             if (oSampledEvent) *oSampledEvent = kEventNone;
             return Vec3(0.f);
         }
-        if (!mFixIsLight) return f;
+        if (mTransport == Transport::kRadiance) return f;
         return f * AdjointShadingFactor(mLocalDirFix.z, mCosFixGeometric, oCosThetaGen, cosGenGeometric);
     }
 
 private:
+    // f_path from f (EvaluatePath): f |gen . Ns| / |gen . Ng|, f itself on a flat surface.
+    Vec3 PathValue(const Vec3& aF, const Vec3& aWorldDirGen, float aCosThetaGen) const {
+        if (!mShaded || IsBlack(aF)) return aF;
+        return aF * (aCosThetaGen / GeometricCos(aWorldDirGen, aCosThetaGen));
+    }
+
     // Sample without the shading-normal rules: the components in the shading frame.
     Vec3 SampleInShadingFrame(const Vec3& aRnd, Vec3& oWorldDirGen, float& oPdfW, float& oCosThetaGen,
                               uint32_t* oSampledEvent, float* oReversePdfW) const {
@@ -1667,7 +1703,7 @@ private:
             // Radiance is not symmetric under refraction: L/eta^2 is what is conserved, so
             // camera paths carry (eta_fix / eta_gen)^2; light paths (importance) do not
             // (Veach 1997, sec. 5.2).
-            const float scale = mFixIsLight ? 1.f : Sqr(etaFixOverEtaGen);
+            const float scale = mTransport == Transport::kImportance ? 1.f : Sqr(etaFixOverEtaGen);
             return Vec3((1.f - mFresnel) * scale / oCosThetaGen);
         }
         // Non-specular pick: evaluate every non-specular component for this direction.
@@ -1770,33 +1806,42 @@ private:
     float mFresnel = 1.f;
     float mContinuationProb = 0.f;
     bool mIsDelta = false;
-    bool mFixIsLight = false;
+    Transport mTransport = Transport::kRadiance;
     bool mValid = false;
 };
 
-// One step of a random walk, shared by every integrator that walks paths: sample the
-// BSDF, then Russian roulette with the material's continuation probability (which is
-// part of how the direction was sampled, so it multiplies the pdf).
+// One sampled direction of a Bsdf (Bsdf::Sample as a value).
 struct ScatterSample {
     Vec3 mDirection{0.f};
+    Vec3 mValue{0.f};       // f of what was sampled, without the cosine
     Vec3 mWeight{0.f};      // f cos / pdf: what the path throughput is multiplied by
-    float mPdfW = 0.f;      // solid-angle pdf of mDirection, continuation probability included
+    float mPdfW = 0.f;      // solid-angle pdf of mDirection (with SampleScatteringWithRoulette:
+                            // continuation probability included)
     float mReversePdfW = 0.f;  // the pdf of the reverse choice (Bsdf::Sample), likewise
     float mCosThetaOut = 0.f;
     uint32_t mEvent = kEventNone;
     bool IsSpecular() const { return (mEvent & kEventSpecular) != 0; }
 };
 
-// False when the walk ends here (a black sample, or Russian roulette).
+// A sample of the Bsdf with aRnd, no Russian roulette. False when it is unusable (black).
+inline bool SampleBsdf(const Bsdf& aBsdf, const Vec3& aRnd, ScatterSample& oSample) {
+    oSample.mValue = aBsdf.Sample(aRnd, oSample.mDirection, oSample.mPdfW, oSample.mCosThetaOut, &oSample.mEvent,
+                                  &oSample.mReversePdfW);
+    if (IsBlack(oSample.mValue)) return false;
+    oSample.mWeight = oSample.mValue * (oSample.mCosThetaOut / oSample.mPdfW);
+    return true;
+}
+
+// One step of a random walk, shared by every integrator that walks paths: sample the
+// BSDF, then Russian roulette with the material's continuation probability, which is
+// part of how the direction was sampled, so it enters both pdfs (Bsdf::WithRoulette)
+// and the weight. False when the walk ends here (a black sample, or Russian roulette).
 inline bool SampleScatteringWithRoulette(const Bsdf& aBsdf, Rng& aRng, ScatterSample& oSample) {
-    const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), oSample.mDirection, oSample.mPdfW, oSample.mCosThetaOut,
-                                     &oSample.mEvent, &oSample.mReversePdfW);
-    if (IsBlack(factor)) return false;
-    const float continuationProb = aBsdf.ContinuationProb();
-    if (aRng.GetFloat() >= continuationProb) return false;
-    oSample.mPdfW *= continuationProb;
-    oSample.mReversePdfW *= continuationProb;
-    oSample.mWeight = factor * (oSample.mCosThetaOut / oSample.mPdfW);
+    if (!SampleBsdf(aBsdf, aRng.GetVec3(), oSample)) return false;
+    if (aRng.GetFloat() >= aBsdf.ContinuationProb()) return false;
+    oSample.mPdfW = aBsdf.WithRoulette(oSample.mPdfW);
+    oSample.mReversePdfW = aBsdf.WithRoulette(oSample.mReversePdfW);
+    oSample.mWeight = oSample.mValue * (oSample.mCosThetaOut / oSample.mPdfW);
     return true;
 }
 
@@ -1956,7 +2001,7 @@ struct RenderOptions {
     int mMaxPathLength = 10;
     float mRadiusFactor = 0.003f; // merging radius = factor * scene radius (SmallVCM's default)
     float mRadiusAlpha = 0.75f;   // radius shrinks as r_i = r_0 (i+1)^((alpha-1)/2)
-    MisHeuristic mMis = MisHeuristic::kBalance;
+    MisHeuristic mMisHeuristic = MisHeuristic::kBalance;
     DirectLightSampling mDirectLight = DirectLightSampling::kMis;  // path tracing only
     bool mTechniqueLayers = false;// write per-technique layers into the film
     bool mProgress = true;        // progress line on stderr (only on a terminal, after 2 s)
@@ -2116,7 +2161,7 @@ private:
             // Cornell lights are black; the furnace test's walls are not).
             if (hit.mLightId >= 0 && path.mPathLength >= mOptions.mMinPathLength) AddEmitterHit(aPixel, path, aRay, hit);
             Bsdf bsdf;
-            bsdf.Setup(aRay, hit, mScene, false);
+            bsdf.Setup(aRay, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid() || path.mPathLength >= mOptions.mMaxPathLength) return;
             ConnectToLight(aRng, aPixel, path, hitPoint, bsdf);
             if (!ContinuePath(aRng, bsdf, hitPoint, path, aRay)) return;
@@ -2162,13 +2207,11 @@ private:
         LightSample sample;
         const Vec2 rnd = aRng.GetVec2();
         if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd, sample) || IsBlack(sample.mRadiance)) return;
-        float cosToLight, bsdfPdfW;
-        const Vec3 factor = aBsdf.Evaluate(sample.mDirToLight, cosToLight, &bsdfPdfW);
-        if (IsBlack(factor)) return;
-        bsdfPdfW *= aBsdf.ContinuationProb();
+        const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample.mDirToLight);
+        if (bsdf.IsBlack()) return;
         const float directPdfW = sample.mDirectPdfW * pick.mProb;
-        const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdfPdfW);
-        const Vec3 contribution = aPath.mThroughput * factor * sample.mRadiance * (weight * cosToLight / directPdfW);
+        const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdf.mDirPdfW);
+        const Vec3 contribution = aPath.mThroughput * bsdf.mValue * sample.mRadiance * (weight * bsdf.mCosThetaGen / directPdfW);
         if (!mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance))
             AddContribution(aPixel, aPath.mPathLength + 1, false, contribution);
         // END EXERCISE pt_nee_mis
@@ -2190,7 +2233,7 @@ private:
     // w = p^b / (p^b + q^b), written as 1 / (1 + (q/p)^b): squaring the pdfs of a small
     // light seen from afar (1e17 and more) would overflow to inf / inf = NaN.
     float MisWeight(float aPdfOfThis, float aPdfOfOther) const {
-        return 1.f / (1.f + MisPower(mOptions.mMis, aPdfOfOther / aPdfOfThis));
+        return 1.f / (1.f + MisPower(mOptions.mMisHeuristic, aPdfOfOther / aPdfOfThis));
     }
     // The weights of the two direct-light techniques; with one technique switched off
     // the other gets weight 1 (and the path still scatters, for indirect light).
@@ -2266,14 +2309,13 @@ struct Photon {
 // largest extent (the photons are reordered in place: node = median of its range).
 // FindNearest returns the k nearest points within a maximum radius, exactly.
 //
-// How the search stays cheap at k = 100, where it took 80% of pm's time (pm, scene 4,
-// 512x512, one iteration: 4.3 s before, 1.6 s after): candidates within the current
-// bound are only collected, and cut back to the k nearest by one std::nth_element
-// whenever there are 1.5 k of them (a max-heap of the best k, sifting log k steps per
-// candidate and sorted at the end, was 10% slower even without the sort); subtrees of at
-// most 16 points are scanned without recursion; and the caller may pass the k-th
-// distance of its previous query as a first bound (neighbouring pixels see similar
-// photon densities: 1.3x), widened only if fewer than k points lie inside it.
+// The search is most of pm's time at k = 100, so it is kept cheap: candidates within
+// the current bound are only collected, and cut back to the k nearest by one
+// std::nth_element whenever there are 1.5 k of them (a max-heap of the best k would pay
+// log k steps for every candidate); small subtrees are scanned without recursion; and
+// the caller may pass the k-th distance of its previous query as a first bound
+// (neighbouring pixels see similar photon densities), widened only if fewer than k
+// points lie inside it.
 // None of it changes the result: the k nearest by distance, equal distances by index.
 class KdTree {
 public:
@@ -2291,7 +2333,7 @@ public:
     // stored at tree position j (the caller reorders its own data the same way).
     // The median splits move compact (position, index) records, not indices into the
     // caller's data: a comparison then reads the record itself, not a point somewhere in
-    // the caller's larger records (photons are 40 bytes), which took most of the build.
+    // the caller's larger records (photons are 40 bytes). The build is mostly comparisons.
     template <class PositionOf>
     void Build(size_t aCount, PositionOf&& aPositionOf, std::vector<uint32_t>& oOrder) {
         std::vector<BuildRecord> records(aCount);
@@ -2343,10 +2385,12 @@ public:
 private:
     struct BuildRecord { Vec3 mPosition; uint32_t mIndex; };
 
-    // Subtrees this small are scanned point by point (16: 6% faster than 4, as fast as 32 or 64).
+    // Subtrees this small are scanned point by point: below it, recursing costs more than
+    // the distance tests it would skip.
     static constexpr size_t kScanSize = 16;
-    // The next query's first bound: 1.5 x the k-th distance^2 found (1.0 and 2.0 were
-    // 12-15% slower: too many widened searches, or too many candidates).
+    // The next query's first bound: 1.5 x the k-th distance^2 found. A tighter guess is
+    // too often too small, and the search runs again wider; a looser one collects more
+    // candidates than it needs.
     static constexpr float kHintMargin = 1.5f;
 
     void BuildRange(std::vector<BuildRecord>& ioRecords, size_t aBegin, size_t aEnd) {
@@ -2420,7 +2464,6 @@ public:
         for (size_t i = 0; i < order.size(); i++) mPhotons[i] = aPhotons[order[i]];
     }
     size_t Size() const { return mPhotons.size(); }
-    const Photon& GetPhoton(size_t aIndex) const { return mPhotons[aIndex]; }
     const KdTree& Tree() const { return mTree; }
 
     // sum f dPhi / (pi r^2) over the aK nearest photons within aMaxRadius whose path
@@ -2466,7 +2509,7 @@ inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLeng
             if (!aScene.Intersect(ray, hit)) break;
             const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
             Bsdf bsdf;
-            bsdf.Setup(ray, hit, aScene, true);
+            bsdf.Setup(ray, hit, aScene, Transport::kImportance);
             if (!bsdf.IsValid()) break;
             if (!bsdf.IsDelta()) {
                 const Photon photon{hitPoint, power, -ray.mDirection, pathLength};
@@ -2507,9 +2550,6 @@ public:
         }
     }
 
-    const PhotonMap& GlobalMap() const { return mGlobal; }
-    const PhotonMap& CausticMap() const { return mCaustic; }
-
 private:
     enum Layer { kEmitted = 0, kDirect, kCaustics, kIndirect, kSpecular, kPhotons, kLayerCount };
     static constexpr const char* kLayerNames[kLayerCount] = {"emitted", "direct", "caustics", "indirect", "specular", "photons"};
@@ -2533,7 +2573,7 @@ private:
                 Add(aPixel, afterSpecular ? kSpecular : kEmitted,
                     throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.mNormal, nullptr, nullptr));
             Bsdf bsdf;
-            bsdf.Setup(aRay, hit, mScene, false);
+            bsdf.Setup(aRay, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             if (!bsdf.IsDelta()) {
                 if (mFinalGather) EstimatePartitioned(aRng, aPixel, pathLength, hitPoint, bsdf, throughput, afterSpecular);
@@ -2561,13 +2601,10 @@ private:
 
     // Samples the BSDF; continues (true) only if a specular component was picked.
     bool ContinueSpecular(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, Vec3& ioThroughput, Ray& ioRay) {
-        Vec3 direction;
-        float pdfW, cosThetaOut;
-        uint32_t event;
-        const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), direction, pdfW, cosThetaOut, &event);
-        if (IsBlack(factor) || !(event & kEventSpecular)) return false;
-        ioThroughput *= factor * (cosThetaOut / pdfW);
-        ioRay = mScene.SpawnRay(aHitPoint, direction);
+        ScatterSample scatter;
+        if (!SampleBsdf(aBsdf, aRng.GetVec3(), scatter) || !scatter.IsSpecular()) return false;
+        ioThroughput *= scatter.mWeight;
+        ioRay = mScene.SpawnRay(aHitPoint, scatter.mDirection);
         return true;
     }
 
@@ -2606,19 +2643,16 @@ private:
     // through specular bounces to a non-specular y, where the global map estimates.
     void FinalGather(Rng& aRng, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
                      const Vec3& aThroughput) {
-        Vec3 direction;
-        float pdfW, cosThetaOut;
-        uint32_t event;
-        const Vec3 factor = aBsdf.Sample(aRng.GetVec3(), direction, pdfW, cosThetaOut, &event);
-        if (IsBlack(factor) || (event & kEventSpecular)) return;  // the specular part is traced by the caller
-        Vec3 gatherThroughput = aThroughput * factor * (cosThetaOut / pdfW);
-        Ray ray = mScene.SpawnRay(aHitPoint, direction);
+        ScatterSample scatter;
+        if (!SampleBsdf(aBsdf, aRng.GetVec3(), scatter) || scatter.IsSpecular()) return;  // the specular part is traced by the caller
+        Vec3 gatherThroughput = aThroughput * scatter.mValue * (scatter.mCosThetaOut / scatter.mPdfW);
+        Ray ray = mScene.SpawnRay(aHitPoint, scatter.mDirection);
         for (int length = aPathLength + 1; length < mOptions.mMaxPathLength; length++) {
             Hit hit;
             if (!mScene.Intersect(ray, hit)) return;
             const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
             Bsdf bsdf;
-            bsdf.Setup(ray, hit, mScene, false);
+            bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             if (!bsdf.IsDelta()) {
                 Add(aPixel, aLayer, gatherThroughput * Estimate(mGlobal, hitPoint, bsdf, length));
@@ -3012,7 +3046,7 @@ public:
     void RunIteration(int aIteration, Rng& aRng) override {
         const int pathCount = mScene.mCamera.PixelCount();
         const float radius = MergeRadius(aIteration);
-        mMis = VcmMisConstants::Make(mOptions.mMis, mUseVC, mUseVM, float(pathCount), radius);
+        mMisConstants = VcmMisConstants::Make(mOptions.mMisHeuristic, mUseVC, mUseVM, float(pathCount), radius);
         TraceLightSubpaths(aRng, pathCount);
         if (mUseVM) BuildRangeSearch(radius);
         if (mLightTraceOnly) return;
@@ -3020,7 +3054,6 @@ public:
     }
 
     // --- what tests and tools may inspect ----------------------------------------------
-    const VcmMisConstants& MisConstants() const { return mMis; }
     size_t LightVertexCount() const { return mLightVertices.size(); }
     size_t LightVertexCapacity() const { return mLightVertices.capacity(); }  // for the memory report
 
@@ -3048,7 +3081,7 @@ public:
 
 private:
     // The state of a sub-path while it is traced.
-    struct SubPathState {
+    struct SubpathState {
         Vec3 mOrigin{0.f};
         Vec3 mDirection{0.f};
         Vec3 mThroughput{1.f};
@@ -3077,8 +3110,8 @@ public:
 
 private:
     // --- stage 1: light sub-paths ----------------------------------------------------------
-    // Traces the N_L light sub-paths of the iteration (light sub-path p ends at
-    // mPathEnds[p] in mLightVertices).
+    // The light side of the estimator: N_L light sub-paths, splatted to the camera as
+    // they go and stored for stage 3 (light sub-path p ends at mPathEnds[p]).
     void TraceLightSubpaths(Rng& aRng, int aPathCount) {
         mLightVertices.clear();
         // Room for 4 stored vertices per light path before the first iteration (the
@@ -3098,7 +3131,7 @@ private:
     // [tech. rep. (34)-(36)]; a non-specular one is stored for connections and merging,
     // and connected to the camera (light tracing, t = 1).
     void TraceLightSubpath(Rng& aRng) {
-        SubPathState light;
+        SubpathState light;
         GenerateLightSample(aRng, light);
         for (;;) {
             const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
@@ -3106,10 +3139,10 @@ private:
             if (!mScene.Intersect(ray, hit)) return;
             const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
             Bsdf bsdf;
-            bsdf.Setup(ray, hit, mScene, true);
+            bsdf.Setup(ray, hit, mScene, Transport::kImportance);
             if (!bsdf.IsValid()) return;
             // The area pdf of this vertex: a change of measure, by the geometric cosine.
-            VcmMis::AfterSegment(mMis, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
+            VcmMis::AfterSegment(mMisConstants, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
                                  light.mPathLength > 1 || light.mIsFiniteLight);
             if (mPathRecords) mLightHistories.back().push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId});
 
@@ -3129,7 +3162,7 @@ private:
     }
 
     // Stores a light vertex for connections and merging.
-    void StoreLightVertex(const SubPathState& aLight, const Ray& aRay, const Hit& aHit, const Vec3& aHitPoint) {
+    void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const Hit& aHit, const Vec3& aHitPoint) {
         LightVertex vertex;
         vertex.mHitPoint = aHitPoint;
         vertex.mPathLength = aLight.mPathLength;
@@ -3144,6 +3177,8 @@ private:
     }
 
     // --- stage 2: the range-search structure over the light vertices (merging) ---------
+    // What lets a merge find the light vertices within r of a camera vertex without
+    // visiting the others.
     void BuildRangeSearch(float aRadius) {
         mGrid.Build(mLightVertices.size(), aRadius, [&](size_t i) { return mLightVertices[i].mHitPoint; });
     }
@@ -3155,7 +3190,7 @@ private:
     void TraceCameraSubpath(Rng& aRng, int aPixel) {
         const Camera& camera = mScene.mCamera;
         const Vec2 raster = Vec2(float(aPixel % camera.Width()), float(aPixel / camera.Width())) + aRng.GetVec2();
-        SubPathState cam;
+        SubpathState cam;
         GenerateCameraSample(raster, cam);
         if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
         Ray ray{cam.mOrigin, cam.mDirection};
@@ -3168,14 +3203,14 @@ private:
             const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
             const float cosAtHit = glm::dot(hit.mNormal, -ray.mDirection);
             const float distance = hit.mDist + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
-            VcmMis::AfterSegment(mMis, cam.mMis, distance, cosAtHit, true);
+            VcmMis::AfterSegment(mMisConstants, cam.mMis, distance, cosAtHit, true);
             if (mPathRecords) mCameraHistory.push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId, hit.mLightId});
 
             // Continues after a light only if the emitter's material reflects (see PathTracer).
             if (hit.mLightId >= 0 && cam.mPathLength >= mOptions.mMinPathLength)
                 AddCameraHitLight(aPixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.mNormal);
             Bsdf bsdf;
-            bsdf.Setup(ray, hit, mScene, false);
+            bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             // A vertex of length L is useful only for paths of length >= L + 1.
             if (cam.mPathLength >= mOptions.mMaxPathLength) return;
@@ -3200,7 +3235,7 @@ private:
     }
 
     // The camera sub-path left the scene: the background light, if any, is hit (s = 0).
-    void AddBackgroundHit(int aPixel, const SubPathState& aCamera, const Vec3& aDirection) {
+    void AddBackgroundHit(int aPixel, const SubpathState& aCamera, const Vec3& aDirection) {
         const Light* background = mScene.GetBackground();
         if (mPathRecords && background)
             mCameraHistory.push_back(PathVertex{aDirection, Vec3(0.f), -1, int(background - &mScene.GetLight(0)),
@@ -3211,7 +3246,9 @@ private:
 
     // --- sub-path starts and steps -----------------------------------------------------------
 
-    void GenerateLightSample(Rng& aRng, SubPathState& oState) {
+    // A light sub-path's first vertex: a light picked, a point and direction emitted, and
+    // its MIS quantities [tech. rep. (31)-(33)].
+    void GenerateLightSample(Rng& aRng, SubpathState& oState) {
         const LightPick pick = mScene.PickLight(aRng.GetFloat());
         const Light& light = *pick.mLight;
         const float lightPickProb = pick.mProb;
@@ -3229,7 +3266,7 @@ private:
         oState.mDirection = emission.mDirection;
         oState.mThroughput = emission.mEnergy / emission.mEmissionPdfW;
         oState.mIsFiniteLight = light.IsFinite();
-        oState.mMis = VcmMis::AtLightEmission(mMis, emission.mDirectPdfA, emission.mEmissionPdfW, emission.mCosAtLight,
+        oState.mMis = VcmMis::AtLightEmission(mMisConstants, emission.mDirectPdfA, emission.mEmissionPdfW, emission.mCosAtLight,
                                               light.IsDelta(), light.IsFinite());
         if (mPathRecords)
             mLightHistories.back().push_back(light.IsFinite()
@@ -3240,7 +3277,9 @@ private:
             SplatEmitterPoint(light, emission, lightPickProb);
     }
 
-    void GenerateCameraSample(const Vec2& aRaster, SubPathState& oState) const {
+    // A camera sub-path's first ray through aRaster and its MIS quantities [tech. rep.
+    // (31)-(33), camera side].
+    void GenerateCameraSample(const Vec2& aRaster, SubpathState& oState) const {
         const Camera& camera = mScene.mCamera;
         const Ray ray = camera.GenerateRay(aRaster);
         // The pdf of this direction per unit image area: d_plane^2 / cos^3.
@@ -3252,12 +3291,13 @@ private:
         oState.mThroughput = Vec3(1.f);
         oState.mPathLength = 1;
         oState.mSpecularPath = true;
-        oState.mMis = VcmMis::AtCameraStart(mMis, cameraPdfW);
+        oState.mMis = VcmMis::AtCameraStart(mMisConstants, cameraPdfW);
     }
 
     // Samples the continuation of a sub-path at a vertex, with Russian roulette, and
-    // updates its throughput and MIS quantities. False when the sub-path ends.
-    bool SampleScattering(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, SubPathState& ioState,
+    // updates its throughput and MIS quantities [tech. rep. (34)-(36); specular
+    // (53)-(55)]. False when the sub-path ends.
+    bool SampleScattering(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, SubpathState& ioState,
                           uint32_t* oEvent) const {
         ScatterSample scatter;
         if (!SampleScatteringWithRoulette(aBsdf, aRng, scatter)) return false;
@@ -3265,7 +3305,7 @@ private:
         // For a specular event both pdfs are the component's selection probability (the
         // Fresnel term is the same for both directions of a reflection or refraction).
         // The cosine converts the reverse pdf at this vertex to area: the geometric one.
-        VcmMis::AfterScatter(mMis, ioState.mMis, aBsdf.GeometricCos(scatter.mDirection, scatter.mCosThetaOut),
+        VcmMis::AfterScatter(mMisConstants, ioState.mMis, aBsdf.GeometricCos(scatter.mDirection, scatter.mCosThetaOut),
                              scatter.mPdfW, scatter.mReversePdfW, specular);
         ioState.mOrigin = aHitPoint;
         ioState.mDirection = scatter.mDirection;
@@ -3290,7 +3330,9 @@ private:
         // END EXERCISE lt_camera/camera_pdf
     }
 
-    void ConnectToCamera(const SubPathState& aLight, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+    // Light tracing (t = 1): a light vertex connected to the pinhole and splatted to the
+    // pixel it projects to, weighted by [tech. rep. (46), (47)].
+    void ConnectToCamera(const SubpathState& aLight, const Vec3& aHitPoint, const Bsdf& aBsdf) {
         // BEGIN EXERCISE lt_camera/connect
         const Camera& camera = mScene.mCamera;
         Vec3 dirToCamera = camera.Position() - aHitPoint;
@@ -3299,17 +3341,16 @@ private:
         dirToCamera /= distance;
         Vec2 raster;
         if (!camera.WorldToRaster(aHitPoint, raster) || !camera.CheckRaster(raster)) return;
-        float cosToCamera, bsdfDirPdfW, bsdfRevPdfW;
-        const Vec3 bsdfFactor = aBsdf.Evaluate(dirToCamera, cosToCamera, &bsdfDirPdfW, &bsdfRevPdfW);
-        if (IsBlack(bsdfFactor)) return;
-        bsdfRevPdfW *= aBsdf.ContinuationProb();
+        const BsdfEval toCamera = aBsdf.EvaluateWithRoulette(dirToCamera);
+        if (toCamera.IsBlack()) return;
         // The camera's area pdf of this vertex (for MIS) converts by the geometric cosine;
         // the contribution takes the shading cosine that goes with the Bsdf's f (for
         // importance, f_s times the adjoint factor; Bsdf notes). Equal on flat surfaces.
-        const float cameraPdfA = CameraPdfA(dirToCamera, distance, aBsdf.GeometricCos(dirToCamera, cosToCamera));
-        const float weight = mLightTraceOnly ? 1.f : VcmMis::WeightLightTracing(mMis, aLight.mMis, cameraPdfA, bsdfRevPdfW);
+        const float cameraPdfA = CameraPdfA(dirToCamera, distance, aBsdf.GeometricCos(dirToCamera, toCamera.mCosThetaGen));
+        const float weight = mLightTraceOnly ? 1.f : VcmMis::WeightLightTracing(mMisConstants, aLight.mMis, cameraPdfA, toCamera.mRevPdfW);
         // Each of the N_L light sub-paths estimates the whole image: divide by N_L.
-        const Vec3 unweighted = aLight.mThroughput * bsdfFactor * (CameraPdfA(dirToCamera, distance, cosToCamera) / mMis.mLightPathCount);
+        const Vec3 unweighted = aLight.mThroughput * toCamera.mValue *
+                                (CameraPdfA(dirToCamera, distance, toCamera.mCosThetaGen) / mMisConstants.mLightPathCount);
         if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return;
         const int pixel = camera.RasterToIndex(raster);
         mFilm.AddColor(pixel, unweighted * weight);
@@ -3317,6 +3358,7 @@ private:
         // END EXERCISE lt_camera/connect
     }
 
+    // Light tracing alone (t = 1, s = 1): the emitting point itself, seen by the camera.
     void SplatEmitterPoint(const Light& aLight, const LightEmission& aEmission, float aLightPickProb) {
         const Camera& camera = mScene.mCamera;
         Vec3 dirToCamera = camera.Position() - aEmission.mPosition;
@@ -3330,7 +3372,7 @@ private:
         // L_e G W_e / p_A(x0) / N_L, with G W_e the camera's area pdf of the point.
         const float positionPdfA = aLightPickProb / aLight.mArea;
         const Vec3 contribution = aLight.mEmission * (CameraPdfA(dirToCamera, distance, cosAtLight) /
-                                                      (positionPdfA * mMis.mLightPathCount));
+                                                      (positionPdfA * mMisConstants.mLightPathCount));
         if (mScene.Occluded(aEmission.mPosition, dirToCamera, distance)) return;
         const int pixel = camera.RasterToIndex(raster);
         mFilm.AddColor(pixel, contribution);
@@ -3338,8 +3380,9 @@ private:
     }
 
     // --- camera sub-path techniques ------------------------------------------------------
-    // The camera sub-path hit a light (or left the scene with a background light): s = 0.
-    void AddCameraHitLight(int aPixel, const SubPathState& aCamera, const Light& aLight,
+    // The camera sub-path hit a light (or left the scene with a background light): s = 0,
+    // weighted by [tech. rep. (42), (43)].
+    void AddCameraHitLight(int aPixel, const SubpathState& aCamera, const Light& aLight,
                            const Vec3& aRayDirection, const Vec3& aHitNormal) {
         float directPdfA = 0.f, emissionPdfW = 0.f;
         const Vec3 radiance = aLight.GetRadiance(mScene.GetSceneSphere(), aRayDirection, aHitNormal, &directPdfA, &emissionPdfW);
@@ -3349,7 +3392,7 @@ private:
         float weight = 1.f;
         if (aCamera.mPathLength > 1 && !mPpm) {
             const float lightPickProb = mScene.LightPickProb();
-            weight = VcmMis::WeightCameraHitsLight(mMis, aCamera.mMis, directPdfA * lightPickProb,
+            weight = VcmMis::WeightCameraHitsLight(mMisConstants, aCamera.mMis, directPdfA * lightPickProb,
                                                    emissionPdfW * lightPickProb);
         }
         const Vec3 unweighted = aCamera.mThroughput * radiance;
@@ -3357,8 +3400,9 @@ private:
         RecordTechnique(kUnidirectional, aPixel, 0, aCamera.mPathLength, unweighted, weight);
     }
 
-    // Next-event estimation (s = 1): a point sampled on a light, connected by a shadow ray.
-    void ConnectToLight(Rng& aRng, int aPixel, const SubPathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+    // Next-event estimation (s = 1): a point sampled on a light, connected by a shadow ray,
+    // weighted by [tech. rep. (44), (45)].
+    void ConnectToLight(Rng& aRng, int aPixel, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
         const LightPick pick = mScene.PickLight(aRng.GetFloat());
         const Light& light = *pick.mLight;
         const float lightPickProb = pick.mProb;
@@ -3369,26 +3413,24 @@ private:
             mNextEventVertex = light.IsFinite()
                 ? PathVertex{aHitPoint + sample.mDirToLight * sample.mDistance, Vec3(0.f), -1, pick.mId}
                 : PathVertex{sample.mDirToLight, Vec3(0.f), -1, pick.mId, kEventNone, true};
-        float cosToLight, bsdfDirPdfW, bsdfRevPdfW;
-        const Vec3 bsdfFactor = aBsdf.Evaluate(sample.mDirToLight, cosToLight, &bsdfDirPdfW, &bsdfRevPdfW);
-        if (IsBlack(bsdfFactor)) return;
-        bsdfDirPdfW *= aBsdf.ContinuationProb();
-        bsdfRevPdfW *= aBsdf.ContinuationProb();
+        const BsdfEval toLight = aBsdf.EvaluateWithRoulette(sample.mDirToLight);
+        if (toLight.IsBlack()) return;
         const float directPdfW = sample.mDirectPdfW * lightPickProb;
         // The MIS weight converts the emission pdf to area at this vertex: geometric cosine;
         // the contribution's cosine is the shading one that goes with f (Bsdf notes).
-        const float weight = VcmMis::WeightNextEvent(mMis, aCamera.mMis, bsdfDirPdfW, bsdfRevPdfW, directPdfW,
-                                                     sample.mEmissionPdfW * lightPickProb,
-                                                     aBsdf.GeometricCos(sample.mDirToLight, cosToLight),
+        const float weight = VcmMis::WeightNextEvent(mMisConstants, aCamera.mMis, toLight.mDirPdfW, toLight.mRevPdfW,
+                                                     directPdfW, sample.mEmissionPdfW * lightPickProb,
+                                                     aBsdf.GeometricCos(sample.mDirToLight, toLight.mCosThetaGen),
                                                      sample.mCosAtLight, light.IsDelta());
-        const Vec3 unweighted = aCamera.mThroughput * bsdfFactor * sample.mRadiance * (cosToLight / directPdfW);
+        const Vec3 unweighted = aCamera.mThroughput * toLight.mValue * sample.mRadiance * (toLight.mCosThetaGen / directPdfW);
         if (mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance)) return;
         mFilm.AddColor(aPixel, unweighted * weight);
         RecordTechnique(kNextEvent, aPixel, 1, aCamera.mPathLength + 1, unweighted, weight);
     }
 
-    // Vertex connection with every vertex of this pixel's own light sub-path.
-    void ConnectToLightVertices(int aPixel, const SubPathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+    // Vertex connection (s, t >= 2) with every vertex of this pixel's own light sub-path,
+    // weighted by [tech. rep. (40), (41)].
+    void ConnectToLightVertices(int aPixel, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
         const size_t begin = aPixel == 0 ? 0 : mPathEnds[size_t(aPixel) - 1];
         const size_t end = mPathEnds[size_t(aPixel)];
         for (size_t i = begin; i < end; i++) {
@@ -3403,41 +3445,42 @@ private:
             const float distance = std::sqrt(distanceSqr);
             direction /= distance;
 
-            float cosCamera, cameraBsdfDirPdfW, cameraBsdfRevPdfW;
-            const Vec3 cameraFactor = aBsdf.Evaluate(direction, cosCamera, &cameraBsdfDirPdfW, &cameraBsdfRevPdfW);
-            if (IsBlack(cameraFactor)) continue;
-            cameraBsdfDirPdfW *= aBsdf.ContinuationProb();
-            cameraBsdfRevPdfW *= aBsdf.ContinuationProb();
-            // The light side's BSDF as the light sub-path saw it, texel included; an
-            // untextured material gets no texel, as in Bsdf::Setup from a hit.
-            const Material& lightMaterial = mScene.GetMaterial(vertex.mMaterialId);
-            const Vec3 lightTexel = mScene.BaseColorTexel(vertex.mMaterialId, vertex.mUv);
-            Bsdf lightBsdf;
-            lightBsdf.Setup(vertex.mDirFix, vertex.mNormal, vertex.mShadingNormal, lightMaterial, true,
-                            lightMaterial.mBaseColorTexture >= 0 ? &lightTexel : nullptr);
-            float cosLight, lightBsdfDirPdfW, lightBsdfRevPdfW;
-            const Vec3 lightFactor = lightBsdf.Evaluate(-direction, cosLight, &lightBsdfDirPdfW, &lightBsdfRevPdfW);
-            if (IsBlack(lightFactor)) continue;
-            lightBsdfDirPdfW *= lightBsdf.ContinuationProb();
-            lightBsdfRevPdfW *= lightBsdf.ContinuationProb();
+            const BsdfEval cameraSide = aBsdf.EvaluateWithRoulette(direction);
+            if (cameraSide.IsBlack()) continue;
+            const Bsdf lightBsdf = LightVertexBsdf(vertex);
+            const BsdfEval lightSide = lightBsdf.EvaluateWithRoulette(-direction);
+            if (lightSide.IsBlack()) continue;
 
             // G takes the shading cosines that go with each side's f (the light side's f
             // carries the adjoint factor, so f cos is f_path |cos_geometric|: Bsdf notes);
             // the pdfs change measure at the other vertex by its geometric cosine.
-            const float geometryTerm = cosCamera * cosLight / distanceSqr;
+            const float geometryTerm = cameraSide.mCosThetaGen * lightSide.mCosThetaGen / distanceSqr;
             const float weight = VcmMis::WeightConnection(
-                mMis, vertex.mMis, aCamera.mMis, PdfWtoA(cameraBsdfDirPdfW, distance, lightBsdf.GeometricCos(-direction, cosLight)),
-                cameraBsdfRevPdfW, PdfWtoA(lightBsdfDirPdfW, distance, aBsdf.GeometricCos(direction, cosCamera)), lightBsdfRevPdfW);
-            const Vec3 unweighted = aCamera.mThroughput * vertex.mThroughput * cameraFactor * lightFactor * geometryTerm;
+                mMisConstants, vertex.mMis, aCamera.mMis,
+                PdfWtoA(cameraSide.mDirPdfW, distance, lightBsdf.GeometricCos(-direction, lightSide.mCosThetaGen)), cameraSide.mRevPdfW,
+                PdfWtoA(lightSide.mDirPdfW, distance, aBsdf.GeometricCos(direction, cameraSide.mCosThetaGen)), lightSide.mRevPdfW);
+            const Vec3 unweighted = aCamera.mThroughput * vertex.mThroughput * cameraSide.mValue * lightSide.mValue * geometryTerm;
             if (mScene.Occluded(aHitPoint, direction, distance)) continue;
             mFilm.AddColor(aPixel, unweighted * weight);
             RecordTechnique(kConnection, aPixel, vertex.mPathLength + 1, pathLength, unweighted, weight);
         }
     }
 
+    // A stored light vertex's BSDF as its light sub-path saw it, texel included; an
+    // untextured material gets no texel, as in Bsdf::Setup from a hit.
+    Bsdf LightVertexBsdf(const LightVertex& aVertex) const {
+        const Material& material = mScene.GetMaterial(aVertex.mMaterialId);
+        const Vec3 texel = mScene.BaseColorTexel(aVertex.mMaterialId, aVertex.mUv);
+        Bsdf bsdf;
+        bsdf.Setup(aVertex.mDirFix, aVertex.mNormal, aVertex.mShadingNormal, material, Transport::kImportance,
+                   material.mBaseColorTexture >= 0 ? &texel : nullptr);
+        return bsdf;
+    }
+
     // Vertex merging: the light vertices within the radius, density-estimated with a
-    // constant kernel 1 / (pi r^2) over N_L light sub-paths [tech. rep. (11)].
-    void MergeWithLightVertices(int aPixel, const SubPathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+    // constant kernel 1 / (pi r^2) over N_L light sub-paths [tech. rep. (11)], weighted
+    // by [tech. rep. (38), (39)].
+    void MergeWithLightVertices(int aPixel, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
         // BEGIN EXERCISE ppm_merging/merge
         Vec3 sum(0.f);
         mGrid.Process(aHitPoint, [&](uint32_t i) {
@@ -3446,16 +3489,14 @@ private:
             if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
             // The camera's BSDF, evaluated towards where the light vertex came from: f_path,
             // as the density estimate spreads flux over geometric area (Bsdf notes).
-            float cameraBsdfDirPdfW, cameraBsdfRevPdfW;
-            const Vec3 cameraFactor = aBsdf.EvaluatePath(vertex.mDirFix, &cameraBsdfDirPdfW, &cameraBsdfRevPdfW);
-            if (IsBlack(cameraFactor)) return;
-            cameraBsdfDirPdfW *= aBsdf.ContinuationProb();
-            cameraBsdfRevPdfW *= aBsdf.ContinuationProb();
-            const float weight = mPpm ? 1.f : VcmMis::WeightMerge(mMis, vertex.mMis, aCamera.mMis, cameraBsdfDirPdfW, cameraBsdfRevPdfW);
-            sum += cameraFactor * vertex.mThroughput * weight;
+            const BsdfEval cameraSide = aBsdf.EvaluatePathWithRoulette(vertex.mDirFix);
+            if (cameraSide.IsBlack()) return;
+            const float weight = mPpm ? 1.f : VcmMis::WeightMerge(mMisConstants, vertex.mMis, aCamera.mMis,
+                                                                 cameraSide.mDirPdfW, cameraSide.mRevPdfW);
+            sum += cameraSide.mValue * vertex.mThroughput * weight;
         });
         if (IsBlack(sum)) return;
-        const Vec3 contribution = aCamera.mThroughput * sum * mMis.mVmNormalization;
+        const Vec3 contribution = aCamera.mThroughput * sum * mMisConstants.mVmNormalization;
         mFilm.AddColor(aPixel, contribution);
         RecordTechnique(kMerging, aPixel, -1, -1, contribution, 1.f);
         // END EXERCISE ppm_merging/merge
@@ -3504,7 +3545,7 @@ private:
 
     bool mUseVC = false, mUseVM = false, mPpm = false, mLightTraceOnly = false;
     float mBaseRadius = 0.f;
-    VcmMisConstants mMis;
+    VcmMisConstants mMisConstants;
     std::vector<LightVertex> mLightVertices;
     std::vector<size_t> mPathEnds;  // mPathEnds[p]: one past the last vertex of light sub-path p
     HashGrid mGrid;

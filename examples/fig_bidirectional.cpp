@@ -55,7 +55,7 @@ std::vector<Surface> SurfaceKinds(const Scene& aScene) {
                             kind = Surface::kLight;
                         } else {
                             smallvcm::Bsdf bsdf;
-                            bsdf.Setup(ray, hit, aScene, false);
+                            bsdf.Setup(ray, hit, aScene, smallvcm::Transport::kRadiance);
                             // A grazing hit leaves the Bsdf invalid; the material then decides.
                             const smallvcm::Material& material = aScene.GetMaterial(hit.mMaterialId);
                             const bool delta = bsdf.IsValid() ? bsdf.IsDelta()

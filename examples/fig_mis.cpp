@@ -97,7 +97,7 @@ void FigureMis(const Kit& aKit) {
         RenderOptions options = BaseOptions(aKit, Algorithm::kPathTracing);
         options.mMaxPathLength = 2;
         options.mDirectLight = technique.mSampling;
-        options.mMis = technique.mHeuristic;
+        options.mMisHeuristic = technique.mHeuristic;
         std::vector<std::vector<double>> perSeed;
         for (int seed = 1; seed <= seeds; seed++) {
             options.mSeed = uint64_t(seed);

@@ -159,7 +159,7 @@ Mask DiffusePixels(const Scene& aScene) {
                     break;
                 }
                 smallvcm::Bsdf bsdf;
-                bsdf.Setup(ray, hit, aScene, false);
+                bsdf.Setup(ray, hit, aScene, smallvcm::Transport::kRadiance);
                 if (!bsdf.IsValid() || bsdf.IsDelta()) direct[size_t(pixel)] = 0;
             }
     std::vector<char> diffuse = direct;

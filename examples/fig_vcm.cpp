@@ -182,7 +182,7 @@ std::vector<Photon> TracePhotons(const Scene& aScene, int aPaths, uint64_t aSeed
             if (!aScene.Intersect(ray, hit)) break;
             const Vec3 point = ray.mOrigin + hit.mDist * ray.mDirection;
             smallvcm::Bsdf bsdf;
-            bsdf.Setup(ray, hit, aScene, true);
+            bsdf.Setup(ray, hit, aScene, smallvcm::Transport::kImportance);
             if (!bsdf.IsValid()) break;
             if (!bsdf.IsDelta()) {
                 const Vec3 normal = glm::dot(hit.mNormal, ray.mDirection) < 0.f ? hit.mNormal : -hit.mNormal;

@@ -55,7 +55,7 @@ public:
                     radiance += throughput * emitted * BsdfWeight(bsdfPdfW, lightPdfW * LightPickProb());
                 }
                 Bsdf bsdf;
-                bsdf.Setup(ray, hit, mScene, false);  // false: a camera path carries radiance
+                bsdf.Setup(ray, hit, mScene, Transport::kRadiance);  // a camera path carries radiance
                 if (!bsdf.IsValid() || length >= mOptions.mMaxPathLength) break;
                 if (!bsdf.IsDelta()) radiance += throughput * NextEventEstimate(bsdf, point, aRng);
                 ScatterSample scatter;  // its weight f cos / pdf includes Russian roulette

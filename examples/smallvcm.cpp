@@ -262,8 +262,8 @@ CommandLine Parse(int argc, char** argv) {
         }
         else if (arg == "--mis") {
             const std::string name = value(i);
-            if (name == "balance") cl.mOptions.mMis = smallvcm::MisHeuristic::kBalance;
-            else if (name == "power") cl.mOptions.mMis = smallvcm::MisHeuristic::kPower;
+            if (name == "balance") cl.mOptions.mMisHeuristic = smallvcm::MisHeuristic::kBalance;
+            else if (name == "power") cl.mOptions.mMisHeuristic = smallvcm::MisHeuristic::kPower;
             else throw Error("--mis: unknown heuristic '" + name + "' (balance, power)");
         }
         else if (arg == "--photons") cl.mOptions.mPhotonCount = ParseNumber<int>(arg, value(i), 1, 100000000, "an integer in [1, 1e8]");
@@ -317,7 +317,7 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
     if (!builtIn || o.mAlgorithm != Algorithm::kEyeLight) {
         estimator["min_path_length"] = o.mMinPathLength;
         estimator["max_path_length"] = o.mMaxPathLength;
-        estimator["mis"] = o.mMis == smallvcm::MisHeuristic::kPower ? "power" : "balance";
+        estimator["mis"] = o.mMisHeuristic == smallvcm::MisHeuristic::kPower ? "power" : "balance";
     }
     if (merges) {
         estimator["radius_factor"] = Shortest(o.mRadiusFactor);

@@ -2,7 +2,7 @@
 // energy conservation (Monte Carlo albedo), Sample/Evaluate/Pdf consistency with a
 // chi-square test of the sampled directions, Fresnel and refraction, one-sidedness and
 // the Russian-roulette continuation probabilities. Every Bsdf is built with
-// Bsdf::Setup(worldDirFix, normal, material, fixIsLight), on a tilted normal so that the
+// Bsdf::Setup(worldDirFix, normal, material, transport), on a tilted normal so that the
 // local frame is not the world's.
 #include "test_util.hpp"
 
@@ -105,9 +105,10 @@ Vec3 RandomUpper(Rng& aRng) {
     return DirectionAt(0.02f + 0.98f * aRng.GetFloat(), float(kTwoPi) * aRng.GetFloat());
 }
 
-Bsdf Make(const Vec3& aFix, const Material& aMaterial, bool aFixIsLight = false, const Vec3& aNormal = kNormal) {
+Bsdf Make(const Vec3& aFix, const Material& aMaterial, Transport aTransport = Transport::kRadiance,
+          const Vec3& aNormal = kNormal) {
     Bsdf bsdf;
-    bsdf.Setup(aFix, aNormal, aMaterial, aFixIsLight);
+    bsdf.Setup(aFix, aNormal, aMaterial, aTransport);
     return bsdf;
 }
 
@@ -152,10 +153,10 @@ TEST_CASE("Non-specular BSDFs are reciprocal: f(a, b) = f(b, a)", "[bsdf]") {
         int nonZero = 0;
         for (int i = 0; i < 2000; i++) {
             const Vec3 a = RandomUpper(rng), b = RandomUpper(rng);
-            for (const bool fixIsLight : {false, true}) {
+            for (const Transport transport : {Transport::kRadiance, Transport::kImportance}) {
                 float cosAB, cosBA;
-                const Vec3 fab = Make(a, material, fixIsLight).Evaluate(b, cosAB);
-                const Vec3 fba = Make(b, material, fixIsLight).Evaluate(a, cosBA);
+                const Vec3 fab = Make(a, material, transport).Evaluate(b, cosAB);
+                const Vec3 fba = Make(b, material, transport).Evaluate(a, cosBA);
                 for (int c = 0; c < 3; c++) REQUIRE(fab[c] == Approx(fba[c]).epsilon(1e-4).margin(1e-12));
                 REQUIRE(cosAB == Approx(glm::dot(b, kNormal)).epsilon(1e-5));
                 REQUIRE(cosBA == Approx(glm::dot(a, kNormal)).epsilon(1e-5));
@@ -261,15 +262,15 @@ TEST_CASE("No material reflects more energy than it receives", "[bsdf]") {
     // material here has component reflectances summing to at most 1. Mirror and glass
     // samples weigh exactly 1 up to float rounding (so their standard error is ~1e-8):
     // 1e-6, a few ulps, is added for that rounding.
-    std::vector<std::pair<Material, bool>> cases;
+    std::vector<std::pair<Material, Transport>> cases;
     for (const Material& m : NonSpecularMaterials())
-        if (m.mName != "diffuse + glass") cases.push_back({m, false});
-    cases.push_back({Mirror(), false});
-    cases.push_back({Glass(), true});
-    for (const auto& [material, fixIsLight] : cases) {
+        if (m.mName != "diffuse + glass") cases.push_back({m, Transport::kRadiance});
+    cases.push_back({Mirror(), Transport::kRadiance});
+    cases.push_back({Glass(), Transport::kImportance});
+    for (const auto& [material, transport] : cases) {
         for (const float cosIn : kIncidentCosines) {
             INFO(material.mName << ", cos incident " << cosIn);
-            const Bsdf bsdf = Make(DirectionAt(cosIn, 2.5f), material, fixIsLight);
+            const Bsdf bsdf = Make(DirectionAt(cosIn, 2.5f), material, transport);
             REQUIRE(bsdf.IsValid());
             for (int c = 0; c < 3; c++) {
                 const MeanAndError albedo = Albedo(bsdf, 20000, 314, c);
@@ -427,7 +428,7 @@ TEST_CASE("Glass picks reflection with probability F and refraction with 1 - F (
     for (const float cosIn : {0.95f, 0.5f, 0.1f}) {
         INFO("cos incident " << cosIn);
         const double fresnel = FresnelReference(cosIn, 1.0, 1.6);
-        const ChiSquare chi = SampleDirectionChiSquare(Make(DirectionAt(cosIn, 0.f), Glass(), true), 100000, fresnel, 1.0 - fresnel, 323);
+        const ChiSquare chi = SampleDirectionChiSquare(Make(DirectionAt(cosIn, 0.f), Glass(), Transport::kImportance), 100000, fresnel, 1.0 - fresnel, 323);
         INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
         REQUIRE(chi.statistic < chi.threshold);
     }
@@ -488,7 +489,7 @@ TEST_CASE("A refracted direction obeys Snell's law and lies in the plane of inci
         Vec3 fix = RandomUpper(rng);
         // From inside, stay within the critical angle so that refraction exists.
         if (fromInside) fix = -DirectionAt(0.8f + 0.2f * rng.GetFloat(), float(kTwoPi) * rng.GetFloat());
-        const Bsdf bsdf = Make(fix, glass, true);
+        const Bsdf bsdf = Make(fix, glass, Transport::kImportance);
         Vec3 gen;
         float pdf, cosine;
         uint32_t event;
@@ -519,8 +520,8 @@ TEST_CASE("Glass splits importance into F reflected and 1 - F refracted, and rad
         const Vec3 fix = cosIn > 0.f ? DirectionAt(cosIn, 0.7f) : -DirectionAt(-cosIn, 0.7f);
         const float fresnel = FresnelDielectric(cosIn, glass.mIor);
         const double etaFixOverGen = cosIn > 0.f ? 1.0 / 1.6 : 1.6;
-        for (const bool fixIsLight : {true, false}) {
-            const Bsdf bsdf = Make(fix, glass, fixIsLight);
+        for (const Transport transport : {Transport::kImportance, Transport::kRadiance}) {
+            const Bsdf bsdf = Make(fix, glass, transport);
             REQUIRE(bsdf.IsValid());
             REQUIRE(bsdf.IsDelta());
             Vec3 reflectDir, refractDir;
@@ -536,7 +537,7 @@ TEST_CASE("Glass splits importance into F reflected and 1 - F refracted, and rad
             // Reflected and refracted fractions: f cos.
             const double reflected = fr.x * reflectCos, transmitted = ft.x * refractCos;
             REQUIRE(reflected == Approx(fresnel).epsilon(1e-5));
-            if (fixIsLight) {
+            if (transport == Transport::kImportance) {
                 REQUIRE(transmitted == Approx(1.0 - fresnel).epsilon(1e-5));
                 REQUIRE(reflected + transmitted == Approx(1.0).epsilon(1e-5));
             } else {
@@ -552,7 +553,7 @@ TEST_CASE("Glass splits importance into F reflected and 1 - F refracted, and rad
         }
     }
     // Under total internal reflection every sample reflects with weight 1.
-    const Bsdf tir = Make(-DirectionAt(0.3f, 0.f), glass, false);
+    const Bsdf tir = Make(-DirectionAt(0.3f, 0.f), glass, Transport::kRadiance);
     REQUIRE(tir.IsValid());
     Rng rng(332, 0);
     for (int i = 0; i < 100; i++) {
@@ -597,7 +598,7 @@ TEST_CASE("Lambert and Phong seen from behind are invalid unless the material is
     for (const Material& material : {Lambert(Vec3(0.5f)), Phong(10.f), GlossyFloor()}) {
         INFO(material.mName);
         REQUIRE_FALSE(Make(-DirectionAt(0.7f, 1.f), material).IsValid());
-        REQUIRE_FALSE(Make(-DirectionAt(0.7f, 1.f), material, true).IsValid());
+        REQUIRE_FALSE(Make(-DirectionAt(0.7f, 1.f), material, Transport::kImportance).IsValid());
         REQUIRE(Make(DirectionAt(0.7f, 1.f), material).IsValid());
         // From the front, nothing is transmitted to the back.
         float cosine, pdf;

@@ -304,7 +304,7 @@ TEST_CASE("Exercise 02: the path tracer renders the emissive furnace's analytic 
     for (const Mode& mode : modes) {
         RenderOptions options = Options(Algorithm::kPathTracing, 4, maxPathLength);
         options.mDirectLight = mode.sampling;
-        options.mMis = mode.heuristic;
+        options.mMisHeuristic = mode.heuristic;
         const MeanAndError measured = ImageMean(IndependentRenders(scene, options, 8, 201));
         std::string hint;
         if (measured.mean < 0.6 * expected && mode.sampling == DirectLightSampling::kLightOnly)
@@ -401,7 +401,7 @@ TEST_CASE("Exercise 03: Bsdf::Evaluate gives the normalised Phong lobe rho (n+2)
                              : glm::normalize(mirror + 0.3f * (rng.GetVec3() - Vec3(0.5f)));
             if (glm::dot(gen, kTiltedNormal) < 0.02f) continue;
             Bsdf bsdf;
-            bsdf.Setup(fix, kTiltedNormal, material, false);
+            bsdf.Setup(fix, kTiltedNormal, material, Transport::kRadiance);
             REQUIRE(bsdf.IsValid());
             float cosGen = 0.f, directPdfW = -1.f, reversePdfW = -1.f;
             const Vec3 f = bsdf.Evaluate(gen, cosGen, &directPdfW, &reversePdfW);
@@ -437,7 +437,7 @@ TEST_CASE("Exercise 03: Bsdf::Sample draws Phong directions from the lobe around
         const Material material = PhongMaterial(c.exponent);
         const Vec3 fix = Direction(c.cosIn, 0.8f);
         Bsdf bsdf;
-        bsdf.Setup(fix, kTiltedNormal, material, false);
+        bsdf.Setup(fix, kTiltedNormal, material, Transport::kRadiance);
         REQUIRE(bsdf.IsValid());
         const Vec3 mirror = 2.f * glm::dot(kTiltedNormal, fix) * kTiltedNormal - fix;
         const Basis lobeFrame(mirror);

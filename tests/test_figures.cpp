@@ -395,7 +395,7 @@ TEST_CASE("F04: on Veach's plates MIS is as good as the better of light and BSDF
         RenderOptions options = SerialOptions(Algorithm::kPathTracing, uint64_t(4000 + k));
         options.mMaxPathLength = 2;
         options.mDirectLight = modes[m].mDirectLight;
-        options.mMis = modes[m].mHeuristic;
+        options.mMisHeuristic = modes[m].mHeuristic;
         options.mIterations = iterations;
         const Image image = Render(scene, options).mImage;
         for (int y = 0; y < height; y++)

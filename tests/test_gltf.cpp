@@ -835,7 +835,7 @@ TEST_CASE("An inside-out mesh reflects outside only with a doubleSided material,
         REQUIRE(scene.Intersect(ray, hit));
         REQUIRE(hit.mNormal.z < 0.f);
         Bsdf bsdf;
-        bsdf.Setup(ray, hit, scene, false);
+        bsdf.Setup(ray, hit, scene, Transport::kRadiance);
         CHECK(bsdf.IsValid() == doubleSided);
     }
 }
@@ -942,7 +942,7 @@ TEST_CASE("A glTF base-colour texture is read from a PNG file, sRGB-decoded and 
     const Ray down{Vec3(0.25f, 0.75f, 1.f), Vec3(0.f, 0.f, -1.f)};
     REQUIRE(scene.Intersect(down, hit));
     Bsdf bsdf;
-    bsdf.Setup(down, hit, scene, false);
+    bsdf.Setup(down, hit, scene, Transport::kRadiance);
     float cosGen;
     const Vec3 f = bsdf.Evaluate(Vec3(0.f, 0.f, 1.f), cosGen);
     CHECK(f.x == Approx((0.96f * 0.5f + 0.04f) / kPi));

@@ -150,7 +150,7 @@ TEST_CASE("The density estimate on a plane under a point light converges to the 
     scene.Finalize();
     const double expected = 0.5 / kPi;
     Bsdf bsdf;
-    bsdf.Setup(Vec3(0, 0, 1), Vec3(0, 0, 1), scene.GetMaterial(m), false);
+    bsdf.Setup(Vec3(0, 0, 1), Vec3(0, 0, 1), scene.GetMaterial(m), Transport::kRadiance);
     std::vector<KdTree::Neighbor> scratch;
     double previousBias = 1e30;
     for (int photons : {4000, 16000, 64000}) {

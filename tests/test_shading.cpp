@@ -136,9 +136,9 @@ TEST_CASE("A double-sided smooth mesh wound against its normals still reflects f
     REQUIRE(scene.Intersect(ray, hit));
     REQUIRE(hit.mNormal.z < 0.f);
     REQUIRE(hit.mShadingNormal.z < 0.f);  // turned to the winding's side
-    for (bool fixIsLight : {false, true}) {
+    for (const Transport transport : {Transport::kRadiance, Transport::kImportance}) {
         Bsdf bsdf;
-        bsdf.Setup(ray, hit, scene, fixIsLight);
+        bsdf.Setup(ray, hit, scene, transport);
         REQUIRE(bsdf.IsValid());
         float cos;
         CHECK(!IsBlack(bsdf.Evaluate(glm::normalize(Vec3(0.3f, 0.1f, 1.f)), cos)));
@@ -182,8 +182,8 @@ TEST_CASE("The adjoint shading factor and the Bsdf of both transport directions"
         // a: towards the light, b: towards the eye. Both must be on the front of both normals.
         const bool valid = glm::dot(a, ng) > 0.01f && glm::dot(a, ns) > 0.01f && glm::dot(b, ng) > 0.01f && glm::dot(b, ns) > 0.01f;
         Bsdf camera, light;
-        camera.Setup(b, ng, ns, lambert, false);
-        light.Setup(a, ng, ns, lambert, true);
+        camera.Setup(b, ng, ns, lambert, Transport::kRadiance);
+        light.Setup(a, ng, ns, lambert, Transport::kImportance);
         float cosCamera, cosLight;
         const Vec3 fCamera = camera.Evaluate(a, cosCamera), fLight = light.Evaluate(b, cosLight);
         if (!valid) continue;
@@ -218,9 +218,9 @@ TEST_CASE("No light leaks: a direction on different sides of the shading and the
     REQUIRE(glm::dot(wedge, ns) > 0.f);
     REQUIRE(glm::dot(wedge, ng) < 0.f);
     const Vec3 up = glm::normalize(Vec3(0.f, 0.3f, 1.f));
-    for (bool fixIsLight : {false, true}) {
+    for (const Transport transport : {Transport::kRadiance, Transport::kImportance}) {
         Bsdf bsdf;
-        bsdf.Setup(up, ng, ns, lambert, fixIsLight);
+        bsdf.Setup(up, ng, ns, lambert, transport);
         REQUIRE(bsdf.IsValid());
         float cos, directPdfW = 1.f, reversePdfW = 1.f;
         REQUIRE(IsBlack(bsdf.Evaluate(wedge, cos, &directPdfW, &reversePdfW)));
@@ -240,7 +240,7 @@ TEST_CASE("No light leaks: a direction on different sides of the shading and the
         REQUIRE(black > 0);
         // Arriving from the wedge: nothing (the one-sided Lambert's back, seen by Ng).
         Bsdf fromWedge;
-        fromWedge.Setup(wedge, ng, ns, lambert, fixIsLight);
+        fromWedge.Setup(wedge, ng, ns, lambert, transport);
         REQUIRE(!fromWedge.IsValid());
     }
 }
@@ -251,19 +251,19 @@ TEST_CASE("A two-sided smooth surface seen from behind turns both normals; a one
     const Vec3 ng(0.f, 0.f, 1.f), ns = glm::normalize(Vec3(0.3f, 0.f, 1.f));
     const Vec3 behind = glm::normalize(Vec3(0.1f, 0.2f, -1.f)), alsoBehind = glm::normalize(Vec3(-0.3f, 0.f, -1.f));
     Bsdf oneSided;
-    oneSided.Setup(behind, ng, ns, material, false);
+    oneSided.Setup(behind, ng, ns, material, Transport::kRadiance);
     REQUIRE(!oneSided.IsValid());
     material.mTwoSided = true;
-    for (bool fixIsLight : {false, true}) {
+    for (const Transport transport : {Transport::kRadiance, Transport::kImportance}) {
         Bsdf twoSided;
-        twoSided.Setup(behind, ng, ns, material, fixIsLight);
+        twoSided.Setup(behind, ng, ns, material, transport);
         REQUIRE(twoSided.IsValid());
         REQUIRE(twoSided.CosThetaFix() == Approx(glm::dot(behind, -ns)).epsilon(1e-5));
         REQUIRE(twoSided.CosThetaFixGeometric() == Approx(glm::dot(behind, -ng)).epsilon(1e-5));
         float cos;
         const Vec3 f = twoSided.Evaluate(alsoBehind, cos);
         REQUIRE(cos == Approx(glm::dot(alsoBehind, -ns)).epsilon(1e-5));
-        const float adjoint = fixIsLight ? AdjointShadingFactor(glm::dot(behind, ns), glm::dot(behind, ng),
+        const float adjoint = transport == Transport::kImportance ? AdjointShadingFactor(glm::dot(behind, ns), glm::dot(behind, ng),
                                                                 glm::dot(alsoBehind, ns), glm::dot(alsoBehind, ng)) : 1.f;
         REQUIRE(f.x == Approx(0.6f / kPi * adjoint).epsilon(1e-5));
         // The front is on the other side now: a direction in front of Ng is black.

@@ -152,7 +152,7 @@ TEST_CASE("Lights at the limits Scene::Finalize allows render finite images with
         for (Algorithm algorithm : kAll)
             for (MisHeuristic heuristic : {MisHeuristic::kBalance, MisHeuristic::kPower}) {
                 RenderOptions options = Options(algorithm, 2);
-                options.mMis = heuristic;
+                options.mMisHeuristic = heuristic;
                 INFO(aWhat << ", " << AlgorithmShortName(algorithm) << (heuristic == MisHeuristic::kPower ? ", power" : ", balance"));
                 CHECK(BadPixels(Render(aScene, options).mImage) == 0);
             }

@@ -122,8 +122,8 @@ bool SetupBsdfs(const Scene& aScene, const FullPath& aPath, PathBsdfs& oBsdfs) {
     oBsdfs.camera.assign(size_t(k), Bsdf());
     for (int i = 1; i < k; i++) {
         const Material& material = aScene.GetMaterial(aPath.material[size_t(i)]);
-        oBsdfs.light[size_t(i)].Setup(Dir(aPath, i, i - 1), aPath.n[size_t(i)], material, true);
-        oBsdfs.camera[size_t(i)].Setup(Dir(aPath, i, i + 1), aPath.n[size_t(i)], material, false);
+        oBsdfs.light[size_t(i)].Setup(Dir(aPath, i, i - 1), aPath.n[size_t(i)], material, Transport::kImportance);
+        oBsdfs.camera[size_t(i)].Setup(Dir(aPath, i, i + 1), aPath.n[size_t(i)], material, Transport::kRadiance);
         if (!oBsdfs.light[size_t(i)].IsValid() || !oBsdfs.camera[size_t(i)].IsValid()) return false;
     }
     return true;
@@ -230,7 +230,7 @@ bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
             return true;
         }
         Bsdf bsdf;
-        bsdf.Setup(ray, hit, aScene, false);
+        bsdf.Setup(ray, hit, aScene, Transport::kRadiance);
         if (!bsdf.IsValid()) return false;
         points.push_back(hitPoint);
         normals.push_back(hit.mNormal);
@@ -994,7 +994,7 @@ RecordedComparison CompareRecordedWeights(int aSceneIndex, const MisCase& aCase,
     options.mAlgorithm = aCase.useVC && aCase.useVM ? Algorithm::kVertexConnectionMerging
                          : aCase.useVC             ? Algorithm::kBidirectionalPathTracing
                                                    : Algorithm::kBidirectionalPhotonMapping;
-    options.mMis = aCase.heuristic;
+    options.mMisHeuristic = aCase.heuristic;
     options.mRadiusFactor = aCase.radiusFactor;
     options.mMaxPathLength = kMaxSegments;
     options.mProgress = false;
