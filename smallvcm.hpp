@@ -3057,12 +3057,12 @@ public:
     size_t LightVertexCount() const { return mLightVertices.size(); }
     size_t LightVertexCapacity() const { return mLightVertices.capacity(); }  // for the memory report
 
-    // Test hook: the full path of every weighted contribution but merges, with the MIS
-    // weight this renderer gave it, so a test can recompute that weight from the path's
-    // vertices alone (tests/test_vcm_mis.cpp). Merges are left out: their light and camera
-    // vertices differ by up to r, so no single path has their weight. Off (a null
-    // pointer, one branch per vertex and contribution) unless a test sets it; run
-    // iterations single-threaded (RunIteration) while it is set.
+    // Test hook: the full path of every weighted contribution, with the MIS weight this
+    // renderer gave it, so a test can recompute that weight from the path's vertices
+    // alone (tests/test_vcm_mis.cpp). A merge (one record per light vertex merged) lists
+    // the merged point twice, as the light and as the camera sub-path reached it: the two
+    // differ by up to r. Off (a null pointer, one branch per vertex and contribution)
+    // unless a test sets it; run iterations single-threaded (RunIteration) while it is set.
     struct PathVertex {
         Vec3 mPosition{0.f};  // for a light at infinity: the unit direction towards it
         Vec3 mNormal{0.f};    // geometric normal; 0 at the camera, delta lights, infinity and NEE points
@@ -3073,7 +3073,7 @@ public:
     };
     struct PathRecord {
         Technique mTechnique = kUnidirectional;
-        int mLightVertexCount = 0;  // s: x_0 .. x_{s-1} come from the light side
+        int mLightVertexCount = 0;  // s: x_0 .. x_{s-1} come from the light side (a merge: x_{s-1} is the merged light vertex)
         float mWeight = 0.f;
         std::vector<PathVertex> mVertices;  // x_0 (on the light) .. x_k (the camera)
     };
@@ -3493,6 +3493,7 @@ private:
             if (cameraSide.IsBlack()) return;
             const float weight = mPpm ? 1.f : VcmMis::WeightMerge(mMisConstants, vertex.mMis, aCamera.mMis,
                                                                  cameraSide.mDirPdfW, cameraSide.mRevPdfW);
+            if (mPathRecords) RecordMerge(i, weight);
             sum += cameraSide.mValue * vertex.mThroughput * weight;
         });
         if (IsBlack(sum)) return;
@@ -3535,6 +3536,21 @@ private:
         }
         if (aTechnique == kLightTracing) path.push_back(PathVertex{mScene.mCamera.Position()});
         else path.insert(path.end(), mCameraHistory.rbegin(), mCameraHistory.rend());
+        mPathRecords->push_back(std::move(record));
+    }
+
+    // A merge of light vertex aVertex with the camera's last vertex: x_0 .. x_s of the
+    // light sub-path it ends (s = its path length), then the whole camera sub-path
+    // backwards, so the merged point appears twice, once from each side.
+    void RecordMerge(uint32_t aVertex, float aWeight) {
+        const size_t lightPath = size_t(std::upper_bound(mPathEnds.begin(), mPathEnds.end(), size_t(aVertex)) - mPathEnds.begin());
+        const std::vector<PathVertex>& light = mLightHistories[lightPath];
+        PathRecord record;
+        record.mTechnique = kMerging;
+        record.mLightVertexCount = mLightVertices[aVertex].mPathLength + 1;
+        record.mWeight = aWeight;
+        record.mVertices.assign(light.begin(), light.begin() + record.mLightVertexCount);
+        record.mVertices.insert(record.mVertices.end(), mCameraHistory.rbegin(), mCameraHistory.rend());
         mPathRecords->push_back(std::move(record));
     }
 

@@ -95,6 +95,117 @@ inline Scene MakePointLightFurnace(int aWidth, int aHeight) {
     return scene;
 }
 
+// Small rooms of every kind of surface and light, built in code (the per-length tests of
+// test_transport and the recorded-weight MIS test of test_vcm_mis use them).
+// A quad from two triangles, wound so that its front faces aInside.
+inline void AddQuadFacing(Scene& aScene, const Vec3& aA, const Vec3& aB, const Vec3& aC, const Vec3& aD, const Vec3& aInside,
+                   int aMaterial, std::vector<int>* oIds = nullptr) {
+    const bool flip = glm::dot(glm::cross(aB - aA, aC - aA), aInside - aA) < 0.f;
+    const int t0 = flip ? aScene.AddTriangle(aA, aC, aB, aMaterial) : aScene.AddTriangle(aA, aB, aC, aMaterial);
+    const int t1 = flip ? aScene.AddTriangle(aA, aD, aC, aMaterial) : aScene.AddTriangle(aA, aC, aD, aMaterial);
+    if (oIds) { oIds->push_back(t0); oIds->push_back(t1); }
+}
+
+inline Material DiffuseMaterial(float aR, float aG, float aB) {
+    Material m;
+    m.mDiffuseReflectance = Vec3(aR, aG, aB);
+    return m;
+}
+
+// A room x in [-1, 1], y in [-1, 1], z in [0, 2], open at the front (y = -1, behind the
+// camera, so that paths leave it), with diffuse walls and ceiling and the given floor;
+// the camera at (0, -0.9, 1) looks at the back wall and sees the floor and the ceiling
+// from y = 0.3 on (80 degrees).
+inline Scene MakeOpenRoom(const Material& aFloor, int aSize) {
+    Scene scene;
+    const Vec3 inside(0.f, 0.f, 1.f);
+    const int white = scene.AddMaterial(DiffuseMaterial(0.7f, 0.7f, 0.7f));
+    const int red = scene.AddMaterial(DiffuseMaterial(0.7f, 0.25f, 0.2f));
+    const int green = scene.AddMaterial(DiffuseMaterial(0.2f, 0.6f, 0.25f));
+    const int floor = scene.AddMaterial(aFloor);
+    AddQuadFacing(scene, Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(1, 1, 0), Vec3(-1, 1, 0), inside, floor);
+    AddQuadFacing(scene, Vec3(-1, -1, 2), Vec3(1, -1, 2), Vec3(1, 1, 2), Vec3(-1, 1, 2), inside, white);
+    AddQuadFacing(scene, Vec3(-1, 1, 0), Vec3(1, 1, 0), Vec3(1, 1, 2), Vec3(-1, 1, 2), inside, white);
+    AddQuadFacing(scene, Vec3(-1, -1, 0), Vec3(-1, 1, 0), Vec3(-1, 1, 2), Vec3(-1, -1, 2), inside, red);
+    AddQuadFacing(scene, Vec3(1, -1, 0), Vec3(1, 1, 0), Vec3(1, 1, 2), Vec3(1, -1, 2), inside, green);
+    scene.mCamera.Setup(Vec3(0.f, -0.9f, 1.f), Vec3(0.f, 1.f, 0.f), Vec3(0.f, 0.f, 1.f), 80.f);
+    scene.mCamera.SetResolution(aSize, aSize);
+    return scene;
+}
+
+inline Material PhongMaterial(float aDiffuse, float aPhong, float aExponent) {
+    Material m;
+    m.mDiffuseReflectance = Vec3(aDiffuse);
+    m.mPhongReflectance = Vec3(aPhong);
+    m.mPhongExponent = aExponent;
+    return m;
+}
+
+inline Material GlassMaterial(float aIor) {
+    Material m;
+    m.mMirrorReflectance = Vec3(1.f);
+    m.mIor = aIor;
+    return m;
+}
+
+// Glossy: a Phong floor and a Phong ball, lit by a sphere light and by a two-sided
+// panel seen from the camera on one side and lighting the room from both.
+inline Scene MakeGlossyRoom(int aSize) {
+    Scene scene = MakeOpenRoom(PhongMaterial(0.25f, 0.45f, 20.f), aSize);
+    scene.mName = "glossy room (sphere light, two-sided panel)";
+    const int black = scene.AddMaterial(Material());
+    scene.AddSphere(Vec3(0.45f, 0.4f, 0.35f), 0.35f, scene.AddMaterial(PhongMaterial(0.2f, 0.6f, 30.f)));
+    scene.AddSphereLight(scene.AddSphere(Vec3(-0.4f, 0.4f, 1.55f), 0.3f, black), Vec3(2.f));
+    std::vector<int> panel;  // vertical, facing +-x, at x = 0.3
+    AddQuadFacing(scene, Vec3(0.3f, 0.f, 0.9f), Vec3(0.3f, 0.6f, 0.9f), Vec3(0.3f, 0.6f, 1.4f), Vec3(0.3f, 0.f, 1.4f),
+                  Vec3(-1.f, 0.3f, 1.1f), black, &panel);
+    scene.AddAreaLight(panel, Vec3(2.f), true);
+    scene.Finalize();
+    return scene;
+}
+
+// A spot light from the ceiling onto the Phong floor and a diffuse ball.
+inline Scene MakeSpotRoom(int aSize) {
+    Scene scene = MakeOpenRoom(PhongMaterial(0.3f, 0.4f, 15.f), aSize);
+    scene.mName = "spot room";
+    scene.AddSphere(Vec3(0.3f, 0.3f, 0.3f), 0.3f, scene.AddMaterial(DiffuseMaterial(0.6f, 0.6f, 0.3f)));
+    scene.AddSpotLight(Vec3(-0.2f, 0.f, 1.95f), Vec3(0.3f, 0.3f, -1.f), Vec3(3.f), 0.35f, 0.7f);
+    scene.Finalize();
+    return scene;
+}
+
+// Specular: a mirror wall (right) and a glass ball, a one-sided ceiling light.
+inline Scene MakeSpecularRoom(int aSize) {
+    Scene scene = MakeOpenRoom(DiffuseMaterial(0.6f, 0.6f, 0.6f), aSize);
+    scene.mName = "specular room (mirror, glass)";
+    Material mirror;
+    mirror.mMirrorReflectance = Vec3(0.85f);
+    AddQuadFacing(scene, Vec3(0.98f, -0.6f, 0.1f), Vec3(0.98f, 0.9f, 0.1f), Vec3(0.98f, 0.9f, 1.7f), Vec3(0.98f, -0.6f, 1.7f),
+                  Vec3(0.f, 0.f, 1.f), scene.AddMaterial(mirror));
+    scene.AddSphere(Vec3(-0.35f, 0.35f, 0.4f), 0.4f, scene.AddMaterial(GlassMaterial(1.5f)));
+    const int black = scene.AddMaterial(Material());
+    std::vector<int> light;
+    AddQuadFacing(scene, Vec3(-0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.9f, 1.99f), Vec3(-0.4f, 0.9f, 1.99f),
+                  Vec3(0.f, 0.f, 0.f), black, &light);
+    scene.AddAreaLight(light, Vec3(4.f));
+    scene.Finalize();
+    return scene;
+}
+
+// The camera inside a glass ball: every camera ray leaves through the glass.
+inline Scene MakeCameraInGlassRoom(int aSize) {
+    Scene scene = MakeOpenRoom(PhongMaterial(0.4f, 0.3f, 10.f), aSize);
+    scene.mName = "camera inside glass";
+    scene.AddSphere(scene.mCamera.Position(), 0.08f, scene.AddMaterial(GlassMaterial(1.5f)));
+    const int black = scene.AddMaterial(Material());
+    std::vector<int> light;
+    AddQuadFacing(scene, Vec3(-0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.9f, 1.99f), Vec3(-0.4f, 0.9f, 1.99f),
+                  Vec3(0.f, 0.f, 0.f), black, &light);
+    scene.AddAreaLight(light, Vec3(4.f));
+    scene.Finalize();
+    return scene;
+}
+
 // The six estimators of light transport that every whole-scene agreement test compares
 // (the eye light estimates nothing; the classic photon maps pm and pmfg are biased).
 inline constexpr Algorithm kTransportEstimators[] = {
