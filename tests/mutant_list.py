@@ -267,6 +267,19 @@ MUTANTS = [
     dict(id="M80", cls="mis", what="connection weight without the camera side",
          find="const float wCamera = c.Mis(aLightBsdfDirPdfA) *",
          replace="const float wCamera = 0.f * c.Mis(aLightBsdfDirPdfA) *"),
+    # --- lights added with spot lights and two-sided emitters (issue 17, tests17) -----------------
+    dict(id="M81", cls="lights", what="spot light's next-event estimate ignores the falloff",
+         find="oSample.mRadiance = mEmission * falloff;",
+         replace="oSample.mRadiance = mEmission;"),
+    dict(id="M82", cls="lights", what="spot light's NEE emission pdf of the whole sphere, not the cone (MIS only)",
+         find="oSample.mEmissionPdfW = UniformConePdfW(mSpotCosOuter);",
+         replace="oSample.mEmissionPdfW = UniformSpherePdfW();"),
+    dict(id="M83", cls="lights", what="two-sided emitter: the direction number that picked the side is not rescaled",
+         find="aRndDirection.x = std::min(2.f * aRndDirection.x - (back ? 1.f : 0.f), 0.99999994f);",
+         replace="aRndDirection.x = std::min(aRndDirection.x, 0.99999994f);"),
+    dict(id="M84", cls="lights", what="two-sided emitter: light sub-paths' emission pdf without the side probability",
+         find="oEmission.mEmissionPdfW = directionPdfW * SideProbability() / mArea;",
+         replace="oEmission.mEmissionPdfW = directionPdfW / mArea;"),
 ]
 for _m in MUTANTS:
     _m["class"] = _m.pop("cls")
