@@ -376,7 +376,7 @@ struct Hit {
     int mLightId = -1;      // >= 0 when the primitive emits
     Vec3 mNormal{0.f};      // geometric, unit length
     Vec3 mShadingNormal{0.f};  // unit length, on mNormal's side (see the invariant above)
-    Vec2 mUv{0.f};          // texture coordinates (set when the hit's material has a texture)
+    Vec2 mUv{0.f};          // texture coordinates (set when the hit's material or light has a texture)
     bool IsValid() const { return mPrimitiveId >= 0; }
 };
 
@@ -715,6 +715,7 @@ struct LightEmission {
     float mDirectPdfA = 0.f;  // pdf with which next-event estimation picks this position
     float mCosAtLight = 1.f;
     Vec3 mNormal{0.f};        // the light's surface normal at mPosition (area, sphere)
+    Vec3 mRadiance{0.f};      // the radiance leaving mPosition (area, sphere: emission x texel)
 };
 
 // One struct for every kind of light, dispatched by a switch: no virtual calls in the
@@ -724,6 +725,18 @@ struct LightEmission {
 // on a perpendicular surface. For delta lights (point, spot, directional) the "pdfs"
 // follow SmallVCM's convention: the point and spot lights' mDirectPdfW is d^2 so that
 // radiance / pdf gives I / d^2, the directional light's is 1.
+//
+// Textured area light (glTF emissiveTexture): the radiance leaving a point is mEmission
+// times the texel at the point's texture coordinates (bilinear, like the base colour),
+// looked up once wherever the light meets a path: where a ray hits it (GetRadiance, from
+// the hit's uv), where next-event estimation samples it (Illuminate) and where a light
+// sub-path starts (Emit). Positions are still sampled uniformly by area, the texel
+// weighting the sample: unbiased for any texture, though a mostly black texture wastes
+// the samples that land on black (importance sampling by texel power would not; it is
+// left out to keep one sampling routine for every area light). Emit refuses a point
+// whose radiance is black, since its sub-path would carry nothing. Lights are picked
+// uniformly (as in SmallVCM), so no power enters the sampling; the power bound that
+// Finalize checks uses the brightest texel, an upper bound of the average one.
 //
 // Spot light (glTF KHR_lights_punctual, "Inner and Outer Cone Angles"): a point light
 // whose intensity in a direction at angle theta from the axis is I s(cos theta), with the
@@ -750,11 +763,25 @@ struct Light {
     std::vector<Vec3> mTriangleP0, mTriangleE1, mTriangleE2, mTriangleNormal;
     std::vector<float> mTriangleCdf;  // cumulative area, normalised to 1
     float mArea = 0.f;
+    // Emission texture of an area light (index into Scene::mTextures, -1 for none), and
+    // what Finalize derives from it: a copy of the texture (the light's operations get no
+    // scene, and a copy cannot dangle when the scene is copied), its brightest texel per
+    // channel, and each triangle's texture coordinates as a vertex and two edges.
+    int mEmissionTexture = -1;
+    Texture mEmissionTextureCopy;
+    Vec3 mBrightestEmissionTexel{1.f};
+    std::vector<Vec2> mTriangleUv0, mTriangleUvE1, mTriangleUvE2;
     // Sphere light.
     Vec3 mSphereCenter{0.f};
     float mSphereRadius = 0.f;
 
     bool IsDelta() const { return mType == LightType::kPoint || mType == LightType::kSpot || mType == LightType::kDirectional; }
+
+    // The radiance an area or sphere light emits at texture coordinates aUv (the one
+    // texture lookup of a query; untextured lights ignore aUv).
+    Vec3 EmittedRadiance(const Vec2& aUv) const {
+        return mEmissionTexture >= 0 ? mEmission * mEmissionTextureCopy.Lookup(aUv) : mEmission;
+    }
 
     // Area and sphere lights: the cosine between the surface normal aNormal and a direction
     // aOutgoing leaving the surface, on the side that emits (<= 0: that side does not).
@@ -788,7 +815,8 @@ struct Light {
         case LightType::kArea:
         case LightType::kSphere: {
             Vec3 position, normal;
-            SamplePosition(aRnd, position, normal);
+            Vec2 uv;
+            SamplePosition(aRnd, position, normal, uv);
             Vec3 toLight = position - aReceiver;
             const float distSqr = glm::dot(toLight, toLight);
             if (!(distSqr > 0.f)) return false;
@@ -799,7 +827,7 @@ struct Light {
             oSample.mDirectPdfW = PdfAtoW(1.f / mArea, oSample.mDistance, cosNormalDir);
             oSample.mEmissionPdfW = cosNormalDir * kInvPi * SideProbability() / mArea;
             oSample.mCosAtLight = cosNormalDir;
-            oSample.mRadiance = mEmission;
+            oSample.mRadiance = EmittedRadiance(uv);
             return true;
         }
         case LightType::kPoint:
@@ -851,7 +879,10 @@ struct Light {
         case LightType::kArea:
         case LightType::kSphere: {
             Vec3 normal;
-            SamplePosition(aRndPosition, oEmission.mPosition, normal);
+            Vec2 uv;
+            SamplePosition(aRndPosition, oEmission.mPosition, normal, uv);
+            const Vec3 radiance = EmittedRadiance(uv);
+            if (IsBlack(radiance)) return false;  // a black texel: nothing to carry
             if (mTwoSided) {
                 // The side by the first direction number, whose rest, rescaled to [0, 1),
                 // then picks the direction.
@@ -869,7 +900,8 @@ struct Light {
             oEmission.mEmissionPdfW = directionPdfW * SideProbability() / mArea;
             oEmission.mDirectPdfA = 1.f / mArea;
             oEmission.mCosAtLight = localDirection.z;
-            oEmission.mEnergy = mEmission * localDirection.z;
+            oEmission.mRadiance = radiance;
+            oEmission.mEnergy = radiance * localDirection.z;
             return true;
         }
         case LightType::kPoint:
@@ -914,11 +946,12 @@ struct Light {
         return false;
     }
 
-    // Radiance a ray receives when it hits the light (area, sphere: at aHitPoint with
-    // geometric normal aHitNormal) or escapes the scene (background), with the pdfs with
-    // which next-event estimation and emission would have produced the same point.
-    Vec3 GetRadiance(const SceneSphere& aSceneSphere, const Vec3& aRayDirection,
-                     const Vec3& aHitNormal, float* oDirectPdfA, float* oEmissionPdfW) const {
+    // Radiance a ray receives when it hits the light (area, sphere: at a point with
+    // geometric normal aHitNormal and texture coordinates aHitUv, Hit::mUv) or escapes the
+    // scene (background), with the pdfs with which next-event estimation and emission
+    // would have produced the same point.
+    Vec3 GetRadiance(const SceneSphere& aSceneSphere, const Vec3& aRayDirection, const Vec3& aHitNormal,
+                     const Vec2& aHitUv, float* oDirectPdfA, float* oEmissionPdfW) const {
         switch (mType) {
         case LightType::kArea:
         case LightType::kSphere: {
@@ -926,7 +959,7 @@ struct Light {
             if (cosOutL <= 0.f) return Vec3(0.f);
             if (oDirectPdfA) *oDirectPdfA = 1.f / mArea;
             if (oEmissionPdfW) *oEmissionPdfW = cosOutL * kInvPi * SideProbability() / mArea;
-            return mEmission;
+            return EmittedRadiance(aHitUv);
         }
         case LightType::kBackground: {
             const float directPdf = UniformSpherePdfW();
@@ -940,8 +973,10 @@ struct Light {
     }
 
 private:
-    // Uniform point on the light's surface (area pdf 1 / mArea) and its outward normal.
-    void SamplePosition(Vec2 aRnd, Vec3& oPosition, Vec3& oNormal) const {
+    // Uniform point on the light's surface (area pdf 1 / mArea), its outward normal and
+    // its texture coordinates (textured area lights; otherwise 0).
+    void SamplePosition(Vec2 aRnd, Vec3& oPosition, Vec3& oNormal, Vec2& oUv) const {
+        oUv = Vec2(0.f);
         if (mType == LightType::kSphere) {
             oNormal = SampleUniformSphereW(aRnd);
             oPosition = mSphereCenter + mSphereRadius * oNormal;
@@ -960,6 +995,9 @@ private:
         oPosition = mTriangleP0[index] + barycentric.y * mTriangleE1[index] +
                     (1.f - barycentric.x - barycentric.y) * mTriangleE2[index];
         oNormal = mTriangleNormal[index];
+        if (!mTriangleUv0.empty())
+            oUv = mTriangleUv0[index] + barycentric.y * mTriangleUvE1[index] +
+                  (1.f - barycentric.x - barycentric.y) * mTriangleUvE2[index];
     }
 };
 
@@ -1076,13 +1114,16 @@ public:
         mSpheres.push_back(sphere);
         return int(mSpheres.size()) - 1;
     }
-    // All the given triangles become one light of constant radiance, sampled by area,
-    // emitting from their front sides (aTwoSided: from both).
-    int AddAreaLight(const std::vector<int>& aTriangleIds, const Vec3& aRadiance, bool aTwoSided = false) {
+    // All the given triangles become one light of radiance aRadiance (times the texel of
+    // mTextures[aEmissionTexture] at their texture coordinates, when >= 0), sampled by
+    // area, emitting from their front sides (aTwoSided: from both).
+    int AddAreaLight(const std::vector<int>& aTriangleIds, const Vec3& aRadiance, bool aTwoSided = false,
+                     int aEmissionTexture = -1) {
         Light light;
         light.mType = LightType::kArea;
         light.mEmission = aRadiance;
         light.mTwoSided = aTwoSided;
+        light.mEmissionTexture = aEmissionTexture;
         const int id = int(mLights.size());
         for (int t : aTriangleIds) mTriangles.at(size_t(t)).mLightId = id;
         mLights.push_back(light);
@@ -1187,8 +1228,24 @@ public:
             Light& light = mLights[id];
             light.mTriangleP0.clear(); light.mTriangleE1.clear(); light.mTriangleE2.clear();
             light.mTriangleNormal.clear(); light.mTriangleCdf.clear();
+            light.mTriangleUv0.clear(); light.mTriangleUvE1.clear(); light.mTriangleUvE2.clear();
             light.mArea = 0.f;
+            light.mEmissionTextureCopy = Texture{};
+            light.mBrightestEmissionTexel = Vec3(1.f);
             if (light.mType == LightType::kBackground) mBackgroundLightId = int(id);
+            if (light.mEmissionTexture >= 0) {
+                const std::string which = where + ": light " + std::to_string(id) + " (" + LightTypeName(light.mType) + ")";
+                if (light.mType != LightType::kArea) throw Error(which + " has an emission texture; only area lights take one");
+                if (!IsUsableTexture(light.mEmissionTexture))
+                    throw Error(which + " refers to a missing or empty emission texture");
+                light.mEmissionTextureCopy = mTextures[size_t(light.mEmissionTexture)];
+                light.mBrightestEmissionTexel = Vec3(0.f);
+                for (const Vec3& texel : light.mEmissionTextureCopy.mTexels) {
+                    if (!IsFinite(texel) || texel.x < 0.f || texel.y < 0.f || texel.z < 0.f)
+                        throw Error(which + ": its emission texture has a negative or non-finite texel");
+                    light.mBrightestEmissionTexel = glm::max(light.mBrightestEmissionTexel, texel);
+                }
+            }
             if (light.mType == LightType::kSpot) {
                 const std::string which = where + ": light " + std::to_string(id) + " (spot)";
                 if (const char* problem = SpotConeProblem(light.mSpotInnerConeAngle, light.mSpotOuterConeAngle))
@@ -1213,6 +1270,15 @@ public:
             light.mTriangleNormal.push_back(triangle.mNormal);
             light.mArea += triangle.Area();
             light.mTriangleCdf.push_back(light.mArea);
+            if (light.mEmissionTexture >= 0) {
+                if (!std::isfinite(triangle.mUv0.x) || !std::isfinite(triangle.mUv0.y) || !std::isfinite(triangle.mUv1.x) ||
+                    !std::isfinite(triangle.mUv1.y) || !std::isfinite(triangle.mUv2.x) || !std::isfinite(triangle.mUv2.y))
+                    throw Error(where + ": a triangle of light " + std::to_string(triangle.mLightId) +
+                                " has non-finite texture coordinates (NaN or infinity)");
+                light.mTriangleUv0.push_back(triangle.mUv0);
+                light.mTriangleUvE1.push_back(triangle.mUv1 - triangle.mUv0);
+                light.mTriangleUvE2.push_back(triangle.mUv2 - triangle.mUv0);
+            }
         }
         for (size_t s = 0; s < mSpheres.size(); s++) {
             const Sphere& sphere = mSpheres[s];
@@ -1280,7 +1346,8 @@ public:
             oHit.mLightId = triangle.mLightId;
             oHit.mNormal = triangle.mNormal;
             oHit.mShadingNormal = triangle.mNormal;
-            const bool textured = mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0;
+            const bool textured = mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0 ||
+                                  (triangle.mLightId >= 0 && mLights[size_t(triangle.mLightId)].mEmissionTexture >= 0);
             if (textured || triangle.mHasVertexNormals) {
                 const TriangleBarycentrics b = Barycentrics(triangle, aRay.mOrigin + tMax * aRay.mDirection);
                 if (textured) oHit.mUv = TriangleUv(triangle, b);
@@ -1359,7 +1426,9 @@ private:
     // estimator (kMaxLightPower, kMinLightArea); the scene sphere must be set.
     void CheckLightRange(const std::string& aWhere, size_t aId) const {
         const Light& light = mLights[aId];
-        const double brightest = std::max({double(light.mEmission.x), double(light.mEmission.y), double(light.mEmission.z)});
+        // A textured light's radiance is at most its emission times the brightest texel.
+        const Vec3 peak = light.mEmission * light.mBrightestEmissionTexel;
+        const double brightest = std::max({double(peak.x), double(peak.y), double(peak.z)});
         const double discArea = double(kPi) * Sqr(double(mSceneSphere.mRadius));
         double power = 0.0;
         switch (light.mType) {
@@ -1379,13 +1448,17 @@ private:
             throw Error(which + " has an area of " + ShortNumber(light.mArea) + ", below the " + ShortNumber(kMinLightArea) +
                         " whose inverse (its sampling pdf) single precision can hold: enlarge it or use a point light");
     }
+    // Whether mTextures[aTexture] exists and holds width x height texels.
+    bool IsUsableTexture(int aTexture) const {
+        if (aTexture < 0 || aTexture >= int(mTextures.size())) return false;
+        const Texture& texture = mTextures[size_t(aTexture)];
+        return texture.mWidth > 0 && texture.mHeight > 0 &&
+               texture.mTexels.size() == size_t(texture.mWidth) * size_t(texture.mHeight);
+    }
     void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
         if (aMaterialId >= 0 && size_t(aMaterialId) < mMaterials.size()) {
             const int texture = mMaterials[size_t(aMaterialId)].mBaseColorTexture;
-            if (texture >= int(mTextures.size()) ||
-                (texture >= 0 && (mTextures[size_t(texture)].mWidth <= 0 || mTextures[size_t(texture)].mHeight <= 0 ||
-                                  mTextures[size_t(texture)].mTexels.size() !=
-                                      size_t(mTextures[size_t(texture)].mWidth) * size_t(mTextures[size_t(texture)].mHeight))))
+            if (texture >= 0 && !IsUsableTexture(texture))
                 throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " refers to a missing or empty texture");
         }
         if (aMaterialId < 0 || aMaterialId >= int(mMaterials.size()))
@@ -2173,7 +2246,7 @@ private:
         const Light* background = mScene.GetBackground();
         if (!background || aPath.mPathLength < mOptions.mMinPathLength) return;
         float directPdfW = 0.f;
-        const Vec3 radiance = background->GetRadiance(mScene.GetSceneSphere(), aDirection, Vec3(0.f), &directPdfW, nullptr);
+        const Vec3 radiance = background->GetRadiance(mScene.GetSceneSphere(), aDirection, Vec3(0.f), Vec2(0.f), &directPdfW, nullptr);
         const float weight = aPath.mLastSpecular ? 1.f : BsdfHitWeight(aPath.mLastPdfW, directPdfW * mScene.LightPickProb());
         AddContribution(aPixel, aPath.mPathLength, aPath.mFirstSpecular, aPath.mThroughput * radiance * weight);
     }
@@ -2183,7 +2256,7 @@ private:
     void AddEmitterHit(int aPixel, const PathState& aPath, const Ray& aRay, const Hit& aHit) {
         const Light& light = mScene.GetLight(aHit.mLightId);
         float directPdfA = 0.f;
-        const Vec3 radiance = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, aHit.mNormal, &directPdfA, nullptr);
+        const Vec3 radiance = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, aHit.mNormal, aHit.mUv, &directPdfA, nullptr);
         if (IsBlack(radiance)) return;
         float weight = 1.f;
         if (!aPath.mLastSpecular) {
@@ -2565,13 +2638,13 @@ private:
                 const Light* background = mScene.GetBackground();
                 if (background && pathLength >= mOptions.mMinPathLength)
                     Add(aPixel, afterSpecular ? kSpecular : kEmitted,
-                        throughput * background->GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, Vec3(0.f), nullptr, nullptr));
+                        throughput * background->GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, Vec3(0.f), Vec2(0.f), nullptr, nullptr));
                 return;
             }
             const Vec3 hitPoint = aRay.mOrigin + aRay.mDirection * hit.mDist;
             if (hit.mLightId >= 0 && pathLength >= mOptions.mMinPathLength)
                 Add(aPixel, afterSpecular ? kSpecular : kEmitted,
-                    throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.mNormal, nullptr, nullptr));
+                    throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.mNormal, hit.mUv, nullptr, nullptr));
             Bsdf bsdf;
             bsdf.Setup(aRay, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
@@ -3208,7 +3281,7 @@ private:
 
             // Continues after a light only if the emitter's material reflects (see PathTracer).
             if (hit.mLightId >= 0 && cam.mPathLength >= mOptions.mMinPathLength)
-                AddCameraHitLight(aPixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.mNormal);
+                AddCameraHitLight(aPixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.mNormal, hit.mUv);
             Bsdf bsdf;
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
@@ -3241,7 +3314,7 @@ private:
             mCameraHistory.push_back(PathVertex{aDirection, Vec3(0.f), -1, int(background - &mScene.GetLight(0)),
                                                 kEventNone, true});
         if (background && aCamera.mPathLength >= mOptions.mMinPathLength)
-            AddCameraHitLight(aPixel, aCamera, *background, aDirection, Vec3(0.f));
+            AddCameraHitLight(aPixel, aCamera, *background, aDirection, Vec3(0.f), Vec2(0.f));
     }
 
     // --- sub-path starts and steps -----------------------------------------------------------
@@ -3371,7 +3444,7 @@ private:
         if (cosAtLight <= kEpsCosine) return;  // the side facing the camera does not emit
         // L_e G W_e / p_A(x0) / N_L, with G W_e the camera's area pdf of the point.
         const float positionPdfA = aLightPickProb / aLight.mArea;
-        const Vec3 contribution = aLight.mEmission * (CameraPdfA(dirToCamera, distance, cosAtLight) /
+        const Vec3 contribution = aEmission.mRadiance * (CameraPdfA(dirToCamera, distance, cosAtLight) /
                                                       (positionPdfA * mMisConstants.mLightPathCount));
         if (mScene.Occluded(aEmission.mPosition, dirToCamera, distance)) return;
         const int pixel = camera.RasterToIndex(raster);
@@ -3383,9 +3456,9 @@ private:
     // The camera sub-path hit a light (or left the scene with a background light): s = 0,
     // weighted by [tech. rep. (42), (43)].
     void AddCameraHitLight(int aPixel, const SubpathState& aCamera, const Light& aLight,
-                           const Vec3& aRayDirection, const Vec3& aHitNormal) {
+                           const Vec3& aRayDirection, const Vec3& aHitNormal, const Vec2& aHitUv) {
         float directPdfA = 0.f, emissionPdfW = 0.f;
-        const Vec3 radiance = aLight.GetRadiance(mScene.GetSceneSphere(), aRayDirection, aHitNormal, &directPdfA, &emissionPdfW);
+        const Vec3 radiance = aLight.GetRadiance(mScene.GetSceneSphere(), aRayDirection, aHitNormal, aHitUv, &directPdfA, &emissionPdfW);
         if (IsBlack(radiance)) return;
         // Length 1 has no other technique here; PPM's camera paths reach lights only
         // through specular vertices, which no merge can replace.
@@ -5327,9 +5400,10 @@ private:
     }
 
     // The scene texture for glTF texture aTexture (decoded once, however many materials use it).
-    int TextureIndex(int aTexture, int aTexCoord, const std::string& aWhat) {
+    // aSlot names the material's use of it ("baseColorTexture", "emissiveTexture").
+    int TextureIndex(int aTexture, int aTexCoord, const char* aSlot, const std::string& aWhat) {
         if (aTexCoord != 0)
-            Fail(aWhat + ": its baseColorTexture uses TEXCOORD_" + std::to_string(aTexCoord) + "; only TEXCOORD_0 is supported");
+            Fail(aWhat + ": its " + aSlot + " uses TEXCOORD_" + std::to_string(aTexCoord) + "; only TEXCOORD_0 is supported");
         if (aTexture < 0 || aTexture >= int(mModel.textures.size()))
             Fail(aWhat + " refers to texture " + std::to_string(aTexture) + ", which does not exist");
         auto known = mTextureIndex.find(aTexture);
@@ -5360,7 +5434,7 @@ private:
         }
     }
 
-    // An image's pixels, sRGB-decoded to linear (glTF: base colour textures are sRGB).
+    // An image's pixels, sRGB-decoded to linear (glTF: base colour and emissive textures are sRGB).
     // Bytes come from a buffer view or data URI (kept by the image loader above) or from
     // a file inside the scene's folder, read like a buffer file: regular files only,
     // confined, size-checked before reading. The size in pixels is checked before decoding.
@@ -5426,7 +5500,6 @@ private:
             if (pbr.metallicRoughnessTexture.index >= 0) Approximated("metallicRoughnessTexture (the factors are used)");
             if (source.normalTexture.index >= 0) Approximated("normalTexture (NORMAL, or else geometric normals, are used)");
             if (source.occlusionTexture.index >= 0) Approximated("occlusionTexture (occlusion is computed, not baked)");
-            if (source.emissiveTexture.index >= 0) Approximated("emissiveTexture (emission is the uniform emissiveFactor)");
             if (source.alphaMode != "OPAQUE") Approximated("alphaMode " + Excerpt(source.alphaMode) + " (rendered opaque)");
 
             Material material;
@@ -5463,7 +5536,7 @@ private:
                     const Vec3 specular = glm::mix(Vec3(0.04f), baseColor, metallic);
                     material.mDiffuseReflectance = (1.f - metallic) * 0.96f * baseColor;
                     if (pbr.baseColorTexture.index >= 0) {
-                        material.mBaseColorTexture = TextureIndex(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord, what);
+                        material.mBaseColorTexture = TextureIndex(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord, "baseColorTexture", what);
                         material.mSpecularUntinted = Vec3(0.04f * (1.f - metallic));
                     }
                     if (roughness == 0.f) {
@@ -5494,7 +5567,13 @@ private:
             if (strength != source.extensions.end())
                 emission *= float(NumberOr(strength->second, "emissiveStrength", 1.0));
             CheckColor(emission, what + ": the emission", false);
+            // emissiveTexture multiplies the factor (an sRGB texture, like the base colour);
+            // with a black factor it changes nothing, and is not decoded.
+            int emissionTexture = -1;
+            if (source.emissiveTexture.index >= 0 && !IsBlack(emission))
+                emissionTexture = TextureIndex(source.emissiveTexture.index, source.emissiveTexture.texCoord, "emissiveTexture", what);
             mMaterialEmission.push_back(emission);
+            mMaterialEmissionTexture.push_back(emissionTexture);
             mMaterialEmitsTwoSided.push_back(source.doubleSided);
             // Emitters are black (SmallVCM's lights do not reflect) unless an explicit
             // SMALLVCM_material gives them a reflectance.
@@ -5516,6 +5595,7 @@ private:
             material.mPhongExponent = 0.f;
             mDefaultMaterial = mScene.AddMaterial(material);
             mMaterialEmission.push_back(Vec3(0.f));
+            mMaterialEmissionTexture.push_back(-1);
             mMaterialEmitsTwoSided.push_back(false);
         }
         return mDefaultMaterial;
@@ -5705,10 +5785,13 @@ private:
             const int material = MaterialIndex(primitive.material, what);
             // Texture coordinates, read only for textured materials (and then required).
             std::vector<double> uvs;
-            if (mScene.mMaterials[size_t(material)].mBaseColorTexture >= 0) {
+            const char* texture = mScene.mMaterials[size_t(material)].mBaseColorTexture >= 0 ? "a baseColorTexture"
+                                  : mMaterialEmissionTexture[size_t(material)] >= 0       ? "an emissiveTexture"
+                                                                                           : nullptr;
+            if (texture) {
                 auto texcoord = primitive.attributes.find("TEXCOORD_0");
                 if (texcoord == primitive.attributes.end())
-                    Fail(what + ": its material has a baseColorTexture but the primitive has no TEXCOORD_0");
+                    Fail(what + ": its material has " + texture + " but the primitive has no TEXCOORD_0");
                 uvs = ReadAccessor(texcoord->second, TINYGLTF_TYPE_VEC2, AccessorKind::kTexcoords, what + " TEXCOORD_0");
                 if (uvs.size() != 2 * vertexCount) Fail(what + ": TEXCOORD_0 and POSITION have different counts");
                 for (size_t v = 0; v < uvs.size(); v++)
@@ -5749,7 +5832,8 @@ private:
                                          "normals to it)");
             // An emissive primitive instance is one area light over all its triangles.
             if (!IsBlack(mMaterialEmission[size_t(material)]) && !triangleIds.empty())
-                mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)], mMaterialEmitsTwoSided[size_t(material)]);
+                mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)], mMaterialEmitsTwoSided[size_t(material)],
+                                    mMaterialEmissionTexture[size_t(material)]);
             // Whether its outside reflects depends on the material: say which.
             const bool twoSided = mScene.mMaterials[size_t(material)].mTwoSided;
             if (LooksInsideOut(world, indices, flip) && mReport.mNotes.size() < 64)
@@ -5843,6 +5927,8 @@ private:
         if (materialIndex < 0)
             Fail(aWhat + ": SMALLVCM_sphere refers to material " + std::to_string(materialIndex) + ", which does not exist");
         const int material = MaterialIndex(materialIndex, aWhat + ": SMALLVCM_sphere");
+        if (mMaterialEmissionTexture[size_t(material)] >= 0)
+            Fail(aWhat + ": SMALLVCM_sphere's material has an emissiveTexture, but a sphere has no texture coordinates");
         const int id = mScene.AddSphere(Vec3(glm::dvec3(aWorld[3])), float(radius * sx), material);
         if (!IsBlack(mMaterialEmission[size_t(material)])) mScene.AddSphereLight(id, mMaterialEmission[size_t(material)]);
     }
@@ -5984,6 +6070,7 @@ private:
     tinygltf::Model mModel;
     Scene mScene;
     std::vector<Vec3> mMaterialEmission;  // per scene material
+    std::vector<int> mMaterialEmissionTexture;  // per scene material: index into Scene::mTextures, or -1
     std::vector<bool> mMaterialEmitsTwoSided;  // per scene material: glTF doubleSided (area lights only)
     std::map<std::string, int> mApproximated;  // feature -> occurrences, for one note
     std::unordered_map<int, int> mTextureIndex;  // glTF texture -> scene texture

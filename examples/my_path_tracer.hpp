@@ -39,7 +39,7 @@ public:
                     if (const Light* background = mScene.GetBackground()) {
                         float lightPdfW = 0.f;
                         const Vec3 emitted = background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection, Vec3(0.f),
-                                                                     &lightPdfW, nullptr);
+                                                                     Vec2(0.f), &lightPdfW, nullptr);
                         radiance += throughput * emitted * BsdfWeight(bsdfPdfW, lightPdfW * LightPickProb());
                     }
                     break;
@@ -48,7 +48,7 @@ public:
                 if (hit.mLightId >= 0) {  // a light found by BSDF sampling
                     float lightPdfA = 0.f;
                     const Vec3 emitted = mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), ray.mDirection,
-                                                                                   hit.mNormal, &lightPdfA, nullptr);
+                                                                                   hit.mNormal, hit.mUv, &lightPdfA, nullptr);
                     // The ray started RayEpsilon() off the previous surface.
                     const float lightPdfW = PdfAtoW(lightPdfA, hit.mDist + mScene.RayEpsilon(),
                                                     glm::dot(hit.mNormal, -ray.mDirection));

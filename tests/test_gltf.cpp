@@ -991,8 +991,71 @@ TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][t
     for (const std::string& note : report.mNotes) {
         if (note.find("approximated (not modelled)") == std::string::npos) continue;
         notes++;
+        // The emissiveTexture is modelled: with the floor's black emissiveFactor (glTF's
+        // default) it changes nothing, and nothing about it is approximated.
         CHECK_THAT(note, Catch::Contains("alphaMode BLEND (rendered opaque)") && Catch::Contains("normalTexture") &&
-                         Catch::Contains("emissiveTexture (emission is the uniform emissiveFactor)"));
+                         !Catch::Contains("emissiveTexture"));
     }
     CHECK(notes == 1);
+}
+
+TEST_CASE("A glTF emissiveTexture is sRGB-decoded and multiplies emissiveFactor x emissiveStrength where the light is hit", "[gltf][textures]") {
+    // The textured floor of the tests above turned into an emitter: emissiveFactor
+    // (2, 1, 0.5) x strength 3, the same 2 x 2 image as its emissiveTexture, no
+    // baseColorTexture. A ray down onto a texel centre sees factor x strength x texel.
+    TemporaryFolder folder;
+    Image image(2, 2);
+    image.mPixels = {Vec3(1.f, 0.f, 0.f), Vec3(0.2f), Vec3(0.f, 0.f, 1.f), Vec3(1.f)};
+    std::string text = ReadText(WriteTexturedFloor(folder, image, 33071 /* clamp */, 1.f));
+    const std::string texture = R"("baseColorTexture": {"index": 0}}}],)";
+    REQUIRE(text.find(texture) != std::string::npos);
+    text.replace(text.find(texture), texture.size(),
+                 R"("baseColorFactor": [0.5, 0.5, 0.5, 1]}, "emissiveFactor": [2, 1, 0.5], "emissiveTexture": {"index": 0},
+                    "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 3}}}],)");
+    std::ofstream(folder / "floor.gltf") << text;
+    GltfLoadReport report;
+    const Scene scene = LoadGltfScene(folder / "floor.gltf", &report);
+    CHECK_FALSE(report.mDefaultBackground);
+    for (const std::string& note : report.mNotes) CHECK_THAT(note, !Catch::Contains("emissiveTexture"));
+    REQUIRE(scene.LightCount() == 1);
+    const Light& light = scene.GetLight(0);
+    REQUIRE(light.mEmissionTexture >= 0);
+    const Vec3 scale = 3.f * Vec3(2.f, 1.f, 0.5f);
+    const auto radianceAt = [&](float aX, float aY) {
+        Hit hit;
+        const Ray down{Vec3(aX, aY, 1.f), Vec3(0.f, 0.f, -1.f)};
+        REQUIRE(scene.Intersect(down, hit));
+        REQUIRE(hit.mLightId == 0);
+        return light.GetRadiance(scene.GetSceneSphere(), down.mDirection, hit.mNormal, hit.mUv, nullptr, nullptr);
+    };
+    CHECK(radianceAt(0.25f, 0.75f) == scale * Vec3(1.f, 0.f, 0.f));
+    CHECK(radianceAt(0.25f, 0.25f) == scale * Vec3(0.f, 0.f, 1.f));
+    // 0.2 linear, stored as sRGB 124/255, decodes to 0.2016 (as for the base colour).
+    const Vec3 grey = radianceAt(0.75f, 0.75f);
+    for (int c = 0; c < 3; c++) CHECK(grey[c] == Approx(scale[c] * 0.2016f).epsilon(1e-3));
+}
+
+TEST_CASE("An emission texture on a non-area light, a missing one, or non-finite texture coordinates on a textured light are refused by Finalize", "[gltf][textures]") {
+    const auto square = [](int aTexture, float aU) {
+        Scene scene;
+        const int black = scene.AddMaterial(Material{});
+        const int a = scene.AddTriangle(Vec3(0.f), Vec3(1.f, 0.f, 0.f), Vec3(1.f, 1.f, 0.f), black);
+        scene.mTriangles[size_t(a)].mUv1 = Vec2(aU, 0.f);
+        Texture texture;
+        texture.mWidth = texture.mHeight = 1;
+        texture.mTexels = {Vec3(1.f)};
+        scene.mTextures.push_back(texture);
+        scene.AddAreaLight({a}, Vec3(1.f), false, aTexture);
+        return scene;
+    };
+    CHECK_NOTHROW(square(0, 1.f).Finalize());
+    CHECK_THROWS_WITH(square(1, 1.f).Finalize(), Catch::Contains("light 0 (area) refers to a missing or empty emission texture"));
+    CHECK_THROWS_WITH(square(0, std::nanf("")).Finalize(), Catch::Contains("non-finite texture coordinates"));
+    Scene sphere = square(-1, 1.f);
+    sphere.AddSphereLight(sphere.AddSphere(Vec3(0.f, 0.f, 2.f), 0.5f, 0), Vec3(1.f));
+    sphere.mLights.back().mEmissionTexture = 0;
+    CHECK_THROWS_WITH(sphere.Finalize(), Catch::Contains("light 1 (sphere) has an emission texture; only area lights take one"));
+    Scene negative = square(0, 1.f);
+    negative.mTextures[0].mTexels[0] = Vec3(-1.f);
+    CHECK_THROWS_WITH(negative.Finalize(), Catch::Contains("its emission texture has a negative or non-finite texel"));
 }

@@ -502,7 +502,7 @@ public:
             if (k == 1) return 1.f;
             float directPdfA = 0.f, emissionPdfW = 0.f;
             const Vec3 hitNormal = mPath.infiniteLight ? Vec3(0.f) : mPath.n[0];
-            mLight.GetRadiance(sceneSphere, Dir(mPath, 1, 0), hitNormal, &directPdfA, &emissionPdfW);
+            mLight.GetRadiance(sceneSphere, Dir(mPath, 1, 0), hitNormal, Vec2(0.f), &directPdfA, &emissionPdfW);
             const SubpathMis& camera = mPath.infiniteLight ? mCameraAtBackground : mCameraMis[0];
             return VcmMis::WeightCameraHitsLight(mMis, camera, directPdfA * mPick, emissionPdfW * mPick);
         }
@@ -578,7 +578,7 @@ public:
             sample.mDirToLight = Dir(mPath, 1, 0);
             sample.mDistance = Dist(mPath, 0, 1);
             float directPdfA = 0.f;
-            mLight.GetRadiance(sceneSphere, sample.mDirToLight, mPath.n[0], &directPdfA, &sample.mEmissionPdfW);
+            mLight.GetRadiance(sceneSphere, sample.mDirToLight, mPath.n[0], Vec2(0.f), &directPdfA, &sample.mEmissionPdfW);
             sample.mCosAtLight = glm::dot(mPath.n[0], -sample.mDirToLight);
             sample.mDirectPdfW = PdfAtoW(directPdfA, sample.mDistance, sample.mCosAtLight);
             sample.mRadiance = mLight.mEmission;
@@ -587,7 +587,7 @@ public:
         default:  // background
             sample.mDirToLight = mPath.dirToInfinity;
             sample.mDistance = std::numeric_limits<float>::infinity();
-            mLight.GetRadiance(sceneSphere, sample.mDirToLight, Vec3(0.f), &sample.mDirectPdfW, &sample.mEmissionPdfW);
+            mLight.GetRadiance(sceneSphere, sample.mDirToLight, Vec3(0.f), Vec2(0.f), &sample.mDirectPdfW, &sample.mEmissionPdfW);
             sample.mCosAtLight = 1.f;
             sample.mRadiance = mLight.mEmission;
             break;
@@ -625,7 +625,7 @@ private:
         float directPdfA = 1.f, emissionPdfW = 0.f, cosAtLight = 1.f;
         switch (mLight.mType) {
         case LightType::kArea:
-            mLight.GetRadiance(sceneSphere, Dir(mPath, 1, 0), mPath.n[0], &directPdfA, &emissionPdfW);
+            mLight.GetRadiance(sceneSphere, Dir(mPath, 1, 0), mPath.n[0], Vec2(0.f), &directPdfA, &emissionPdfW);
             cosAtLight = glm::dot(mPath.n[0], Dir(mPath, 0, 1));
             break;
         case LightType::kPoint:

@@ -359,6 +359,42 @@ bad("texture_texcoord_1.gltf", "a baseColorTexture that uses TEXCOORD_1",
     "only TEXCOORD_0 is supported")(
     lambda: modified(lambda d: (textured({"uri": "x.png"})(d),
                                 d["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"].update(texCoord=1))))
+def emissive_textured(image, texcoords=None, raw=None):
+    """The emitter (material 1, mesh 1) with an emissiveTexture of the given image, and
+    TEXCOORD_0 on the light mesh when texcoords is given (raw bytes replace them)."""
+    b = base()
+    b.doc["materials"][1]["emissiveTexture"] = {"index": 0}
+    b.doc["images"] = [image]
+    b.doc["textures"] = [{"source": 0}]
+    if texcoords is not None:
+        packed = raw if raw is not None else b"".join(struct.pack("<2f", *uv) for uv in texcoords)
+        b.doc["accessors"].append({"bufferView": b.view(packed), "componentType": FLOAT,
+                                   "count": len(texcoords), "type": "VEC2"})
+        b.doc["meshes"][1]["primitives"][0]["attributes"]["TEXCOORD_0"] = len(b.doc["accessors"]) - 1
+    return b.finish()
+
+
+TINY_PNG_IMAGE = {"uri": "data:image/png;base64," + TINY_PNG_BASE64, "mimeType": "image/png"}
+LIGHT_UVS = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+bad("emissive_texture_image_missing.gltf", "the emitter's emissiveTexture image is a file that does not exist",
+    "image 0 'emissive_does_not_exist.png': no readable file of that name inside the scene's folder")(
+    lambda: emissive_textured({"uri": "emissive_does_not_exist.png"}, LIGHT_UVS))
+bad("emissive_texture_image_not_png.gltf", "the emissiveTexture image is a data URI holding text, not PNG or JPEG",
+    "image 0: not a PNG or JPEG image that can be decoded")(
+    lambda: emissive_textured({"uri": "data:image/png;base64,aGVsbG8gd29ybGQ=", "mimeType": "image/png"}, LIGHT_UVS))
+bad("emissive_texture_no_texcoord.gltf", "an emitter with an emissiveTexture whose primitive has no TEXCOORD_0",
+    "its material has an emissiveTexture but the primitive has no TEXCOORD_0")(
+    lambda: emissive_textured(TINY_PNG_IMAGE))
+bad("emissive_texture_uv_nan.gltf", "the emitter's TEXCOORD_0 of vertex 1 has u = NaN (raw float bits 0x7fc00000)",
+    "TEXCOORD_0 of vertex 1 is not finite")(
+    lambda: emissive_textured(TINY_PNG_IMAGE, LIGHT_UVS,
+                              raw=struct.pack("<2f", *LIGHT_UVS[0]) + struct.pack("<If", NAN_BITS, 0.0) +
+                              b"".join(struct.pack("<2f", *uv) for uv in LIGHT_UVS[2:])))
+bad("emissive_texture_texcoord_1.gltf", "an emissiveTexture that uses TEXCOORD_1",
+    "its emissiveTexture uses TEXCOORD_1; only TEXCOORD_0 is supported")(
+    lambda: modified(lambda d: (d.update(images=[{"uri": "x.png"}], textures=[{"source": 0}]),
+                                d["materials"][1].update(emissiveTexture={"index": 0, "texCoord": 1}))))
+
 bad("diffuse_above_one.gltf", "SMALLVCM_material diffuse (1.2, 0.5, 0.5)", "must not exceed 1")(
     lambda: modified(lambda d: d["materials"][0]["extensions"]["SMALLVCM_material"].update(
         diffuse=[1.2, 0.5, 0.5])))
