@@ -21,7 +21,7 @@ IMPL_OBJ := $(BUILD)/smallvcm_impl.o
 TEST_SRC := $(filter-out tests/catch_main.cpp,$(wildcard tests/*.cpp))
 TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
-.PHONY: all deps demo test unit check fuzz convergence bench figures clean exercise grade compare student-figures
+.PHONY: all deps demo test unit check fuzz convergence bench bench-embree figures clean exercise grade compare student-figures
 
 all: $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/my_path_tracer $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
@@ -167,6 +167,21 @@ bench: deps $(BUILD)/bench
 	@$(ENSURE_MATPLOTLIB)
 	$(BUILD)/bench --repeat 2 --markdown docs/performance/bench.md --csv docs/performance/bench
 	/usr/bin/python3 docs/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
+
+# make bench-embree: smallvcm's BVH beside Embree 3 (Debian's libembree-dev, installed if
+# missing; a benchmark-only dependency the header never includes) on generated meshes and
+# the same incoherent rays, one thread: a ratio table of closest-hit and any-hit Mrays/s,
+# build time and bytes per triangle, and how often the two agree (examples/bench_embree.cpp
+# says what it measures; about 2 minutes). docs/performance.md keeps the current table.
+ENSURE_EMBREE = dpkg-query -W -f='$${Status}' libembree-dev 2>/dev/null | grep -q "install ok installed" || \
+	  { if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
+	    $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q libembree-dev; }
+bench-embree: deps
+	@$(ENSURE_EMBREE)
+	$(MAKE) --no-print-directory $(BUILD)/bench_embree
+	$(BUILD)/bench_embree $(BENCH_EMBREE_ARGS)
+$(BUILD)/bench_embree: examples/bench_embree.cpp $(HEADER) | $(BUILD)
+	$(CXX) $(CPPFLAGS) $(CXXFLAGS) $< -o $@ $(LDFLAGS) -lembree3
 
 # make mutants [MUTANTS=M01,M02]: mutation testing of the transport code (tests/mutants.py,
 # the list in tests/mutant_list.py): each mutant is one edited line of the header, built
