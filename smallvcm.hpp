@@ -4363,11 +4363,21 @@ public:
                 }
                 continue;
             }
+            // Nearest children first, as in Intersect: the nearest boxes are the likeliest
+            // to hold an occluder, and the walk stops at the first one found.
             const Node& node = mNodes[current.mIndex];
             float tNear[kWidth], tFar[kWidth];
             SlabTestChildren(node, ray, aTMax, tNear, tFar);
-            for (int c = 0; c < kWidth; c++)
-                if (tNear[c] <= tFar[c]) stack[stackSize++] = Pending{node.mIndex[c], node.mCount[c], tNear[c]};
+            const int first = stackSize;
+            for (int c = 0; c < kWidth; c++) {
+                if (!(tNear[c] <= tFar[c])) continue;
+                int slot = stackSize++;
+                while (slot > first && stack[slot - 1].mTNear < tNear[c]) {
+                    stack[slot] = stack[slot - 1];
+                    slot--;
+                }
+                stack[slot] = Pending{node.mIndex[c], node.mCount[c], tNear[c]};
+            }
         }
         return false;
     }
