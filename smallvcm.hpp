@@ -4226,38 +4226,125 @@ Image ReadImage(const std::string& aPath);
 // Invariant: the tree is immutable once built (Bvh holds it through a shared pointer to
 // const), which is what makes concurrent queries safe.
 //
-// Build: top-down, splitting each node at the best of 16
-// binned surface-area-heuristic candidates along its longest centroid axis (Wald 2007),
-// and stopping where the SAH says a leaf is cheaper (leaves of at most 8 primitives).
-// The binary tree is then collapsed into a 4-wide one (Dammertz et al. 2008): a node
-// keeps up to four children, found by opening the largest child until there are four.
-// A node stores its children's boxes axis by axis ("structure of arrays"), so one node
-// visit tests four boxes in one loop without branches (the compiler may use one SIMD
-// instruction per step) instead of walking two levels of a binary tree box by box.
-// A leaf needs no node of its own: its parent's slot says where its primitives are,
-// and the primitives are copied into leaf order, so a leaf reads consecutive records.
-// Traversal: a stack, nearer children first; a popped child whose box starts beyond the
-// nearest hit found meanwhile is skipped without another test.
+// Four floats processed together. With GCC or Clang on x86 (SSE2: every x86-64) they are
+// a compiler vector type, each operator one SSE instruction; elsewhere, or when
+// SMALLVCM_BVH_SCALAR is defined, plain loops over four floats. Each lane is the same
+// IEEE single-precision operation either way, so both give the same hits bit for bit.
+#if defined(__GNUC__) && defined(__SSE2__) && !defined(SMALLVCM_BVH_SCALAR)
+#define SMALLVCM_BVH_SSE 1
+#endif
+
+namespace detail {
+#if defined(SMALLVCM_BVH_SSE)
+typedef float Float4Vector __attribute__((vector_size(16)));
+typedef int32_t Int4Vector __attribute__((vector_size(16)));
+struct Float4 {
+    Float4Vector mV;
+    static Float4 Load(const float* aAligned) { return {*reinterpret_cast<const Float4Vector*>(aAligned)}; }
+    static Float4 Broadcast(float aValue) { return {Float4Vector{aValue, aValue, aValue, aValue}}; }
+    float operator[](int aLane) const { return mV[aLane]; }
+};
+inline Float4 operator+(Float4 a, Float4 b) { return {a.mV + b.mV}; }
+inline Float4 operator-(Float4 a, Float4 b) { return {a.mV - b.mV}; }
+inline Float4 operator*(Float4 a, Float4 b) { return {a.mV * b.mV}; }
+inline Float4 operator/(Float4 a, Float4 b) { return {a.mV / b.mV}; }
+// std::max(a, b) and std::min(a, b) lane by lane, NaN in b included (then a): the SSE
+// instructions return their second operand when either is NaN, hence the swap.
+inline Float4 Max(Float4 a, Float4 b) { return {__builtin_ia32_maxps(b.mV, a.mV)}; }
+inline Float4 Min(Float4 a, Float4 b) { return {__builtin_ia32_minps(b.mV, a.mV)}; }
+// Comparisons as bit masks: bit i set when lane i compares true.
+inline int MaskOf(Int4Vector aLanes) { return __builtin_ia32_movmskps(reinterpret_cast<Float4Vector>(aLanes)); }
+inline int LessEqual(Float4 a, Float4 b) { return MaskOf(a.mV <= b.mV); }
+inline int Less(Float4 a, Float4 b) { return MaskOf(a.mV < b.mV); }
+inline int Greater(Float4 a, Float4 b) { return MaskOf(a.mV > b.mV); }
+inline int Equal(Float4 a, Float4 b) { return MaskOf(a.mV == b.mV); }
+#else
+struct Float4 {
+    float mV[4];
+    static Float4 Load(const float* aAligned) { return {{aAligned[0], aAligned[1], aAligned[2], aAligned[3]}}; }
+    static Float4 Broadcast(float aValue) { return {{aValue, aValue, aValue, aValue}}; }
+    float operator[](int aLane) const { return mV[aLane]; }
+};
+template <typename Op>
+inline Float4 Lanewise(Float4 a, Float4 b, Op aOp) {
+    return {{aOp(a.mV[0], b.mV[0]), aOp(a.mV[1], b.mV[1]), aOp(a.mV[2], b.mV[2]), aOp(a.mV[3], b.mV[3])}};
+}
+template <typename Op>
+inline int MaskOf(Float4 a, Float4 b, Op aOp) {
+    return int(aOp(a.mV[0], b.mV[0])) | int(aOp(a.mV[1], b.mV[1])) << 1 | int(aOp(a.mV[2], b.mV[2])) << 2 | int(aOp(a.mV[3], b.mV[3])) << 3;
+}
+inline Float4 operator+(Float4 a, Float4 b) { return Lanewise(a, b, [](float x, float y) { return x + y; }); }
+inline Float4 operator-(Float4 a, Float4 b) { return Lanewise(a, b, [](float x, float y) { return x - y; }); }
+inline Float4 operator*(Float4 a, Float4 b) { return Lanewise(a, b, [](float x, float y) { return x * y; }); }
+inline Float4 operator/(Float4 a, Float4 b) { return Lanewise(a, b, [](float x, float y) { return x / y; }); }
+inline Float4 Max(Float4 a, Float4 b) { return Lanewise(a, b, [](float x, float y) { return std::max(x, y); }); }
+inline Float4 Min(Float4 a, Float4 b) { return Lanewise(a, b, [](float x, float y) { return std::min(x, y); }); }
+inline int LessEqual(Float4 a, Float4 b) { return MaskOf(a, b, [](float x, float y) { return x <= y; }); }
+inline int Less(Float4 a, Float4 b) { return MaskOf(a, b, [](float x, float y) { return x < y; }); }
+inline int Greater(Float4 a, Float4 b) { return MaskOf(a, b, [](float x, float y) { return x > y; }); }
+inline int Equal(Float4 a, Float4 b) { return MaskOf(a, b, [](float x, float y) { return x == y; }); }
+#endif
+// The index of the lowest set bit of a non-zero mask.
+inline int FirstLane(int aMask) {
+    int lane = 0;
+    while (!(aMask & (1 << lane))) lane++;
+    return lane;
+}
+} // namespace detail
+
+// Build: top-down, splitting each node at the best of 16 binned surface-area-heuristic
+// candidates along its longest centroid axis (Wald 2007), and stopping where the SAH
+// says a leaf is cheaper (leaves of at most 8 primitives). The binary tree is then
+// collapsed into a 4-wide one (Dammertz et al. 2008): a node keeps up to four children,
+// found by opening the largest child until there are four.
+// Why each trick pays:
+// * Four children per node, their boxes stored axis by axis ("structure of arrays"): one
+//   visit tests four boxes with one 4-wide instruction per step, instead of walking two
+//   levels of a binary tree box by box.
+// * A leaf needs no node of its own: its parent's slot says where its primitives are.
+// * Leaf triangles are copied into blocks of four, stored coordinate by coordinate, so
+//   the watertight test runs on four triangles at once, and a leaf is a few consecutive
+//   cache lines instead of indices into the scene.
+// * Ordered traversal: the nearest child is entered next and the others are pushed
+//   farthest first, so the nearest hit is found early, and a popped child whose box
+//   starts beyond it is dropped without another test. Shadow rays walk in the same
+//   order and stop at the first hit: the nearest boxes are the likeliest to occlude.
 // Primitives that share one centroid cannot be split and stay one leaf (splitting them by
 // count would leave boxes that all overlap, which every ray enters anyway); identical
 // copies in such a leaf (a mesh duplicated over itself) are kept once.
+
 class Bvh::Tree {
 public:
     static constexpr int kWidth = 4;
-    // An inner node (128 bytes): the boxes of its children, [axis][child], then for each
-    // child either an inner node (mCount == 0, mIndex = node index) or a leaf (mCount
-    // records from mIndex). An unused slot has an inverted box (min > max), which the
-    // slab test never hits.
-    struct Node {
+    // An inner node (128 bytes, two cache lines): the boxes of its children,
+    // [axis][child], then for each child either an inner node (mCount == 0, mIndex = node
+    // index) or a leaf (mCount blocks from mIndex). An unused slot has an inverted box
+    // (min > max), which the slab test never hits.
+    struct alignas(64) Node {
         float mMin[3][kWidth];
         float mMax[3][kWidth];
         uint32_t mIndex[kWidth];
         uint32_t mCount[kWidth];
     };
+    // Four primitives of a leaf (160 bytes), coordinate by coordinate: four triangles
+    // with vertices mA, mB, mC ([axis][lane]), or up to four spheres with centre mA and
+    // radius mB[0]. mId is the scene's primitive index, with kSphereBit set in every lane
+    // of a sphere block. A leaf's last block is filled up by repeating its last primitive:
+    // a copy hits at the same t as its original, so it never changes an answer.
+    struct alignas(16) Block {
+        uint32_t mId[kWidth];  // first: it shares the first cache line with mA
+        float mA[3][kWidth];
+        float mB[3][kWidth];
+        float mC[3][kWidth];
+        bool IsSpheres() const { return (mId[0] & kSphereBit) != 0; }
+        Vec3 Vertex(const float aCoordinates[3][kWidth], int aLane) const {
+            return Vec3(aCoordinates[0][aLane], aCoordinates[1][aLane], aCoordinates[2][aLane]);
+        }
+    };
 
     void Build(const PrimitiveSoup& aSoup) {
         mNodes.clear();
-        mRecords.clear();
+        mBlocks.clear();
         mRoot = ChildRef{};
         mLeafCount = 0;
         mBuildDepth = 0;
@@ -4273,67 +4360,31 @@ public:
             bounds[i] = aSoup.Bounds(i);
             centroids[i] = bounds[i].Centroid();
         }
-        if (count == 0) return;
-        std::vector<BinaryNode> binary;
-        binary.reserve(size_t(count));
-        const ChildRef binaryRoot = BuildBinary(bounds, centroids, order, 0, uint32_t(count), 0, binary);
-        mBuildSoup = nullptr;
-        mNodes.reserve(binary.size() / 2 + 1);
-        mRoot = Collapse(binary, binaryRoot);
-        // The primitives in leaf order, triangles as vertices, spheres as centre and radius.
-        mRecords.resize(size_t(count));
-        for (int k = 0; k < count; k++) {
-            const int primitive = int(order[size_t(k)]);
-            Record& r = mRecords[size_t(k)];
-            if (primitive < aSoup.TriangleCount()) {
-                r.mA = aSoup.mTriangleP0[size_t(primitive)];
-                r.mB = aSoup.mTriangleP1[size_t(primitive)];
-                r.mC = aSoup.mTriangleP2[size_t(primitive)];
-                r.mId = uint32_t(primitive);
-            } else {
-                const size_t sphere = size_t(primitive - aSoup.TriangleCount());
-                r.mA = aSoup.mSphereCenter[sphere];
-                r.mB = Vec3(aSoup.mSphereRadius[sphere], 0.f, 0.f);
-                r.mId = uint32_t(primitive) | kSphereBit;
-            }
+        if (count > 0) {
+            std::vector<BinaryNode> binary;
+            binary.reserve(size_t(count));
+            const ChildRef binaryRoot = BuildBinary(bounds, centroids, order, 0, uint32_t(count), 0, binary);
+            mNodes.reserve(binary.size() / 2 + 1);
+            mBlocks.reserve(size_t(count) / 2 + 1);
+            mRoot = Collapse(binary, order, binaryRoot);
         }
+        mBuildSoup = nullptr;
     }
 
     // Nearest hit in (aTMin, ioTMax); returns the primitive index or -1.
     int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
-        if (mRecords.empty()) return -1;
-        const RayBoxData ray(aRay);
-        const WatertightRay shear(aRay.mDirection);
+        if (mBlocks.empty()) return -1;
+        const RayData ray(aRay);
         int hitPrimitive = -1;
         Pending stack[kStackSize];
         int stackSize = 0;
         if (!HitsRoot(ray, ioTMax)) return -1;
         uint32_t index = mRoot.mIndex, count = mRoot.mCount;
         for (;;) {
-            if (count > 0) {  // a leaf: test its primitives
-                for (uint32_t i = 0; i < count; i++) {
-                    const Record& record = mRecords[index + i];
-                    float t;
-                    if (IntersectRecord(record, aRay, shear, aTMin, ioTMax, t)) {
-                        ioTMax = t;
-                        hitPrimitive = int(record.mId & ~kSphereBit);
-                    }
-                }
-            } else {  // an inner node: push the children it hits, farthest first
-                const Node& node = mNodes[index];
-                float tNear[kWidth], tFar[kWidth];
-                SlabTestChildren(node, ray, ioTMax, tNear, tFar);
-                const int first = stackSize;
-                for (int c = 0; c < kWidth; c++) {
-                    if (!(tNear[c] <= tFar[c])) continue;
-                    // Insertion into the pushed run, which stays sorted by decreasing tNear.
-                    int slot = stackSize++;
-                    while (slot > first && stack[slot - 1].mTNear < tNear[c]) {
-                        stack[slot] = stack[slot - 1];
-                        slot--;
-                    }
-                    stack[slot] = Pending{node.mIndex[c], node.mCount[c], tNear[c]};
-                }
+            if (count > 0) {  // a leaf: test its blocks
+                for (uint32_t b = 0; b < count; b++) IntersectBlock(mBlocks[index + b], aRay, ray, aTMin, ioTMax, hitPrimitive);
+            } else if (Descend(mNodes[index], ray, ioTMax, stack, stackSize, index, count)) {
+                continue;
             }
             // Pop the next child whose box starts before the nearest hit so far.
             do {
@@ -4347,61 +4398,42 @@ public:
 
     // Any hit in (aTMin, aTMax): the shadow-ray query.
     bool Occluded(const Ray& aRay, float aTMin, float aTMax) const {
-        if (mRecords.empty()) return false;
-        const RayBoxData ray(aRay);
-        const WatertightRay shear(aRay.mDirection);
+        if (mBlocks.empty()) return false;
+        const RayData ray(aRay);
         Pending stack[kStackSize];
         int stackSize = 0;
         if (!HitsRoot(ray, aTMax)) return false;
-        stack[stackSize++] = Pending{mRoot.mIndex, mRoot.mCount, 0.f};
-        while (stackSize > 0) {
-            const Pending current = stack[--stackSize];
-            if (current.mCount > 0) {
-                for (uint32_t i = 0; i < current.mCount; i++) {
-                    float t;
-                    if (IntersectRecord(mRecords[current.mIndex + i], aRay, shear, aTMin, aTMax, t)) return true;
-                }
+        uint32_t index = mRoot.mIndex, count = mRoot.mCount;
+        for (;;) {
+            if (count > 0) {
+                for (uint32_t b = 0; b < count; b++)
+                    if (OccludedByBlock(mBlocks[index + b], aRay, ray, aTMin, aTMax)) return true;
+            } else if (Descend(mNodes[index], ray, aTMax, stack, stackSize, index, count)) {
                 continue;
             }
-            // Nearest children first, as in Intersect: the nearest boxes are the likeliest
-            // to hold an occluder, and the walk stops at the first one found.
-            const Node& node = mNodes[current.mIndex];
-            float tNear[kWidth], tFar[kWidth];
-            SlabTestChildren(node, ray, aTMax, tNear, tFar);
-            const int first = stackSize;
-            for (int c = 0; c < kWidth; c++) {
-                if (!(tNear[c] <= tFar[c])) continue;
-                int slot = stackSize++;
-                while (slot > first && stack[slot - 1].mTNear < tNear[c]) {
-                    stack[slot] = stack[slot - 1];
-                    slot--;
-                }
-                stack[slot] = Pending{node.mIndex[c], node.mCount[c], tNear[c]};
-            }
+            if (stackSize == 0) return false;
+            --stackSize;
+            index = stack[stackSize].mIndex;
+            count = stack[stackSize].mCount;
         }
-        return false;
     }
 
     // Nodes of the tree, leaves included (a leaf lives in its parent's slot).
     size_t NodeCount() const { return mNodes.size() + mLeafCount; }
-    size_t StorageBytes() const { return mNodes.size() * sizeof(Node) + mRecords.size() * sizeof(Record); }
+    size_t StorageBytes() const { return mNodes.size() * sizeof(Node) + mBlocks.size() * sizeof(Block); }
     int PrimitiveCount() const { return mPrimitiveCount; }
     // Levels of the 4-wide tree a ray walks, and of the binary tree it was collapsed from.
-    int Depth() const { return mRecords.empty() ? 0 : DepthOf(mRoot.mIndex, mRoot.mCount); }
+    int Depth() const { return mBlocks.empty() ? 0 : DepthOf(mRoot.mIndex, mRoot.mCount); }
     int BuildDepth() const { return mBuildDepth; }
     // Primitives in the largest leaf (at most kMaxLeafSize unless distinct primitives
     // share one centroid).
     uint32_t LargestLeaf() const { return mLargestLeaf; }
 
 private:
-    // A primitive as the traversal reads it (40 bytes): a triangle's three vertices, or a
-    // sphere's centre (mA) and radius (mB.x); mId is the scene's primitive index, with
-    // kSphereBit set for spheres.
-    struct Record {
-        Vec3 mA{0.f}, mB{0.f}, mC{0.f};
-        uint32_t mId = 0;
-    };
-    // A subtree as its parent sees it: its box, and an inner node or a leaf as in Node.
+    using Float4 = detail::Float4;
+
+    // A subtree as its parent sees it: its box, and an inner node or a leaf as in Node
+    // (while building, a leaf's mIndex and mCount are a range of the primitive order).
     struct ChildRef {
         Aabb mBox;
         uint32_t mIndex = 0, mCount = 0;
@@ -4428,60 +4460,171 @@ private:
     // is widened by 2 ulp.
     static constexpr float kFarWidening = 1.00000024f;
 
-    // What the slab test needs of a ray: its origin, 1 / direction (infinite for a zero
-    // component), and along which axes it runs backwards (then the max plane of a slab
-    // is the one it enters).
-    struct RayBoxData {
-        float mOrigin[3], mInvDir[3];
+    // What the tests need of a ray, computed once per ray: for the slab test its origin,
+    // 1 / direction (infinite for a zero component) and, per axis, whether it runs
+    // backwards (then the max plane of a slab is the one it enters); for the triangle
+    // test the shear of WatertightRay and the origin, in the sheared axis order.
+    struct RayData {
+        Float4 mOrigin[3], mInvDir[3];
         bool mNegative[3];
-        explicit RayBoxData(const Ray& aRay) {
+        WatertightRay mShear;
+        detail::Float4 mShearX, mShearY, mShearZ;  // the shear's mSx, mSy, mSz
+        detail::Float4 mOriginX, mOriginY, mOriginZ;  // the origin along kx, ky, kz
+        explicit RayData(const Ray& aRay) : mShear(aRay.mDirection) {
             for (int k = 0; k < 3; k++) {
-                mOrigin[k] = aRay.mOrigin[k];
-                mInvDir[k] = 1.f / aRay.mDirection[k];
-                mNegative[k] = std::signbit(mInvDir[k]);
+                mOrigin[k] = detail::Float4::Broadcast(aRay.mOrigin[k]);
+                const float invDir = 1.f / aRay.mDirection[k];
+                mInvDir[k] = detail::Float4::Broadcast(invDir);
+                mNegative[k] = std::signbit(invDir);
             }
+            const float o[3] = {aRay.mOrigin.x, aRay.mOrigin.y, aRay.mOrigin.z};
+            mShearX = detail::Float4::Broadcast(mShear.mSx);
+            mShearY = detail::Float4::Broadcast(mShear.mSy);
+            mShearZ = detail::Float4::Broadcast(mShear.mSz);
+            mOriginX = detail::Float4::Broadcast(o[mShear.mKx]);
+            mOriginY = detail::Float4::Broadcast(o[mShear.mKy]);
+            mOriginZ = detail::Float4::Broadcast(o[mShear.mKz]);
         }
     };
 
-    // Slab test of the four child boxes against [0, aTMax]: where the ray enters each box
-    // (oTNear) and leaves it (oTFar, widened); child c is hit when oTNear[c] <= oTFar[c].
+    // Slab test of a node's four child boxes against [0, aTMax]: where the ray enters
+    // each box (oTNear) and the mask of the boxes it hits (entry before the widened exit).
     // The near and far planes are chosen by the ray's direction, so an inverted (empty)
-    // box always misses. The loops over the children have a fixed count of four and no
-    // branches, so the compiler turns each into a few SIMD instructions.
-    // A ray with a zero direction component that lies in the plane of a face gets
-    // (plane - origin) * inf = 0 * inf = NaN there; std::max(a, NaN) and std::min(a, NaN)
-    // return a, so that axis does not narrow the interval: the ray is inside the slab.
-    static void SlabTestChildren(const Node& aNode, const RayBoxData& aRay, float aTMax, float oTNear[kWidth],
-                                 float oTFar[kWidth]) {
-        for (int c = 0; c < kWidth; c++) { oTNear[c] = 0.f; oTFar[c] = aTMax; }
-        auto slab = [&](int k) {
+    // box always misses. A ray with a zero direction component that lies in the plane
+    // of a face gets (plane - origin) * inf = 0 * inf = NaN there; Max(a, NaN) and
+    // Min(a, NaN) return a, so that axis does not narrow the interval: the ray is inside.
+    static int SlabTestChildren(const Node& aNode, const RayData& aRay, float aTMax, Float4& oTNear) {
+        Float4 tNear = Float4::Broadcast(0.f), tFar = Float4::Broadcast(aTMax);
+        for (int k = 0; k < 3; k++) {
             const float* nearPlane = aRay.mNegative[k] ? aNode.mMax[k] : aNode.mMin[k];
             const float* farPlane = aRay.mNegative[k] ? aNode.mMin[k] : aNode.mMax[k];
-            for (int c = 0; c < kWidth; c++) {
-                oTNear[c] = std::max(oTNear[c], (nearPlane[c] - aRay.mOrigin[k]) * aRay.mInvDir[k]);
-                oTFar[c] = std::min(oTFar[c], (farPlane[c] - aRay.mOrigin[k]) * aRay.mInvDir[k]);
-            }
-        };
-        slab(0);
-        slab(1);
-        slab(2);
-        for (int c = 0; c < kWidth; c++) oTFar[c] *= kFarWidening;
+            tNear = Max(tNear, (Float4::Load(nearPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+            tFar = Min(tFar, (Float4::Load(farPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+        }
+        oTNear = tNear;
+        return LessEqual(tNear, tFar * Float4::Broadcast(kFarWidening));
     }
-    bool HitsRoot(const RayBoxData& aRay, float aTMax) const {
+
+    // Visits an inner node: continues (true) into its nearest hit child, given back in
+    // ioIndex / ioCount, after pushing the other hit children farthest first; false when
+    // the ray misses all four.
+    static bool Descend(const Node& aNode, const RayData& aRay, float aTMax, Pending* ioStack, int& ioStackSize,
+                        uint32_t& ioIndex, uint32_t& ioCount) {
+        Float4 tNear;
+        int hits = SlabTestChildren(aNode, aRay, aTMax, tNear);
+        if (hits == 0) return false;
+        Pending children[kWidth];
+        int childCount = 0;
+        while (hits) {
+            const int c = detail::FirstLane(hits);
+            hits &= hits - 1;
+            // Insertion by decreasing tNear: the nearest ends last.
+            int slot = childCount++;
+            while (slot > 0 && children[slot - 1].mTNear < tNear[c]) {
+                children[slot] = children[slot - 1];
+                slot--;
+            }
+            children[slot] = Pending{aNode.mIndex[c], aNode.mCount[c], tNear[c]};
+        }
+        for (int i = 0; i + 1 < childCount; i++) ioStack[ioStackSize++] = children[i];
+        ioIndex = children[childCount - 1].mIndex;
+        ioCount = children[childCount - 1].mCount;
+        return true;
+    }
+
+    bool HitsRoot(const RayData& aRay, float aTMax) const {
         float tNear = 0.f, tFar = aTMax;
         for (int k = 0; k < 3; k++) {
             const float nearPlane = aRay.mNegative[k] ? mRoot.mBox.mMax[k] : mRoot.mBox.mMin[k];
             const float farPlane = aRay.mNegative[k] ? mRoot.mBox.mMin[k] : mRoot.mBox.mMax[k];
-            tNear = std::max(tNear, (nearPlane - aRay.mOrigin[k]) * aRay.mInvDir[k]);
-            tFar = std::min(tFar, (farPlane - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+            tNear = std::max(tNear, (nearPlane - aRay.mOrigin[k][0]) * aRay.mInvDir[k][0]);
+            tFar = std::min(tFar, (farPlane - aRay.mOrigin[k][0]) * aRay.mInvDir[k][0]);
         }
         return tNear <= tFar * kFarWidening;
     }
 
-    static bool IntersectRecord(const Record& aRecord, const Ray& aRay, const WatertightRay& aShear,
-                                float aTMin, float aTMax, float& oT) {
-        if (aRecord.mId & kSphereBit) return IntersectSphere(aRecord.mA, aRecord.mB.x, aRay, aTMin, aTMax, oT);
-        return IntersectTriangle(aRecord.mA, aRecord.mB, aRecord.mC, aRay, aShear, aTMin, aTMax, oT);
+    // IntersectTriangle on the four triangles of a block at once, operation for operation
+    // (same order, same rounding), so each lane's answer is bit for bit the scalar one.
+    // Returns the mask of lanes hit in (aTMin, aTMax) with their distances in oT; lanes
+    // where an edge function is exactly 0 are left to the scalar test (oFallback).
+    static int IntersectTriangles(const Block& aBlock, const RayData& aRay, float aTMin, float aTMax, Float4& oT,
+                                  int& oFallback) {
+        const int kx = aRay.mShear.mKx, ky = aRay.mShear.mKy, kz = aRay.mShear.mKz;
+        const Float4 az = Float4::Load(aBlock.mA[kz]) - aRay.mOriginZ;
+        const Float4 bz = Float4::Load(aBlock.mB[kz]) - aRay.mOriginZ;
+        const Float4 cz = Float4::Load(aBlock.mC[kz]) - aRay.mOriginZ;
+        const Float4 ax = (Float4::Load(aBlock.mA[kx]) - aRay.mOriginX) - aRay.mShearX * az;
+        const Float4 ay = (Float4::Load(aBlock.mA[ky]) - aRay.mOriginY) - aRay.mShearY * az;
+        const Float4 bx = (Float4::Load(aBlock.mB[kx]) - aRay.mOriginX) - aRay.mShearX * bz;
+        const Float4 by = (Float4::Load(aBlock.mB[ky]) - aRay.mOriginY) - aRay.mShearY * bz;
+        const Float4 cx = (Float4::Load(aBlock.mC[kx]) - aRay.mOriginX) - aRay.mShearX * cz;
+        const Float4 cy = (Float4::Load(aBlock.mC[ky]) - aRay.mOriginY) - aRay.mShearY * cz;
+        const Float4 u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
+        const Float4 zero = Float4::Broadcast(0.f);
+        oFallback = Equal(u, zero) | Equal(v, zero) | Equal(w, zero);
+        const int anyNegative = Less(u, zero) | Less(v, zero) | Less(w, zero);
+        const int anyPositive = Greater(u, zero) | Greater(v, zero) | Greater(w, zero);
+        const Float4 det = u + v + w;
+        // det is finite and not 0 exactly where det - det == 0 and det != 0.
+        const int detUsable = Equal(det - det, zero) & ~Equal(det, zero);
+        oT = aRay.mShearZ * (u * az + v * bz + w * cz) / det;
+        const int inRange = Greater(oT, Float4::Broadcast(aTMin)) & Less(oT, Float4::Broadcast(aTMax));
+        return ~(anyNegative & anyPositive) & detUsable & inRange & ~oFallback & 0xF;
+    }
+
+    // The lanes the 4-wide test left to the scalar one, in lane order.
+    static void ScalarLanes(const Block& aBlock, int aLanes, const Ray& aRay, const RayData& aData, float aTMin,
+                            float aTMax, float oT[kWidth], int& ioHits) {
+        for (int lane = 0; lane < kWidth; lane++) {
+            if (!(aLanes & (1 << lane))) continue;
+            float t;
+            const bool hit = aBlock.IsSpheres()
+                                 ? IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax, t)
+                                 : IntersectTriangle(aBlock.Vertex(aBlock.mA, lane), aBlock.Vertex(aBlock.mB, lane),
+                                                     aBlock.Vertex(aBlock.mC, lane), aRay, aData.mShear, aTMin, aTMax, t);
+            if (hit) {
+                oT[lane] = t;
+                ioHits |= 1 << lane;
+            }
+        }
+    }
+
+    // The nearest hit of a block below ioTMax updates ioTMax and ioPrimitive; of lanes
+    // hit at the same t the first wins, as if they were tested one after the other.
+    static void IntersectBlock(const Block& aBlock, const Ray& aRay, const RayData& aData, float aTMin, float& ioTMax,
+                               int& ioPrimitive) {
+        float t[kWidth];
+        int hits = 0;
+        if (aBlock.IsSpheres()) {
+            ScalarLanes(aBlock, 0xF, aRay, aData, aTMin, ioTMax, t, hits);
+        } else {
+            Float4 tLanes;
+            int fallback;
+            hits = IntersectTriangles(aBlock, aData, aTMin, ioTMax, tLanes, fallback);
+            if (!(hits | fallback)) return;
+            for (int lane = 0; lane < kWidth; lane++) t[lane] = tLanes[lane];
+            if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, ioTMax, t, hits);
+        }
+        for (int lane = 0; lane < kWidth; lane++)
+            if ((hits & (1 << lane)) && t[lane] < ioTMax) {
+                ioTMax = t[lane];
+                ioPrimitive = int(aBlock.mId[lane] & ~kSphereBit);
+            }
+    }
+
+    static bool OccludedByBlock(const Block& aBlock, const Ray& aRay, const RayData& aData, float aTMin, float aTMax) {
+        float t[kWidth];
+        int hits = 0;
+        if (aBlock.IsSpheres()) {
+            ScalarLanes(aBlock, 0xF, aRay, aData, aTMin, aTMax, t, hits);
+            return hits != 0;
+        }
+        Float4 tLanes;
+        int fallback;
+        hits = IntersectTriangles(aBlock, aData, aTMin, aTMax, tLanes, fallback);
+        if (hits) return true;
+        if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, aTMax, t, hits);
+        return hits != 0;
     }
 
     int DepthOf(uint32_t aIndex, uint32_t aCount) const {
@@ -4607,11 +4750,11 @@ private:
     }
 
     // Turns the binary subtree aSubtree into 4-wide nodes (depth-first, a node before
-    // its children) and returns it as its parent sees it.
-    ChildRef Collapse(const std::vector<BinaryNode>& aBinary, const ChildRef& aSubtree) {
+    // its children) and its leaves into blocks, and returns it as its parent sees it.
+    ChildRef Collapse(const std::vector<BinaryNode>& aBinary, const std::vector<uint32_t>& aOrder, const ChildRef& aSubtree) {
         if (aSubtree.mCount > 0) {
             mLeafCount++;
-            return aSubtree;
+            return EmitLeaf(aOrder, aSubtree);
         }
         // Open the inner child of largest surface area until there are kWidth children.
         ChildRef children[kWidth];
@@ -4631,7 +4774,7 @@ private:
         const uint32_t nodeIndex = uint32_t(mNodes.size());
         mNodes.push_back(Node{});
         for (int c = 0; c < kWidth; c++) {
-            const ChildRef child = c < childCount ? Collapse(aBinary, children[c]) : ChildRef{};  // empty: inverted box
+            const ChildRef child = c < childCount ? Collapse(aBinary, aOrder, children[c]) : ChildRef{};  // empty: inverted box
             Node& node = mNodes[nodeIndex];  // Collapse may have reallocated mNodes
             for (int k = 0; k < 3; k++) {
                 node.mMin[k][c] = child.mBox.mMin[k];
@@ -4645,9 +4788,53 @@ private:
         return result;
     }
 
-    std::vector<Node> mNodes;      // inner nodes, depth-first (a node before its children)
-    std::vector<Record> mRecords;
-    ChildRef mRoot;                // the root, a leaf when the scene is small enough
+    // Copies a leaf's primitives, aOrder[mIndex, mIndex + mCount), into blocks: its
+    // triangles, then its spheres, each kind's last block filled up with its last
+    // primitive. Returns the leaf as its parent sees it (mCount blocks from mIndex).
+    ChildRef EmitLeaf(const std::vector<uint32_t>& aOrder, const ChildRef& aLeaf) {
+        const int triangleCount = mBuildSoup->TriangleCount();
+        ChildRef result = aLeaf;
+        result.mIndex = uint32_t(mBlocks.size());
+        for (const bool spheres : {false, true}) {
+            int lane = kWidth;
+            uint32_t last = 0;
+            for (uint32_t i = 0; i < aLeaf.mCount; i++) {
+                const uint32_t primitive = aOrder[aLeaf.mIndex + i];
+                if ((int(primitive) >= triangleCount) != spheres) continue;
+                if (lane == kWidth) {
+                    mBlocks.emplace_back();
+                    lane = 0;
+                }
+                WriteLane(mBlocks.back(), lane++, primitive);
+                last = primitive;
+            }
+            while (lane < kWidth) WriteLane(mBlocks.back(), lane++, last);
+        }
+        result.mCount = uint32_t(mBlocks.size()) - result.mIndex;
+        return result;
+    }
+
+    void WriteLane(Block& ioBlock, int aLane, uint32_t aPrimitive) const {
+        const PrimitiveSoup& soup = *mBuildSoup;
+        const size_t p = aPrimitive;
+        if (int(p) < soup.TriangleCount()) {
+            for (int k = 0; k < 3; k++) {
+                ioBlock.mA[k][aLane] = soup.mTriangleP0[p][k];
+                ioBlock.mB[k][aLane] = soup.mTriangleP1[p][k];
+                ioBlock.mC[k][aLane] = soup.mTriangleP2[p][k];
+            }
+            ioBlock.mId[aLane] = aPrimitive;
+        } else {
+            const size_t sphere = p - size_t(soup.TriangleCount());
+            for (int k = 0; k < 3; k++) ioBlock.mA[k][aLane] = soup.mSphereCenter[sphere][k];
+            ioBlock.mB[0][aLane] = soup.mSphereRadius[sphere];
+            ioBlock.mId[aLane] = aPrimitive | kSphereBit;
+        }
+    }
+
+    std::vector<Node> mNodes;    // inner nodes, depth-first (a node before its children)
+    std::vector<Block> mBlocks;  // the leaves' primitives, leaf after leaf
+    ChildRef mRoot;              // the root, a leaf when the scene is small enough
     size_t mLeafCount = 0;
     int mPrimitiveCount = 0;
     int mBuildDepth = 0;

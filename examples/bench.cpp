@@ -891,7 +891,7 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
                "random direction. Shadow rays: Scene::Occluded between two random points of the bounding box. "
                "Rays per second are per wall second and, after the slash, per CPU second of the tracing thread "
                "(the two differ when other programs share the cores). Nodes count leaves too; BVH MiB is what the tree stores: its inner nodes ("
-            << smallvcm::Bvh::NodeBytes() << " bytes each, the boxes of its four children) and one 40-byte record per primitive.\n\n";
+            << smallvcm::Bvh::NodeBytes() << " bytes each, the boxes of its four children) and the leaves' primitives in blocks of four (160 bytes a block).\n\n";
         out << "| triangles | build ms (runs, CPU util.) | nodes | depth | BVH MiB | nearest-hit rays/s, wall / CPU (hit %) | "
                "shadow rays/s, wall / CPU (occluded %) | rays traced | process peak RSS MiB |\n"
                "|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
