@@ -172,7 +172,7 @@ bench: deps $(BUILD)/bench
 # missing; a benchmark-only dependency the header never includes) on generated meshes and
 # the same incoherent rays, one thread: a ratio table of closest-hit and any-hit Mrays/s,
 # build time and bytes per triangle, and how often the two agree (examples/bench_embree.cpp
-# says what it measures; about 2 minutes). docs/performance.md keeps the current table.
+# says what it measures; about half a minute). docs/performance.md keeps the current table.
 ENSURE_EMBREE = dpkg-query -W -f='$${Status}' libembree-dev 2>/dev/null | grep -q "install ok installed" || \
 	  { if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
 	    $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q libembree-dev; }
