@@ -75,6 +75,8 @@
 //                             contribution and MIS quantity finite and non-negative);
 //                             a violation aborts with the place and values. Slower;
 //                             `make check` builds with it.
+//    SMALLVCM_BVH_SCALAR      trace with the BVH's portable scalar loops instead of SSE
+//                             vector code (same hits bit for bit; [SECTION] Appendix: BVH).
 //
 // =====================================================================================
 //  CONVENTIONS (shared with SmallVCM, so images can be compared)
@@ -4229,7 +4231,8 @@ Image ReadImage(const std::string& aPath);
 // Four floats processed together. With GCC or Clang on x86 (SSE2: every x86-64) they are
 // a compiler vector type, each operator one SSE instruction; elsewhere, or when
 // SMALLVCM_BVH_SCALAR is defined, plain loops over four floats. Each lane is the same
-// IEEE single-precision operation either way, so both give the same hits bit for bit.
+// IEEE single-precision operation either way, so both give the same hits bit for bit
+// (given the same contraction of multiply-adds: none under the Makefile's flags).
 #if defined(__GNUC__) && defined(__SSE2__) && !defined(SMALLVCM_BVH_SCALAR)
 #define SMALLVCM_BVH_SSE 1
 #endif
@@ -4310,6 +4313,8 @@ inline int FirstLane(int aMask) {
 // * Leaf triangles are copied into blocks of four, stored coordinate by coordinate, so
 //   the watertight test runs on four triangles at once, and a leaf is a few consecutive
 //   cache lines instead of indices into the scene.
+// * The SAH counts blocks, not primitives: four triangles cost what one does, so leaves
+//   fill their blocks (54 bytes per triangle instead of 163 when it counted triangles).
 // * Ordered traversal: the nearest child is entered next and the others are pushed
 //   farthest first, so the nearest hit is found early, and a popped child whose box
 //   starts beyond it is dropped without another test. Shadow rays walk in the same
