@@ -372,6 +372,7 @@ struct Ray {
 };
 
 struct Hit {
+    Vec3 mPosition{0.f};    // the point hit: ray origin + mDist * ray direction
     float mDist = std::numeric_limits<float>::infinity();
     int mPrimitiveId = -1;  // triangles first, then spheres (see Scene)
     int mMaterialId = -1;
@@ -1340,6 +1341,7 @@ public:
         const int primitive = mBvh.Intersect(aRay, 0.f, tMax);
         if (primitive < 0) return false;
         oHit.mDist = tMax;
+        oHit.mPosition = aRay.mOrigin + tMax * aRay.mDirection;
         oHit.mPrimitiveId = primitive;
         const int triangleCount = int(mTriangles.size());
         if (primitive < triangleCount) {
@@ -1351,7 +1353,7 @@ public:
             const bool textured = mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0 ||
                                   (triangle.mLightId >= 0 && mLights[size_t(triangle.mLightId)].mEmissionTexture >= 0);
             if (textured || triangle.mHasVertexNormals) {
-                const TriangleBarycentrics b = Barycentrics(triangle, aRay.mOrigin + tMax * aRay.mDirection);
+                const TriangleBarycentrics b = Barycentrics(triangle, oHit.mPosition);
                 if (textured) oHit.mUv = TriangleUv(triangle, b);
                 if (triangle.mHasVertexNormals) oHit.mShadingNormal = InterpolatedNormal(triangle, b);
             }
@@ -1359,7 +1361,7 @@ public:
             const Sphere& sphere = mSpheres[size_t(primitive - triangleCount)];
             oHit.mMaterialId = sphere.mMaterialId;
             oHit.mLightId = sphere.mLightId;
-            oHit.mNormal = glm::normalize(aRay.mOrigin + tMax * aRay.mDirection - sphere.mCenter);
+            oHit.mNormal = glm::normalize(oHit.mPosition - sphere.mCenter);
             oHit.mShadingNormal = oHit.mNormal;  // a sphere's normal is exact
         }
         return true;
@@ -2231,7 +2233,7 @@ private:
                 AddBackgroundHit(aPixel, path, aRay.mDirection);
                 return;
             }
-            const Vec3 hitPoint = aRay.mOrigin + aRay.mDirection * hit.mDist;
+            const Vec3& hitPoint = hit.mPosition;
             // The path goes on after a light only if the emitter's material reflects (the
             // Cornell lights are black; the furnace test's walls are not).
             if (hit.mLightId >= 0 && path.mPathLength >= mOptions.mMinPathLength) AddEmitterHit(aPixel, path, aRay, hit);
@@ -2582,7 +2584,7 @@ inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLeng
         for (int pathLength = 1; pathLength < aMaxPathLength; pathLength++) {
             Hit hit;
             if (!aScene.Intersect(ray, hit)) break;
-            const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+            const Vec3& hitPoint = hit.mPosition;
             Bsdf bsdf;
             bsdf.Setup(ray, hit, aScene, Transport::kImportance);
             if (!bsdf.IsValid()) break;
@@ -2643,7 +2645,7 @@ private:
                         throughput * background->GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, Vec3(0.f), Vec2(0.f), nullptr, nullptr));
                 return;
             }
-            const Vec3 hitPoint = aRay.mOrigin + aRay.mDirection * hit.mDist;
+            const Vec3& hitPoint = hit.mPosition;
             if (hit.mLightId >= 0 && pathLength >= mOptions.mMinPathLength)
                 Add(aPixel, afterSpecular ? kSpecular : kEmitted,
                     throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.mNormal, hit.mUv, nullptr, nullptr));
@@ -2725,7 +2727,7 @@ private:
         for (int length = aPathLength + 1; length < mOptions.mMaxPathLength; length++) {
             Hit hit;
             if (!mScene.Intersect(ray, hit)) return;
-            const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+            const Vec3& hitPoint = hit.mPosition;
             Bsdf bsdf;
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
@@ -3212,7 +3214,7 @@ private:
             const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
             Hit hit;
             if (!mScene.Intersect(ray, hit)) return;
-            const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+            const Vec3& hitPoint = hit.mPosition;
             Bsdf bsdf;
             bsdf.Setup(ray, hit, mScene, Transport::kImportance);
             if (!bsdf.IsValid()) return;
@@ -3275,7 +3277,7 @@ private:
                 AddBackgroundHit(aPixel, cam, ray.mDirection);
                 return;
             }
-            const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
+            const Vec3& hitPoint = hit.mPosition;
             const float cosAtHit = glm::dot(hit.mNormal, -ray.mDirection);
             const float distance = hit.mDist + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
             VcmMis::AfterSegment(mMisConstants, cam.mMis, distance, cosAtHit, true);

@@ -40,11 +40,11 @@ public:
                         float lightPdfW = 0.f;
                         const Vec3 emitted = background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection, Vec3(0.f),
                                                                      Vec2(0.f), &lightPdfW, nullptr);
-                        radiance += throughput * emitted * BsdfWeight(bsdfPdfW, lightPdfW * LightPickProb());
+                        radiance += throughput * emitted * BsdfWeight(bsdfPdfW, lightPdfW * mScene.LightPickProb());
                     }
                     break;
                 }
-                const Vec3 point = ray.mOrigin + ray.mDirection * hit.mDist;
+                const Vec3& point = hit.mPosition;
                 if (hit.mLightId >= 0) {  // a light found by BSDF sampling
                     float lightPdfA = 0.f;
                     const Vec3 emitted = mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), ray.mDirection,
@@ -52,7 +52,7 @@ public:
                     // The ray started RayEpsilon() off the previous surface.
                     const float lightPdfW = PdfAtoW(lightPdfA, hit.mDist + mScene.RayEpsilon(),
                                                     glm::dot(hit.mNormal, -ray.mDirection));
-                    radiance += throughput * emitted * BsdfWeight(bsdfPdfW, lightPdfW * LightPickProb());
+                    radiance += throughput * emitted * BsdfWeight(bsdfPdfW, lightPdfW * mScene.LightPickProb());
                 }
                 Bsdf bsdf;
                 bsdf.Setup(ray, hit, mScene, Transport::kRadiance);  // a camera path carries radiance
@@ -69,8 +69,6 @@ public:
     }
 
 private:
-    float LightPickProb() const { return 1.f / float(mScene.LightCount()); }
-
     // The weight of a light hit by BSDF sampling; after the camera or a specular
     // bounce next-event estimation could not have found it: weight 1.
     static float BsdfWeight(float aBsdfPdfW, float aLightPdfW) {
@@ -80,17 +78,15 @@ private:
     // Direct light at aPoint from one light sample, MIS-weighted against BSDF sampling.
     smallvcm::Vec3 NextEventEstimate(const smallvcm::Bsdf& aBsdf, const smallvcm::Vec3& aPoint, smallvcm::Rng& aRng) const {
         using namespace smallvcm;
-        const int lightCount = mScene.LightCount();
-        const Light& light = mScene.GetLight(std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1));
+        const LightPick pick = mScene.PickLight(aRng.GetFloat());  // a light and its probability
         LightSample sample;
-        if (!light.Illuminate(mScene.GetSceneSphere(), aPoint, aRng.GetVec2(), sample)) return Vec3(0.f);
-        float cosAtPoint = 0.f, bsdfPdfW = 0.f;
-        const Vec3 f = aBsdf.Evaluate(sample.mDirToLight, cosAtPoint, &bsdfPdfW);
-        if (IsBlack(f) || mScene.Occluded(aPoint, sample.mDirToLight, sample.mDistance)) return Vec3(0.f);
-        const float lightPdfW = sample.mDirectPdfW * LightPickProb();
+        if (!pick.mLight->Illuminate(mScene.GetSceneSphere(), aPoint, aRng.GetVec2(), sample)) return Vec3(0.f);
+        const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample.mDirToLight);  // its pdfs include Russian roulette
+        if (bsdf.IsBlack() || mScene.Occluded(aPoint, sample.mDirToLight, sample.mDistance)) return Vec3(0.f);
+        const float lightPdfW = sample.mDirectPdfW * pick.mProb;
         // A point or directional light cannot be hit by BSDF sampling: weight 1.
-        const float weight = light.IsDelta() ? 1.f : lightPdfW / (lightPdfW + bsdfPdfW * aBsdf.ContinuationProb());
-        return sample.mRadiance * f * (weight * cosAtPoint / lightPdfW);
+        const float weight = pick.mLight->IsDelta() ? 1.f : lightPdfW / (lightPdfW + bsdf.mDirPdfW);
+        return sample.mRadiance * bsdf.mValue * (weight * bsdf.mCosThetaGen / lightPdfW);
     }
 };
 
