@@ -44,6 +44,7 @@
 
 #include <cinttypes>
 #include <ctime>
+#include <unistd.h>
 #include <cstring>
 #include <fstream>
 #include <iostream>
@@ -615,9 +616,11 @@ int main(int argc, char** argv) {
     for (const std::string& name : options.mOnly)
         if (std::none_of(meshes.begin(), meshes.end(), [&](const auto& m) { return m.first == name; }))
             Usage("--only: no mesh named '" + name + "'");
+    // Checked before measuring, without creating the file: a run that fails leaves none.
     if (!options.mMarkdown.empty()) {
-        std::ofstream probe(options.mMarkdown, std::ios::app);
-        if (!probe) Usage("--markdown: cannot write " + options.mMarkdown);
+        const size_t slash = options.mMarkdown.rfind('/');
+        const std::string folder = slash == std::string::npos ? "." : slash == 0 ? "/" : options.mMarkdown.substr(0, slash);
+        if (access(folder.c_str(), W_OK) != 0) Usage("--markdown: cannot write in the folder of " + options.mMarkdown);
     }
     std::vector<Row> rows;
     for (const auto& [name, make] : meshes) {
@@ -632,6 +635,14 @@ int main(int argc, char** argv) {
     }
     const std::string table = Table(rows, options);
     std::cout << table;
-    if (!options.mMarkdown.empty()) std::ofstream(options.mMarkdown) << table;
+    if (!options.mMarkdown.empty()) {  // whole or not at all: a temporary file, then rename
+        const std::string temporary = options.mMarkdown + ".tmp";
+        std::ofstream(temporary) << table;
+        if (std::rename(temporary.c_str(), options.mMarkdown.c_str()) != 0) {
+            std::remove(temporary.c_str());
+            std::fprintf(stderr, "bench_embree: --markdown: cannot write %s\n", options.mMarkdown.c_str());
+            return 1;
+        }
+    }
     return 0;
 }
