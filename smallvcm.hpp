@@ -3210,6 +3210,8 @@ private:
     void TraceLightSubpath(Rng& aRng) {
         SubpathState light;
         GenerateLightSample(aRng, light);
+        // Nothing emitted (a black texel of a textured light, a spot's cone edge): no path.
+        if (IsBlack(light.mThroughput)) return;
         for (;;) {
             const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
             Hit hit;
@@ -4890,6 +4892,10 @@ struct GltfLoadReport {
     bool mDefaultCamera = false;          // the file has no camera: one frames the scene
     bool mDefaultBackground = false;      // the file has no emitter: a white background was added
     std::vector<std::string> mNotes;      // what was approximated, ignored or looks wrong, one line each
+    // Where the loading time went (wall clock): reading (the file, its JSON, buffers and
+    // images, the triangles, lights and camera) and Scene::Finalize (validation, light
+    // sampling data and the BVH build, which dominates it for large meshes).
+    double mReadSeconds = 0.0, mFinalizeSeconds = 0.0;
 };
 
 // What a scene file may make the loader read. A scene is an untrusted document: every
@@ -5327,6 +5333,7 @@ public:
     GltfLoader(const std::string& aPath, const GltfLoadOptions& aOptions) : mPath(aPath), mOptions(aOptions) {}
 
     Scene Load(GltfLoadReport* oReport) {
+        const auto start = std::chrono::steady_clock::now();
         ParseFile();
         CheckModelFeatures();
         ConvertMaterials();
@@ -5341,7 +5348,10 @@ public:
                  " camera node(s)" + (mCameraNodes > 0 ? " (0.." + std::to_string(mCameraNodes - 1) + ")" : std::string()));
         if (!mHasCamera) AddDefaultCamera();
         mScene.mName = mPath;
+        const auto finalizeStart = std::chrono::steady_clock::now();
         mScene.Finalize();  // its Error messages start with the path too
+        mReport.mFinalizeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - finalizeStart).count();
+        mReport.mReadSeconds = std::chrono::duration<double>(finalizeStart - start).count();
         mReport.mSkippedDegenerateTriangles = mSkippedTriangles;
         if (!mIgnoredExtensions.empty()) {
             std::string list;
@@ -5661,7 +5671,8 @@ private:
             if (!problem.empty()) Fail(what + ": " + problem);
             bytes = &fileBytes;
         }
-        if (bytes->empty() || bytes->size() > size_t(std::numeric_limits<int>::max())) Fail(what + ": the image is empty or too large");
+        if (bytes->empty()) Fail(what + ": the image is empty (0 bytes)");
+        if (bytes->size() > size_t(std::numeric_limits<int>::max())) Fail(what + ": the image is larger than 2 GiB");
         int width = 0, height = 0, channels = 0;
         if (!stbi_info_from_memory(bytes->data(), int(bytes->size()), &width, &height, &channels))
             Fail(what + ": not a PNG or JPEG image that can be decoded (" + Excerpt(stbi_failure_reason()) + ")");
@@ -5786,8 +5797,10 @@ private:
             mMaterialEmissionTexture.push_back(emissionTexture);
             mMaterialEmitsTwoSided.push_back(source.doubleSided);
             // Emitters are black (SmallVCM's lights do not reflect) unless an explicit
-            // SMALLVCM_material gives them a reflectance.
-            if (!IsBlack(emission) && extension == source.extensions.end()) {
+            // SMALLVCM_material gives them a reflectance, or an emissiveTexture says where
+            // they glow: such a material is a surface like any other with a glow map on it
+            // (a screen, a label, a lamp's bulb), as glTF adds emission to reflection.
+            if (!IsBlack(emission) && extension == source.extensions.end() && emissionTexture < 0) {
                 Material black;
                 black.mName = material.mName;
                 material = black;
@@ -6011,6 +6024,10 @@ private:
             const std::vector<Vec3> normals = WorldNormals(primitive, aWorld, vertexCount, what);
             size_t againstWinding = 0;
             std::vector<int> triangleIds;
+            // Room for this primitive's triangles, growing geometrically (a file with many
+            // small primitives must not reallocate the whole list for each one).
+            const size_t needed = mScene.mTriangles.size() + indices.size() / 3;
+            if (needed > mScene.mTriangles.capacity()) mScene.mTriangles.reserve(std::max(needed, 2 * mScene.mTriangles.capacity()));
             for (size_t t = 0; t + 2 < indices.size(); t += 3) {
                 size_t i0 = size_t(indices[t]), i1 = size_t(indices[t + 1]), i2 = size_t(indices[t + 2]);
                 if (i0 >= vertexCount || i1 >= vertexCount || i2 >= vertexCount)
@@ -6095,30 +6112,49 @@ private:
     // Vertices are matched by position, so meshes split at seams (or not indexed at all)
     // are judged as the surface they form.
     static bool LooksInsideOut(const std::vector<Vec3>& aWorld, const std::vector<double>& aIndices, bool aFlip) {
-        struct PositionHash {
-            size_t operator()(const Vec3& aP) const {
-                uint32_t bits[3];
-                std::memcpy(bits, &aP, sizeof(bits));
-                return size_t(SplitMix64((uint64_t(bits[0]) << 32) ^ (uint64_t(bits[1]) << 16) ^ bits[2]));
-            }
+        // Weld: vertices at the same position get one id. By sorting, not hashing: a
+        // million-triangle mesh would spend most of its loading time in hash nodes.
+        struct Keyed { uint32_t mBits[3]; uint32_t mVertex; };
+        std::vector<Keyed> keyed(aWorld.size());
+        for (size_t v = 0; v < aWorld.size(); v++) {
+            const Vec3 p = aWorld[v] + Vec3(0.f);  // -0 becomes +0: equal positions, equal bits
+            std::memcpy(keyed[v].mBits, &p, sizeof(keyed[v].mBits));
+            keyed[v].mVertex = uint32_t(v);
+        }
+        const auto samePosition = [](const Keyed& aA, const Keyed& aB) {
+            return aA.mBits[0] == aB.mBits[0] && aA.mBits[1] == aB.mBits[1] && aA.mBits[2] == aB.mBits[2];
         };
-        std::unordered_map<Vec3, uint64_t, PositionHash> weld;
-        std::unordered_map<uint64_t, int> directedEdges;
+        std::sort(keyed.begin(), keyed.end(), [](const Keyed& aA, const Keyed& aB) {
+            return std::lexicographical_compare(aA.mBits, aA.mBits + 3, aB.mBits, aB.mBits + 3);
+        });
+        std::vector<uint32_t> weld(aWorld.size());
+        uint32_t id = 0;
+        for (size_t k = 0; k < keyed.size(); k++) {
+            if (k > 0 && !samePosition(keyed[k - 1], keyed[k])) id++;
+            weld[keyed[k].mVertex] = id;
+        }
+        // Each edge as (smaller id, larger id, direction): in a closed, consistently wound
+        // 2-manifold every edge occurs exactly twice, once in each direction.
+        std::vector<uint64_t> edges;
+        edges.reserve(aIndices.size());
         double volume = 0.0;
         for (size_t t = 0; t + 2 < aIndices.size(); t += 3) {
             size_t corner[3] = {size_t(aIndices[t]), size_t(aIndices[t + 1]), size_t(aIndices[t + 2])};
             if (aFlip) std::swap(corner[1], corner[2]);
-            uint64_t v[3];
-            for (int k = 0; k < 3; k++) v[k] = weld.emplace(aWorld[corner[k]], weld.size()).first->second;
+            const uint64_t v[3] = {weld[corner[0]], weld[corner[1]], weld[corner[2]]};
             if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) continue;
-            for (int e = 0; e < 3; e++)
-                if (++directedEdges[(v[e] << 32) | v[(e + 1) % 3]] > 1) return false;  // not a closed 2-manifold
+            for (int e = 0; e < 3; e++) {
+                const uint64_t from = v[e], to = v[(e + 1) % 3];
+                edges.push_back(from < to ? (from << 32) | (to << 1) : (to << 32) | (from << 1) | 1u);
+            }
             const glm::dvec3 p0(aWorld[corner[0]]), p1(aWorld[corner[1]]), p2(aWorld[corner[2]]);
             volume += glm::dot(p0, glm::cross(p1, p2)) / 6.0;
         }
-        if (directedEdges.empty()) return false;
-        for (const auto& edge : directedEdges)
-            if (!directedEdges.count((edge.first << 32) | (edge.first >> 32))) return false;  // an open border
+        if (edges.empty()) return false;
+        std::sort(edges.begin(), edges.end());
+        for (size_t e = 0; e < edges.size(); e += 2)  // sorted pairs: (a, b, forward), (a, b, backward)
+            if ((edges[e] & 1u) || e + 1 >= edges.size() || edges[e + 1] != (edges[e] | 1u))
+                return false;  // an open border, or an edge shared otherwise than by two opposite triangles
         return volume < 0.0;
     }
 
@@ -6225,13 +6261,18 @@ private:
         }
         if (mOptions.mBackground == Background::kNone) return;
         ReadBackground();
-        if (!mScene.mLights.empty()) return;
-        // A model with no emitter (most real-world files): a uniform white sky, so that it
-        // renders at all, and one line that says so and how to change it.
+        // A model with no emitter (most real-world files), or whose only emitters carry an
+        // emissiveTexture (glow maps of a model, not lamps that light a scene): a uniform
+        // white sky, so that it renders at all, and one line that says so and how to change it.
+        bool glowOnly = !mScene.mLights.empty();
+        for (const Light& light : mScene.mLights) glowOnly = glowOnly && light.mEmissionTexture >= 0;
+        if (!mScene.mLights.empty() && !glowOnly) return;
         mScene.AddBackgroundLight(Vec3(1.f));
         mReport.mDefaultBackground = true;
-        mReport.mNotes.push_back("the scene has no light: added a uniform white background (radiance 1; "
-                                 "--background R,G,B or --background none changes it)");
+        mReport.mNotes.push_back(std::string(glowOnly ? "the scene's only lights are emissive textures (glow maps)"
+                                                      : "the scene has no light") +
+                                 ": added a uniform white background (radiance 1; --background R,G,B or --background "
+                                 "none changes it)");
     }
 
     // A camera for a file without one: it looks at the centre of the bounding box of all

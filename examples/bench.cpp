@@ -30,6 +30,15 @@
 //      and depth, and single-thread throughput of nearest-hit rays (Scene::Intersect from
 //      random points of the bounding box in random directions) and of shadow rays
 //      (Scene::Occluded between two random points of the bounding box).
+//   4. Loading a large glTF file. The bumpy sphere of 3. at --gltf-triangles triangles
+//      (10^6 by default) written to a temporary folder as a model from the wild would
+//      come: a .gltf beside a .bin with POSITION, NORMAL and UNSIGNED_INT indices, one
+//      material, no camera, no light (the file is made by the benchmark and deleted
+//      after it, never checked in). Reported: LoadGltfScene's wall and CPU time on this
+//      one thread, the fastest of --repeat runs (at least 2), split as the load report
+//      splits it into reading (parsing the file, reading the buffer, building the
+//      triangles) and Scene::Finalize (validation, light data and the BVH build).
+//      `build/bench --no-render --no-bvh` runs this part alone (about 10 s).
 // With --csv PREFIX the numbers behind the charts are also written as data (the charts
 // are drawn by docs/plot_bench.py with matplotlib, not here):
 //   PREFIX_bvh.csv     one row per mesh of 3.: triangles, build ms, nodes, depth, BVH MiB,
@@ -119,7 +128,8 @@ struct Options {
     int mMinIterations = 2;     // at least this many measured iterations
     int mWarmup = 1;            // warm-up iterations per thread
     int mRepeat = 1;            // measured runs per configuration; the fastest is reported
-    bool mRender = true, mBvh = true;
+    bool mRender = true, mBvh = true, mGltf = true;
+    long mGltfTriangles = 1000000;  // the glTF loading measurement's mesh
     int mBvhMaxExponent = 6;    // meshes of 10^2 .. 10^this triangles
     int mBvhRays = 131072;      // rays per batch (each batch is traced at least once)
     double mBvhSeconds = 0.5;   // tracing time per mesh and ray kind
@@ -147,6 +157,8 @@ void PrintHelp() {
         "  --bvh-seconds S        tracing time per mesh and ray kind (default 0.5)\n"
         "  --no-render            skip the render and memory measurements\n"
         "  --no-bvh               skip the BVH scaling\n"
+        "  --gltf-triangles N     the glTF loading measurement's mesh (default 1000000, 100..10^7)\n"
+        "  --no-gltf              skip the glTF loading measurement\n"
         "  --note TEXT            a line for the report (e.g. the commit measured)\n"
         "  --markdown FILE        also write the report to FILE\n"
         "  --csv PREFIX           also write the numbers to PREFIX_bvh.csv (BVH scaling) and\n"
@@ -185,6 +197,7 @@ Options ParseOptions(int argc, char** argv) {
             o.mBvhMaxExponent = 4;
             o.mBvhRays = 100000;
             o.mBvhSeconds = 0.0;
+            o.mGltfTriangles = 10000;
         }
     auto value = [&](int& i) -> std::string {
         if (i + 1 >= argc) throw Error(std::string(argv[i]) + ": needs a value");
@@ -222,6 +235,8 @@ Options ParseOptions(int argc, char** argv) {
         else if (arg == "--bvh-seconds") o.mBvhSeconds = ParseNumber<double>(arg, value(i), 0.0, 3600.0);
         else if (arg == "--no-render") o.mRender = false;
         else if (arg == "--no-bvh") o.mBvh = false;
+        else if (arg == "--no-gltf") o.mGltf = false;
+        else if (arg == "--gltf-triangles") o.mGltfTriangles = ParseNumber<long>(arg, value(i), 100, 10000000);
         else if (arg == "--note") o.mNote = value(i);
         else if (arg == "--markdown") o.mMarkdown = value(i);
         else if (arg == "--csv") {
@@ -527,7 +542,11 @@ struct BenchRandom {
 // so that the surface is equally rough at every resolution (a random offset of fixed
 // size would turn a fine mesh into needles, whose boxes all overlap). Vertices are
 // computed once and shared, so the mesh is closed (watertight).
-void BuildBumpySphere(smallvcm::Scene& oScene, long aTriangles) {
+struct BumpySphereMesh {
+    std::vector<smallvcm::Vec3> mVertices;
+    std::vector<uint32_t> mIndices;  // three per triangle
+};
+BumpySphereMesh MakeBumpySphere(long aTriangles) {
     const long half = aTriangles / 2;  // = segments * (bands - 1)
     long bandsMinusOne = 1;
     double bestScore = std::numeric_limits<double>::infinity();
@@ -556,25 +575,33 @@ void BuildBumpySphere(smallvcm::Scene& oScene, long aTriangles) {
     }
     vertices.push_back(smallvcm::Vec3(0.f, 0.f, -radius(pi, 0.f)));
     const long south = long(vertices.size()) - 1;
-    auto at = [&](long aRing, long aSegment) { return 1 + (aRing - 1) * segments + (aSegment % segments); };
+    auto at = [&](long aRing, long aSegment) { return uint32_t(1 + (aRing - 1) * segments + (aSegment % segments)); };
 
+    BumpySphereMesh mesh;
+    mesh.mIndices.reserve(size_t(3 * aTriangles));
+    auto triangle = [&](uint32_t aA, uint32_t aB, uint32_t aC) { mesh.mIndices.insert(mesh.mIndices.end(), {aA, aB, aC}); };
+    for (long s = 0; s < segments; s++) {
+        triangle(0, at(1, s), at(1, s + 1));
+        for (long ring = 1; ring + 1 < bands; ring++) {
+            triangle(at(ring, s), at(ring + 1, s), at(ring + 1, s + 1));
+            triangle(at(ring, s), at(ring + 1, s + 1), at(ring, s + 1));
+        }
+        triangle(uint32_t(south), at(bands - 1, s + 1), at(bands - 1, s));
+    }
+    mesh.mVertices = std::move(vertices);
+    return mesh;
+}
+
+// The bumpy sphere as a scene: its triangles (diffuse), a point light inside, a camera.
+void BuildBumpySphere(smallvcm::Scene& oScene, long aTriangles) {
+    const BumpySphereMesh mesh = MakeBumpySphere(aTriangles);
     smallvcm::Material diffuse;
     diffuse.mDiffuseReflectance = smallvcm::Vec3(0.8f);
     const int material = oScene.AddMaterial(diffuse);
     oScene.mTriangles.reserve(size_t(aTriangles));
-    for (long s = 0; s < segments; s++) {
-        oScene.AddTriangle(vertices[0], vertices[size_t(at(1, s))], vertices[size_t(at(1, s + 1))], material);
-        for (long ring = 1; ring + 1 < bands; ring++) {
-            const auto& a = vertices[size_t(at(ring, s))];
-            const auto& b = vertices[size_t(at(ring + 1, s))];
-            const auto& c = vertices[size_t(at(ring + 1, s + 1))];
-            const auto& d = vertices[size_t(at(ring, s + 1))];
-            oScene.AddTriangle(a, b, c, material);
-            oScene.AddTriangle(a, c, d, material);
-        }
-        oScene.AddTriangle(vertices[size_t(south)], vertices[size_t(at(bands - 1, s + 1))],
-                           vertices[size_t(at(bands - 1, s))], material);
-    }
+    for (size_t i = 0; i + 2 < mesh.mIndices.size(); i += 3)
+        oScene.AddTriangle(mesh.mVertices[mesh.mIndices[i]], mesh.mVertices[mesh.mIndices[i + 1]],
+                           mesh.mVertices[mesh.mIndices[i + 2]], material);
     oScene.AddPointLight(smallvcm::Vec3(0.f), smallvcm::Vec3(10.f));
     oScene.mCamera.Setup(smallvcm::Vec3(0.f, -4.f, 0.f), smallvcm::Vec3(0.f, 1.f, 0.f), smallvcm::Vec3(0.f, 0.f, 1.f), 45.f);
     oScene.mCamera.SetResolution(256, 256);
@@ -678,6 +705,93 @@ BvhRow MeasureBvh(const Options& aOptions, long aTriangles) {
 }
 
 // ---------------------------------------------------------------------------------------
+// 4: loading a large glTF file
+// ---------------------------------------------------------------------------------------
+
+// Writes the bumpy sphere of aTriangles triangles to aFolder/bumpy.gltf + bumpy.bin
+// (see the file's note 4) and returns the path of the .gltf; oBytes gets both files' size.
+std::string WriteBumpySphereGltf(const std::string& aFolder, long aTriangles, uint64_t& oBytes) {
+    const BumpySphereMesh mesh = MakeBumpySphere(aTriangles);
+    std::vector<float> positions, normals;
+    smallvcm::Vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+    for (const smallvcm::Vec3& v : mesh.mVertices) {
+        const smallvcm::Vec3 n = glm::normalize(v);  // smooth: the direction from the centre
+        positions.insert(positions.end(), {v.x, v.y, v.z});
+        normals.insert(normals.end(), {n.x, n.y, n.z});
+        lo = glm::min(lo, v);
+        hi = glm::max(hi, v);
+    }
+    const size_t positionBytes = positions.size() * sizeof(float), indexBytes = mesh.mIndices.size() * sizeof(uint32_t);
+    {
+        std::ofstream bin(aFolder + "/bumpy.bin", std::ios::binary);
+        bin.write(reinterpret_cast<const char*>(positions.data()), std::streamsize(positionBytes));
+        bin.write(reinterpret_cast<const char*>(normals.data()), std::streamsize(positionBytes));
+        bin.write(reinterpret_cast<const char*>(mesh.mIndices.data()), std::streamsize(indexBytes));
+        if (!bin) throw Error(aFolder + "/bumpy.bin: cannot write it");
+    }
+    std::ostringstream json;
+    json << R"({"asset": {"version": "2.0", "generator": "smallvcm bench"}, "scene": 0, "scenes": [{"nodes": [0]}],
+  "nodes": [{"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 0}]}],
+  "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1], "metallicFactor": 0, "roughnessFactor": 1}}],
+  "buffers": [{"uri": "bumpy.bin", "byteLength": )" << 2 * positionBytes + indexBytes << R"(}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": )" << positionBytes << R"(},
+                  {"buffer": 0, "byteOffset": )" << positionBytes << R"(, "byteLength": )" << positionBytes << R"(},
+                  {"buffer": 0, "byteOffset": )" << 2 * positionBytes << R"(, "byteLength": )" << indexBytes << R"(}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": )" << mesh.mVertices.size() << R"(, "type": "VEC3",
+                 "min": [)" << lo.x << ", " << lo.y << ", " << lo.z << "], \"max\": [" << hi.x << ", " << hi.y << ", " << hi.z << R"(]},
+                {"bufferView": 1, "componentType": 5126, "count": )" << mesh.mVertices.size() << R"(, "type": "VEC3"},
+                {"bufferView": 2, "componentType": 5125, "count": )" << mesh.mIndices.size() << R"(, "type": "SCALAR"}]}
+)";
+    const std::string path = aFolder + "/bumpy.gltf";
+    std::ofstream(path) << json.str();
+    oBytes = uint64_t(2 * positionBytes + indexBytes + json.str().size());
+    return path;
+}
+
+struct GltfRow {
+    long mTriangles = 0;        // in the file (all of them non-degenerate)
+    size_t mLoadedTriangles = 0;
+    uint64_t mFileBytes = 0;    // .gltf + .bin
+    double mSeconds = 0.0, mCpuSeconds = 0.0;           // LoadGltfScene, the fastest run
+    double mReadSeconds = 0.0, mFinalizeSeconds = 0.0;  // that run's GltfLoadReport
+    int mRuns = 0;
+};
+
+GltfRow MeasureGltfLoad(const Options& aOptions, long aTriangles) {
+    GltfRow row;
+    row.mTriangles = aTriangles;
+    const char* temporary = std::getenv("TMPDIR");
+    std::string folder = std::string(temporary && *temporary ? temporary : "/tmp") + "/smallvcm-bench-XXXXXX";
+    if (!mkdtemp(folder.data())) throw Error(folder + ": cannot make a temporary folder (" + std::strerror(errno) + ")");
+    struct Cleanup {
+        std::string mFolder;
+        ~Cleanup() {
+            std::remove((mFolder + "/bumpy.gltf").c_str());
+            std::remove((mFolder + "/bumpy.bin").c_str());
+            rmdir(mFolder.c_str());
+        }
+    } cleanup{folder};
+    const std::string path = WriteBumpySphereGltf(folder, aTriangles, row.mFileBytes);
+    for (int run = 0; run < std::max(2, aOptions.mRepeat); run++) {
+        smallvcm::GltfLoadReport report;
+        const double cpuStart = ThreadCpuSeconds();
+        const auto start = Clock::now();
+        const smallvcm::Scene scene = smallvcm::LoadGltfScene(path, &report);
+        const double seconds = SecondsSince(start);
+        if (run == 0 || seconds < row.mSeconds) {
+            row.mSeconds = seconds;
+            row.mCpuSeconds = ThreadCpuSeconds() - cpuStart;
+            row.mReadSeconds = report.mReadSeconds;
+            row.mFinalizeSeconds = report.mFinalizeSeconds;
+            row.mLoadedTriangles = scene.mTriangles.size();
+        }
+        row.mRuns = run + 1;
+    }
+    return row;
+}
+
+// ---------------------------------------------------------------------------------------
 // Report
 // ---------------------------------------------------------------------------------------
 
@@ -720,7 +834,7 @@ void AlgorithmSceneTable(std::ostringstream& aOut, const Options& aOptions, cons
 }
 
 std::string Report(const Options& aOptions, const std::vector<Measurement>& aRuns, const std::vector<BvhRow>& aBvh,
-                   const std::string& aDate, double aTotalSeconds, const std::string& aLoadStart,
+                   const std::vector<GltfRow>& aGltf, const std::string& aDate, double aTotalSeconds, const std::string& aLoadStart,
                    const std::string& aLoadEnd) {
     std::ostringstream out;
     const long cores = sysconf(_SC_NPROCESSORS_ONLN);
@@ -904,6 +1018,20 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
                 << (r.mNearestRays + r.mShadowRays) << " | " << Mib(r.mPeakKb) << " |\n";
         out << "\n";
     }
+    if (aOptions.mGltf) {
+        out << "### Loading a large glTF file\n\n";
+        out << "The bumpy sphere above written as a .gltf + .bin (POSITION, NORMAL, UNSIGNED_INT indices; no camera, no "
+               "light), loaded by LoadGltfScene on one thread: the fastest of the runs shown (wall clock), split as its "
+               "load report splits it into reading (file, JSON, buffer, triangles, default camera) and Scene::Finalize "
+               "(validation, light data and the BVH build).\n\n";
+        out << "| triangles | file MiB | load s (runs) | CPU s | reading s | Finalize + BVH s |\n"
+               "|---:|---:|---:|---:|---:|---:|\n";
+        for (const GltfRow& r : aGltf)
+            out << "| " << r.mLoadedTriangles << " | " << Format("%.1f", double(r.mFileBytes) / 1048576.0) << " | "
+                << Format("%.3f (%d)", r.mSeconds, r.mRuns) << " | " << Format("%.3f", r.mCpuSeconds) << " | "
+                << Format("%.3f", r.mReadSeconds) << " | " << Format("%.3f", r.mFinalizeSeconds) << " |\n";
+        out << "\n";
+    }
     return out.str();
 }
 
@@ -1062,7 +1190,21 @@ int main(int argc, char** argv) {
         }
     }
 
-    const std::string report = Report(options, runs, bvh, date, SecondsSince(start), loadStart, LoadAverage());
+    std::vector<GltfRow> gltf;
+    if (options.mGltf) {
+        try {
+            gltf.push_back(MeasureGltfLoad(options, options.mGltfTriangles));
+            const GltfRow& r = gltf.back();
+            std::fprintf(stderr, "[gltf] %zu triangles (%.1f MiB): loaded in %.3f s (CPU %.3f s): reading %.3f s, "
+                                 "Finalize + BVH %.3f s (%.0f s)\n",
+                         r.mLoadedTriangles, double(r.mFileBytes) / 1048576.0, r.mSeconds, r.mCpuSeconds, r.mReadSeconds,
+                         r.mFinalizeSeconds, SecondsSince(start));
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "[gltf] %ld triangles: FAILED: %s\n", options.mGltfTriangles, e.what());
+        }
+    }
+
+    const std::string report = Report(options, runs, bvh, gltf, date, SecondsSince(start), loadStart, LoadAverage());
     std::fputs(report.c_str(), stdout);
     std::fflush(stdout);
     // The report first, then the CSVs: if one cannot be written, the report is already safe.

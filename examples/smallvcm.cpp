@@ -475,11 +475,12 @@ int main(int argc, char** argv) {
         smallvcm::WriteFilesTogether(files);
         if (!cl.mQuiet)
             std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s%s; %zu triangles and %zu "
-                        "spheres loaded in %.2f s; %s\n", scenePath.c_str(),
+                        "spheres loaded in %.2f s (reading %.2f s, BVH build and checks %.2f s); %s\n", scenePath.c_str(),
                         cl.mIntegrator->mName.c_str(), cl.mWidth, cl.mHeight, result.mIterations,
                         result.mIterations == 1 ? "" : "s", result.mSeconds, result.mSeconds / std::max(1, result.mIterations),
                         smallvcm::MeanValue(result.mImage), cl.mOutput.c_str(), LayersWritten(cl, files).c_str(),
-                        scene.mTriangles.size(), scene.mSpheres.size(), loadSeconds, report.mCamera.c_str());
+                        scene.mTriangles.size(), scene.mSpheres.size(), loadSeconds, report.mReadSeconds,
+                        report.mFinalizeSeconds, report.mCamera.c_str());
         // A signal that came while the image was written (held back until then) counts too.
         if (gStopSignal.load() != 0) return 128 + gStopSignal.load();
     } catch (const Error& e) {

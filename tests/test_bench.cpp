@@ -1,6 +1,6 @@
 // [bench] The benchmark program build/bench (examples/bench.cpp) and its chart script
 // docs/plot_bench.py, run as child processes on a small configuration: scene 4, pt and pm,
-// 1 and 2 threads, at --quick's 64x64, and the BVH scaling up to 10^4 triangles. About
+// 1 and 2 threads, at --quick's 64x64, the BVH scaling up to 10^4 triangles and the loading of a 10^4-triangle glTF file. About
 // 5-10 s. Benchmarks report and never fail on time, so nothing here checks a speed; what
 // is checked is that the reports are complete and well formed, that the CSVs hold exactly
 // the rows measured, that the charts are drawn from them, and that a bad output path is
@@ -55,6 +55,9 @@ TEST_CASE("The benchmark writes its report and CSVs, and the chart script draws 
     const std::string report = ReadText(folder / "bench.md");
     CHECK(report.find("Seconds per iteration, 1 thread") != std::string::npos);
     CHECK(report.find("BVH scaling") != std::string::npos);
+    // The glTF loading part: --quick's 10^4-triangle file, loaded whole.
+    CHECK(report.find("### Loading a large glTF file") != std::string::npos);
+    CHECK(report.find("\n| 10000 | ") != std::string::npos);
 
     // Render rows: exactly the four configurations measured, every number positive.
     const auto render = ReadCsv(folder / "bench_render.csv");

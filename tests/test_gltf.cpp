@@ -795,14 +795,16 @@ TEST_CASE("Extensions used but not required and not modelled are listed in one n
     CHECK(listing == 1);
 }
 
-TEST_CASE("A closed mesh wound inwards is noted as inside-out; outward and open meshes are not", "[gltf]") {
+TEST_CASE("A closed mesh wound inwards is noted as inside-out; outward, open and non-manifold meshes are not", "[gltf]") {
     testutil::TemporaryFolder folder;
     std::vector<float> open = Cube(Vec3(0.f), true);
     open.resize(open.size() - 9);  // one triangle less: a hole
+    std::vector<float> doubled = Cube(Vec3(0.f), true);
+    doubled.insert(doubled.end(), doubled.begin(), doubled.begin() + 9);  // one triangle twice: not a 2-manifold
     const struct {
         std::vector<float> mTriangles;
         bool mInsideOut;
-    } cases[] = {{Cube(Vec3(0.f)), false}, {Cube(Vec3(0.f), true), true}, {open, false}};
+    } cases[] = {{Cube(Vec3(0.f)), false}, {Cube(Vec3(0.f), true), true}, {open, false}, {doubled, false}};
     int index = 0;
     for (const auto& c : cases) {
         const std::string path = WriteTemporary(folder, "mesh" + std::to_string(index++) + ".gltf", MeshGltf(c.mTriangles));
@@ -1003,6 +1005,9 @@ TEST_CASE("A glTF emissiveTexture is sRGB-decoded and multiplies emissiveFactor 
     // The textured floor of the tests above turned into an emitter: emissiveFactor
     // (2, 1, 0.5) x strength 3, the same 2 x 2 image as its emissiveTexture, no
     // baseColorTexture. A ray down onto a texel centre sees factor x strength x texel.
+    // A glow map, not a lamp: the floor keeps its reflectance (base colour 0.5, metallic
+    // 0: diffuse 0.96 x 0.5, Phong 0.04) and, being the file's only light, gets the white
+    // background.
     TemporaryFolder folder;
     Image image(2, 2);
     image.mPixels = {Vec3(1.f, 0.f, 0.f), Vec3(0.2f), Vec3(0.f, 0.f, 1.f), Vec3(1.f)};
@@ -1015,9 +1020,18 @@ TEST_CASE("A glTF emissiveTexture is sRGB-decoded and multiplies emissiveFactor 
     std::ofstream(folder / "floor.gltf") << text;
     GltfLoadReport report;
     const Scene scene = LoadGltfScene(folder / "floor.gltf", &report);
-    CHECK_FALSE(report.mDefaultBackground);
-    for (const std::string& note : report.mNotes) CHECK_THAT(note, !Catch::Contains("emissiveTexture"));
-    REQUIRE(scene.LightCount() == 1);
+    CHECK(report.mDefaultBackground);
+    int glowNotes = 0;
+    for (const std::string& note : report.mNotes) {
+        CHECK_THAT(note, !Catch::Contains("approximated") || !Catch::Contains("emissiveTexture"));
+        if (note.find("the scene's only lights are emissive textures (glow maps): added a uniform white background") == 0)
+            glowNotes++;
+    }
+    CHECK(glowNotes == 1);
+    CHECK_VEC3(scene.mMaterials.at(0).mDiffuseReflectance, Vec3(0.48f), 1e-6f);
+    CHECK_VEC3(scene.mMaterials.at(0).mPhongReflectance, Vec3(0.04f), 1e-6f);
+    REQUIRE(scene.LightCount() == 2);
+    CHECK(scene.GetLight(1).mType == LightType::kBackground);
     const Light& light = scene.GetLight(0);
     REQUIRE(light.mEmissionTexture >= 0);
     const Vec3 scale = 3.f * Vec3(2.f, 1.f, 0.5f);
@@ -1058,4 +1072,15 @@ TEST_CASE("An emission texture on a non-area light, a missing one, or non-finite
     Scene negative = square(0, 1.f);
     negative.mTextures[0].mTexels[0] = Vec3(-1.f);
     CHECK_THROWS_WITH(negative.Finalize(), Catch::Contains("its emission texture has a negative or non-finite texel"));
+}
+
+TEST_CASE("The load report says how long reading and Scene::Finalize took", "[gltf]") {
+    // Not a speed test: the two parts are measured, finite, and within the whole call.
+    GltfLoadReport report;
+    const auto start = std::chrono::steady_clock::now();
+    const Scene scene = LoadGltfScene("../scenes/textured_torus.gltf", &report);
+    const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    CHECK(report.mReadSeconds > 0.0);
+    CHECK(report.mFinalizeSeconds > 0.0);
+    CHECK(report.mReadSeconds + report.mFinalizeSeconds <= total);
 }
