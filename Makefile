@@ -21,7 +21,7 @@ IMPL_OBJ := $(BUILD)/smallvcm_impl.o
 TEST_SRC := $(filter-out tests/catch_main.cpp,$(wildcard tests/*.cpp))
 TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
-.PHONY: all deps demo test unit check fuzz convergence bench bench-embree figures clean exercise grade compare student-figures
+.PHONY: all deps demo model-image test unit check fuzz convergence bench bench-embree figures clean exercise grade compare student-figures
 
 all: $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/my_path_tracer $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
@@ -107,6 +107,15 @@ DEMO_ARGS := -s 4 -a vcm -i 32 -r 512x512 -o $(BUILD)/demo.png
 demo: deps
 	$(MAKE) --no-print-directory $(BUILD)/smallvcm
 	$(BUILD)/smallvcm $(DEMO_ARGS)
+
+# make model-image: the README's real-world model, the Khronos sample Avocado
+# (scenes/avocado: no camera and no light in the file), rendered with every default but
+# the resolution and iterations (made-up camera, white background, vcm) into
+# docs/images/avocado_vcm.png and its sidecar (docs/images/README.md: settings and time).
+MODEL_IMAGE_ARGS := -s scenes/avocado/Avocado.gltf -i 64 -r 512x512 -o docs/images/avocado_vcm.png
+model-image: deps
+	$(MAKE) --no-print-directory $(BUILD)/smallvcm
+	$(BUILD)/smallvcm $(MODEL_IMAGE_ARGS)
 
 # The sanitizer build (AddressSanitizer + UndefinedBehaviorSanitizer, and the renderer's
 # own invariant checks, SMALLVCM_CHECKS) lives in build/check/.

@@ -919,3 +919,19 @@ TEST_CASE("-i with -t stops at whichever limit comes first", "[cli]") {
     CHECK(b["seconds"].get<double>() >= 0.5);
     CHECK(b["run"]["stopped_early"] == false);  // the budget ended it, not a signal
 }
+
+TEST_CASE("The gallery's real model (the Khronos Avocado, no camera, no light) renders with every default, and the summary line splits the loading time", "[cli]") {
+    // What `make model-image` runs, at 16x16 and one iteration.
+    TemporaryFolder folder;
+    const std::string output = folder / "avocado.png";
+    const Run run = RunProgram("-s ../scenes/avocado/Avocado.gltf -i 1 -r 16x16 -j 1 -o " + Quote(output));
+    INFO(run.mCommand << "\n" << run.mStdout << run.mStderr);
+    REQUIRE(run.mExitCode == 0);
+    CHECK(fs::exists(output));
+    CHECK(fs::exists(output + ".json"));
+    CHECK(run.mStdout.find("682 triangles and 0 spheres loaded in ") != std::string::npos);
+    CHECK(run.mStdout.find(" (reading ") != std::string::npos);
+    CHECK(run.mStdout.find(", BVH build and checks ") != std::string::npos);
+    CHECK(run.mStdout.find("a default camera (the file has none)") != std::string::npos);
+    CHECK(run.mStderr.find("the scene has no light: added a uniform white background") != std::string::npos);
+}
