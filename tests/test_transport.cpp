@@ -357,12 +357,15 @@ TEST_CASE("Per length k = 1..4, pt, vcm and BPT's emitter hits agree with BPT wi
 
 TEST_CASE("Merging stops at the maximum path length: ppm, bpm and vcm agree with pt and the analytic value at maximum lengths 2, 3, 4", "[transport]") {
     // The point-light furnace: L = 1 - 0.5^(max-1) for a maximum of max segments. At
-    // maximum 2 only the first camera hit may merge (with light vertices of one segment):
-    // a merge one segment too long adds 0.25 (+50 %). Each estimator against pt (both
+    // maximum 2 only the first camera hit may merge (with light vertices of one segment).
+    // Each estimator against pt (both
     // from 16 independent renders: SE of the difference sqrt(SE_a^2 + SE_pt^2)) and
     // against the analytic value (the file's WithinNoise); 5 SE as in the file's note.
-    // Measured SEs: ppm and bpm 2.5-3 %, vcm about 1 % of L: a merge one segment too
-    // long (+50 %, +17 %, +7 % at maxima 2, 3, 4) fails at maximum 2 and 3.
+    // Measured SEs: ppm and bpm 2.5-3 %, vcm about 1 % of L. A merge filter that lets
+    // max + 1 segments through (M04) changes nothing here -- with a minimum of 0 the
+    // sub-paths already stop before such merges exist -- and is killed by the
+    // --min = --max test above; merges that count one segment too many (M05) lose a
+    // whole length here.
     const Scene scene = MakePointLightFurnace(16, 16);
     const Algorithm merging[] = {Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
                                  Algorithm::kVertexConnectionMerging};
