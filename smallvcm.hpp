@@ -422,10 +422,14 @@ struct WatertightRay {
         // switch (and an assert), a branch the predictor misses on random directions.
         const float d[3] = {aDirection.x, aDirection.y, aDirection.z};
         const Vec3 absD = glm::abs(aDirection);
-        mKz = absD.x > absD.y ? (absD.x > absD.z ? 0 : 2) : (absD.y > absD.z ? 1 : 2);
-        mKx = (mKz + 1) % 3;
-        mKy = (mKx + 1) % 3;
-        if (d[mKz] < 0.f) std::swap(mKx, mKy);
+        // The largest axis (x over y over z on ties, z for NaN) and the order of the other
+        // two, in integer arithmetic on the comparisons rather than in branches: on random
+        // directions each branch would be a coin toss the predictor loses half the time.
+        const int xOverY = absD.x > absD.y, xOverZ = absD.x > absD.z, yOverZ = absD.y > absD.z;
+        mKz = 2 - 2 * (xOverY & xOverZ) - ((1 - xOverY) & yOverZ);
+        const int backwards = d[mKz] < 0.f;  // then x and y swap, to keep the winding
+        mKx = (mKz + 1 + backwards) % 3;
+        mKy = (mKz + 2 - backwards) % 3;
         mSx = d[mKx] / d[mKz];
         mSy = d[mKy] / d[mKz];
         mSz = 1.f / d[mKz];
@@ -4351,6 +4355,14 @@ public:
         float mB[3][kWidth];
         float mC[3][kWidth];
         bool IsSpheres() const { return (mId[0] & kSphereBit) != 0; }
+        // The lanes that are not the filling copies of a leaf's last primitive: spheres
+        // are tested lane by lane, so a copy would cost a whole second test.
+        int DistinctLanes() const {
+            int lanes = 1;
+            for (int lane = 1; lane < kWidth; lane++)
+                if (mId[lane] != mId[lane - 1]) lanes |= 1 << lane;
+            return lanes;
+        }
         Vec3 Vertex(const float aCoordinates[3][kWidth], int aLane) const {
             return Vec3(aCoordinates[0][aLane], aCoordinates[1][aLane], aCoordinates[2][aLane]);
         }
@@ -4610,7 +4622,7 @@ private:
         float t[kWidth];
         int hits = 0;
         if (aBlock.IsSpheres()) {
-            ScalarLanes(aBlock, 0xF, aRay, aData, aTMin, ioTMax, t, hits);
+            ScalarLanes(aBlock, aBlock.DistinctLanes(), aRay, aData, aTMin, ioTMax, t, hits);
         } else {
             Float4 tLanes;
             int fallback;
@@ -4630,7 +4642,7 @@ private:
         float t[kWidth];
         int hits = 0;
         if (aBlock.IsSpheres()) {
-            ScalarLanes(aBlock, 0xF, aRay, aData, aTMin, aTMax, t, hits);
+            ScalarLanes(aBlock, aBlock.DistinctLanes(), aRay, aData, aTMin, aTMax, t, hits);
             return hits != 0;
         }
         Float4 tLanes;
