@@ -174,6 +174,16 @@ inline Scene MakeSpotRoom(int aSize) {
     return scene;
 }
 
+// A one-sided 0.8 x 0.7 panel just under the ceiling, facing down, radiance 4 (black
+// material): the light of the rooms below.
+inline void AddCeilingPanelLight(Scene& ioScene) {
+    const int black = ioScene.AddMaterial(Material());
+    std::vector<int> light;
+    AddQuadFacing(ioScene, Vec3(-0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.9f, 1.99f),
+                  Vec3(-0.4f, 0.9f, 1.99f), Vec3(0.f, 0.f, 0.f), black, &light);
+    ioScene.AddAreaLight(light, Vec3(4.f));
+}
+
 // Specular: a mirror wall (right) and a glass ball, a one-sided ceiling light.
 inline Scene MakeSpecularRoom(int aSize) {
     Scene scene = MakeOpenRoom(DiffuseMaterial(0.6f, 0.6f, 0.6f), aSize);
@@ -183,11 +193,7 @@ inline Scene MakeSpecularRoom(int aSize) {
     AddQuadFacing(scene, Vec3(0.98f, -0.6f, 0.1f), Vec3(0.98f, 0.9f, 0.1f), Vec3(0.98f, 0.9f, 1.7f), Vec3(0.98f, -0.6f, 1.7f),
                   Vec3(0.f, 0.f, 1.f), scene.AddMaterial(mirror));
     scene.AddSphere(Vec3(-0.35f, 0.35f, 0.4f), 0.4f, scene.AddMaterial(GlassMaterial(1.5f)));
-    const int black = scene.AddMaterial(Material());
-    std::vector<int> light;
-    AddQuadFacing(scene, Vec3(-0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.9f, 1.99f), Vec3(-0.4f, 0.9f, 1.99f),
-                  Vec3(0.f, 0.f, 0.f), black, &light);
-    scene.AddAreaLight(light, Vec3(4.f));
+    AddCeilingPanelLight(scene);
     scene.Finalize();
     return scene;
 }
@@ -197,11 +203,7 @@ inline Scene MakeCameraInGlassRoom(int aSize) {
     Scene scene = MakeOpenRoom(PhongMaterial(0.4f, 0.3f, 10.f), aSize);
     scene.mName = "camera inside glass";
     scene.AddSphere(scene.mCamera.Position(), 0.08f, scene.AddMaterial(GlassMaterial(1.5f)));
-    const int black = scene.AddMaterial(Material());
-    std::vector<int> light;
-    AddQuadFacing(scene, Vec3(-0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.2f, 1.99f), Vec3(0.4f, 0.9f, 1.99f), Vec3(-0.4f, 0.9f, 1.99f),
-                  Vec3(0.f, 0.f, 0.f), black, &light);
-    scene.AddAreaLight(light, Vec3(4.f));
+    AddCeilingPanelLight(scene);
     scene.Finalize();
     return scene;
 }
