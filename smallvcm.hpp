@@ -953,29 +953,38 @@ struct Light {
         return false;
     }
 
-    // Radiance a ray receives when it hits the light (area, sphere: at a point with
-    // geometric normal aHitNormal and texture coordinates aHitUv, Hit::mUv) or escapes the
-    // scene (background), with the pdfs with which next-event estimation and emission
-    // would have produced the same point.
-    Vec3 GetRadiance(const SceneSphere& aSceneSphere, const Vec3& aRayDirection, const Vec3& aHitNormal,
-                     const Vec2& aHitUv, float* oDirectPdfA, float* oEmissionPdfW) const {
+    // What a ray receives when it hits the light (area, sphere: at a point with geometric
+    // normal aHitNormal and texture coordinates aHitUv, Hit::mUv) or escapes the scene
+    // (background): the radiance, and the pdfs with which next-event estimation
+    // (mDirectPdfA: area measure; solid angle for the background) and emission would have
+    // produced the same point. All zero where the light sends nothing that way.
+    struct RadianceAtHit {
+        Vec3 mRadiance{0.f};
+        float mDirectPdfA = 0.f;
+        float mEmissionPdfW = 0.f;
+    };
+    RadianceAtHit GetRadiance(const SceneSphere& aSceneSphere, const Vec3& aRayDirection, const Vec3& aHitNormal,
+                              const Vec2& aHitUv) const {
+        RadianceAtHit result;
         switch (mType) {
         case LightType::kArea:
         case LightType::kSphere: {
             const float cosOutL = EmittingCosine(aHitNormal, -aRayDirection);
-            if (cosOutL <= 0.f) return Vec3(0.f);
-            if (oDirectPdfA) *oDirectPdfA = 1.f / mArea;
-            if (oEmissionPdfW) *oEmissionPdfW = cosOutL * kInvPi * SideProbability() / mArea;
-            return EmittedRadiance(aHitUv);
+            if (cosOutL <= 0.f) return result;
+            result.mDirectPdfA = 1.f / mArea;
+            result.mEmissionPdfW = cosOutL * kInvPi * SideProbability() / mArea;
+            result.mRadiance = EmittedRadiance(aHitUv);
+            return result;
         }
         case LightType::kBackground: {
             const float directPdf = UniformSpherePdfW();
-            if (oDirectPdfA) *oDirectPdfA = directPdf;
-            if (oEmissionPdfW) *oEmissionPdfW = directPdf * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
-            return mEmission;
+            result.mDirectPdfA = directPdf;
+            result.mEmissionPdfW = directPdf * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+            result.mRadiance = mEmission;
+            return result;
         }
         default:  // delta lights cannot be hit
-            return Vec3(0.f);
+            return result;
         }
     }
 
@@ -2253,18 +2262,19 @@ private:
     void AddBackgroundHit(int aPixel, const PathState& aPath, const Vec3& aDirection) {
         const Light* background = mScene.GetBackground();
         if (!background || aPath.mPathLength < mOptions.mMinPathLength) return;
-        float directPdfW = 0.f;
-        const Vec3 radiance = background->GetRadiance(mScene.GetSceneSphere(), aDirection, Vec3(0.f), Vec2(0.f), &directPdfW, nullptr);
+        const Light::RadianceAtHit received = background->GetRadiance(mScene.GetSceneSphere(), aDirection, Vec3(0.f), Vec2(0.f));
+        const float directPdfW = received.mDirectPdfA;  // a background's "area" pdf is per solid angle
         const float weight = aPath.mLastSpecular ? 1.f : BsdfHitWeight(aPath.mLastPdfW, directPdfW * mScene.LightPickProb());
-        AddContribution(aPixel, aPath.mPathLength, aPath.mFirstSpecular, aPath.mThroughput * radiance * weight);
+        AddContribution(aPixel, aPath.mPathLength, aPath.mFirstSpecular, aPath.mThroughput * received.mRadiance * weight);
     }
 
     // A light hit by the path, found by BSDF sampling: MIS against next-event
     // estimation, whose area pdf is converted to solid angle at the previous vertex.
     void AddEmitterHit(int aPixel, const PathState& aPath, const Ray& aRay, const Hit& aHit) {
         const Light& light = mScene.GetLight(aHit.mLightId);
-        float directPdfA = 0.f;
-        const Vec3 radiance = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, aHit.mNormal, aHit.mUv, &directPdfA, nullptr);
+        const Light::RadianceAtHit received = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, aHit.mNormal, aHit.mUv);
+        const Vec3& radiance = received.mRadiance;
+        const float directPdfA = received.mDirectPdfA;
         if (IsBlack(radiance)) return;
         float weight = 1.f;
         if (!aPath.mLastSpecular) {
@@ -2646,13 +2656,13 @@ private:
                 const Light* background = mScene.GetBackground();
                 if (background && pathLength >= mOptions.mMinPathLength)
                     Add(aPixel, afterSpecular ? kSpecular : kEmitted,
-                        throughput * background->GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, Vec3(0.f), Vec2(0.f), nullptr, nullptr));
+                        throughput * background->GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, Vec3(0.f), Vec2(0.f)).mRadiance);
                 return;
             }
             const Vec3& hitPoint = hit.mPosition;
             if (hit.mLightId >= 0 && pathLength >= mOptions.mMinPathLength)
                 Add(aPixel, afterSpecular ? kSpecular : kEmitted,
-                    throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.mNormal, hit.mUv, nullptr, nullptr));
+                    throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.mNormal, hit.mUv).mRadiance);
             Bsdf bsdf;
             bsdf.Setup(aRay, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
@@ -3467,8 +3477,9 @@ private:
     // weighted by [tech. rep. (42), (43)].
     void AddCameraHitLight(int aPixel, const SubpathState& aCamera, const Light& aLight,
                            const Vec3& aRayDirection, const Vec3& aHitNormal, const Vec2& aHitUv) {
-        float directPdfA = 0.f, emissionPdfW = 0.f;
-        const Vec3 radiance = aLight.GetRadiance(mScene.GetSceneSphere(), aRayDirection, aHitNormal, aHitUv, &directPdfA, &emissionPdfW);
+        const Light::RadianceAtHit received = aLight.GetRadiance(mScene.GetSceneSphere(), aRayDirection, aHitNormal, aHitUv);
+        const Vec3& radiance = received.mRadiance;
+        const float directPdfA = received.mDirectPdfA, emissionPdfW = received.mEmissionPdfW;
         if (IsBlack(radiance)) return;
         // Length 1 has no other technique here; PPM's camera paths reach lights only
         // through specular vertices, which no merge can replace.

@@ -37,22 +37,22 @@ public:
                 Hit hit;
                 if (!mScene.Intersect(ray, hit)) {  // left the scene: the background, if any
                     if (const Light* background = mScene.GetBackground()) {
-                        float lightPdfW = 0.f;
-                        const Vec3 emitted = background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection, Vec3(0.f),
-                                                                     Vec2(0.f), &lightPdfW, nullptr);
-                        radiance += throughput * emitted * BsdfWeight(bsdfPdfW, lightPdfW * mScene.LightPickProb());
+                        const Light::RadianceAtHit emitted =
+                            background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection, Vec3(0.f), Vec2(0.f));
+                        // A background's direct pdf is per solid angle already.
+                        radiance += throughput * emitted.mRadiance *
+                                    BsdfWeight(bsdfPdfW, emitted.mDirectPdfA * mScene.LightPickProb());
                     }
                     break;
                 }
                 const Vec3& point = hit.mPosition;
                 if (hit.mLightId >= 0) {  // a light found by BSDF sampling
-                    float lightPdfA = 0.f;
-                    const Vec3 emitted = mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), ray.mDirection,
-                                                                                   hit.mNormal, hit.mUv, &lightPdfA, nullptr);
+                    const Light::RadianceAtHit emitted = mScene.GetLight(hit.mLightId).GetRadiance(
+                        mScene.GetSceneSphere(), ray.mDirection, hit.mNormal, hit.mUv);
                     // The ray started RayEpsilon() off the previous surface.
-                    const float lightPdfW = PdfAtoW(lightPdfA, hit.mDist + mScene.RayEpsilon(),
+                    const float lightPdfW = PdfAtoW(emitted.mDirectPdfA, hit.mDist + mScene.RayEpsilon(),
                                                     glm::dot(hit.mNormal, -ray.mDirection));
-                    radiance += throughput * emitted * BsdfWeight(bsdfPdfW, lightPdfW * mScene.LightPickProb());
+                    radiance += throughput * emitted.mRadiance * BsdfWeight(bsdfPdfW, lightPdfW * mScene.LightPickProb());
                 }
                 Bsdf bsdf;
                 bsdf.Setup(ray, hit, mScene, Transport::kRadiance);  // a camera path carries radiance

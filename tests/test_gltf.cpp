@@ -1040,7 +1040,7 @@ TEST_CASE("A glTF emissiveTexture is sRGB-decoded and multiplies emissiveFactor 
         const Ray down{Vec3(aX, aY, 1.f), Vec3(0.f, 0.f, -1.f)};
         REQUIRE(scene.Intersect(down, hit));
         REQUIRE(hit.mLightId == 0);
-        return light.GetRadiance(scene.GetSceneSphere(), down.mDirection, hit.mNormal, hit.mUv, nullptr, nullptr);
+        return light.GetRadiance(scene.GetSceneSphere(), down.mDirection, hit.mNormal, hit.mUv).mRadiance;
     };
     CHECK(radianceAt(0.25f, 0.75f) == scale * Vec3(1.f, 0.f, 0.f));
     CHECK(radianceAt(0.25f, 0.25f) == scale * Vec3(0.f, 0.f, 1.f));

@@ -204,8 +204,9 @@ TEST_CASE("Next-event estimation, emission and a ray hitting a light report the 
                 if (!light.Illuminate(sphere, receiver, rng.GetVec2(), sample) || sample.mCosAtLight < 0.01f) continue;
                 const Vec3 point = receiver + sample.mDirToLight * sample.mDistance;
                 const Vec3 normal = id == l.sphere ? glm::normalize(point - light.mSphereCenter) : Vec3(0.f, 0.f, -1.f);
-                float directPdfA = 0.f, emissionPdfW = 0.f;
-                const Vec3 radiance = light.GetRadiance(sphere, sample.mDirToLight, normal, Vec2(0.f), &directPdfA, &emissionPdfW);
+                const Light::RadianceAtHit received = light.GetRadiance(sphere, sample.mDirToLight, normal, Vec2(0.f));
+                const Vec3 radiance = received.mRadiance;
+                const float directPdfA = received.mDirectPdfA, emissionPdfW = received.mEmissionPdfW;
                 INFO(LightTypeName(light.mType) << " light, sample " << i);
                 CHECK(radiance == sample.mRadiance);
                 CHECK(Close(emissionPdfW, sample.mEmissionPdfW));
@@ -222,8 +223,8 @@ TEST_CASE("Next-event estimation, emission and a ray hitting a light report the 
                 LightEmission emission;
                 const Vec2 direction = rng.GetVec2();
                 if (!light.Emit(sphere, direction, rng.GetVec2(), emission)) continue;
-                float directPdfA = 0.f, emissionPdfW = 0.f;
-                light.GetRadiance(sphere, -emission.mDirection, emission.mNormal, Vec2(0.f), &directPdfA, &emissionPdfW);
+                const Light::RadianceAtHit received = light.GetRadiance(sphere, -emission.mDirection, emission.mNormal, Vec2(0.f));
+                const float directPdfA = received.mDirectPdfA, emissionPdfW = received.mEmissionPdfW;
                 INFO(LightTypeName(light.mType) << " light, sample " << i << ", cos " << emission.mCosAtLight);
                 if (emission.mCosAtLight <= kEpsCosine * 1.01f) continue;  // Emit clamps the cosine at the horizon
                 CHECK(Close(emissionPdfW, emission.mEmissionPdfW));
@@ -252,8 +253,8 @@ TEST_CASE("Next-event estimation, emission and a ray hitting a light report the 
                                                                           : sample.mDirectPdfW;
                 CHECK(Close(directPdfA, emission.mDirectPdfA));
                 if (light.mType == LightType::kBackground) {
-                    float hitDirectPdf = 0.f, hitEmissionPdf = 0.f;
-                    light.GetRadiance(sphere, -sample.mDirToLight, Vec3(0.f), Vec2(0.f), &hitDirectPdf, &hitEmissionPdf);
+                    const Light::RadianceAtHit received = light.GetRadiance(sphere, -sample.mDirToLight, Vec3(0.f), Vec2(0.f));
+                    const float hitDirectPdf = received.mDirectPdfA, hitEmissionPdf = received.mEmissionPdfW;
                     CHECK(Close(hitDirectPdf, sample.mDirectPdfW));
                     CHECK(Close(hitEmissionPdf, sample.mEmissionPdfW));
                 }

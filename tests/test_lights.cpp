@@ -250,9 +250,10 @@ TEST_CASE("A two-sided area light is seen alike from both sides by next-event es
             const bool emits = twoSided || side > 0.f;
             REQUIRE(lit == emits);
             // The ray from the receiver hits the square's side that faces it.
-            float directPdfA = 0.f, emissionPdfW = 0.f;
-            const Vec3 hitRadiance = light.GetRadiance(scene.GetSceneSphere(), Vec3(0.f, 0.f, -side), Vec3(0.f, 0.f, 1.f), Vec2(0.f),
-                                                       &directPdfA, &emissionPdfW);
+            const Light::RadianceAtHit received =
+                light.GetRadiance(scene.GetSceneSphere(), Vec3(0.f, 0.f, -side), Vec3(0.f, 0.f, 1.f), Vec2(0.f));
+            const Vec3 hitRadiance = received.mRadiance;
+            const float directPdfA = received.mDirectPdfA, emissionPdfW = received.mEmissionPdfW;
             if (!emits) {
                 CHECK(IsBlack(hitRadiance));
                 continue;
@@ -287,9 +288,10 @@ TEST_CASE("Light sub-paths from a two-sided area light leave both sides equally 
             down.push_back(emission.mDirection.z < 0.f ? 1.0 : 0.0);
             // A camera ray arriving along the emitted direction reversed, at this point,
             // must find the same radiance and report the same emission pdf.
-            float directPdfA = 0.f, emissionPdfW = 0.f;
-            const Vec3 hitRadiance = light.GetRadiance(scene.GetSceneSphere(), -emission.mDirection, Vec3(0.f, 0.f, 1.f), Vec2(0.f),
-                                                       &directPdfA, &emissionPdfW);
+            const Light::RadianceAtHit received =
+                light.GetRadiance(scene.GetSceneSphere(), -emission.mDirection, Vec3(0.f, 0.f, 1.f), Vec2(0.f));
+            const Vec3 hitRadiance = received.mRadiance;
+            const float directPdfA = received.mDirectPdfA, emissionPdfW = received.mEmissionPdfW;
             if (hitRadiance != radiance || std::abs(emissionPdfW - emission.mEmissionPdfW) > 1e-5f * emission.mEmissionPdfW ||
                 std::abs(emission.mDirectPdfA - directPdfA) > 1e-6f)
                 mismatches++;
@@ -403,11 +405,11 @@ TEST_CASE("A constant emission texture gives next-event samples, light sub-paths
             Hit hit;
             const Vec3 toPoint = glm::normalize(eb.mPosition - receiver);
             REQUIRE(textured.Intersect(Ray{receiver, toPoint}, hit));
-            float pdfA = 0.f, pdfB = 0.f;
-            const Vec3 ha = a.GetRadiance(plain.GetSceneSphere(), toPoint, hit.mNormal, Vec2(0.f), &pdfA, nullptr);
-            const Vec3 hb = b.GetRadiance(textured.GetSceneSphere(), toPoint, hit.mNormal, hit.mUv, &pdfB, nullptr);
-            CHECK(CloseRelative(ha, hb, 1e-6f));
-            CHECK(pdfA == pdfB);
+            const Light::RadianceAtHit ha = a.GetRadiance(plain.GetSceneSphere(), toPoint, hit.mNormal, Vec2(0.f));
+            const Light::RadianceAtHit hb = b.GetRadiance(textured.GetSceneSphere(), toPoint, hit.mNormal, hit.mUv);
+            CHECK(CloseRelative(ha.mRadiance, hb.mRadiance, 1e-6f));
+            CHECK(ha.mDirectPdfA == hb.mDirectPdfA);
+            CHECK(ha.mEmissionPdfW == hb.mEmissionPdfW);
             compared++;
         }
         CHECK(compared == 2000);

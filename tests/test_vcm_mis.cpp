@@ -500,11 +500,10 @@ public:
         case Kind::kCameraHitsLight: {
             // AddCameraHitLight: length 1 has no other technique in bpm/bpt/vcm.
             if (k == 1) return 1.f;
-            float directPdfA = 0.f, emissionPdfW = 0.f;
             const Vec3 hitNormal = mPath.infiniteLight ? Vec3(0.f) : mPath.n[0];
-            mLight.GetRadiance(sceneSphere, Dir(mPath, 1, 0), hitNormal, Vec2(0.f), &directPdfA, &emissionPdfW);
+            const Light::RadianceAtHit received = mLight.GetRadiance(sceneSphere, Dir(mPath, 1, 0), hitNormal, Vec2(0.f));
             const SubpathMis& camera = mPath.infiniteLight ? mCameraAtBackground : mCameraMis[0];
-            return VcmMis::WeightCameraHitsLight(mMis, camera, directPdfA * mPick, emissionPdfW * mPick);
+            return VcmMis::WeightCameraHitsLight(mMis, camera, received.mDirectPdfA * mPick, received.mEmissionPdfW * mPick);
         }
         case Kind::kNextEvent: {
             // ConnectToLight at x_1 with the light sample that Illuminate gives for x_0.
@@ -577,17 +576,19 @@ public:
         case LightType::kArea: {
             sample.mDirToLight = Dir(mPath, 1, 0);
             sample.mDistance = Dist(mPath, 0, 1);
-            float directPdfA = 0.f;
-            mLight.GetRadiance(sceneSphere, sample.mDirToLight, mPath.n[0], Vec2(0.f), &directPdfA, &sample.mEmissionPdfW);
+            const Light::RadianceAtHit received = mLight.GetRadiance(sceneSphere, sample.mDirToLight, mPath.n[0], Vec2(0.f));
+            sample.mEmissionPdfW = received.mEmissionPdfW;
             sample.mCosAtLight = glm::dot(mPath.n[0], -sample.mDirToLight);
-            sample.mDirectPdfW = PdfAtoW(directPdfA, sample.mDistance, sample.mCosAtLight);
+            sample.mDirectPdfW = PdfAtoW(received.mDirectPdfA, sample.mDistance, sample.mCosAtLight);
             sample.mRadiance = mLight.mEmission;
             break;
         }
         default:  // background
             sample.mDirToLight = mPath.dirToInfinity;
             sample.mDistance = std::numeric_limits<float>::infinity();
-            mLight.GetRadiance(sceneSphere, sample.mDirToLight, Vec3(0.f), Vec2(0.f), &sample.mDirectPdfW, &sample.mEmissionPdfW);
+            const Light::RadianceAtHit received = mLight.GetRadiance(sceneSphere, sample.mDirToLight, Vec3(0.f), Vec2(0.f));
+            sample.mDirectPdfW = received.mDirectPdfA;  // per solid angle for the background
+            sample.mEmissionPdfW = received.mEmissionPdfW;
             sample.mCosAtLight = 1.f;
             sample.mRadiance = mLight.mEmission;
             break;
@@ -624,10 +625,13 @@ private:
         // What Light::Emit reports for this position and direction.
         float directPdfA = 1.f, emissionPdfW = 0.f, cosAtLight = 1.f;
         switch (mLight.mType) {
-        case LightType::kArea:
-            mLight.GetRadiance(sceneSphere, Dir(mPath, 1, 0), mPath.n[0], Vec2(0.f), &directPdfA, &emissionPdfW);
+        case LightType::kArea: {
+            const Light::RadianceAtHit received = mLight.GetRadiance(sceneSphere, Dir(mPath, 1, 0), mPath.n[0], Vec2(0.f));
+            directPdfA = received.mDirectPdfA;
+            emissionPdfW = received.mEmissionPdfW;
             cosAtLight = glm::dot(mPath.n[0], Dir(mPath, 0, 1));
             break;
+        }
         case LightType::kPoint:
             emissionPdfW = UniformSpherePdfW();
             break;
