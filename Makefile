@@ -102,6 +102,10 @@ $(BUILD)/tests/%.o: tests/%.cpp $(HEADER) $(wildcard tests/*.hpp) | $(BUILD)/tes
 $(BUILD)/tests/run_tests: $(BUILD)/tests/catch_main.o $(TEST_OBJ) $(IMPL_OBJ)
 	$(CXX) $^ -o $@ $(LDFLAGS)
 
+# PNGs committed under docs/ are re-encoded losslessly (stb's deflate hardly compresses
+# a noisy render; docs/compact_png.py says why and checks the pixels stay the same).
+COMPACT_PNG := /usr/bin/python3 docs/compact_png.py
+
 # The default scene (kDefault: mirror and glass spheres, ceiling light) by VCM.
 DEMO_ARGS := -s 4 -a vcm -i 32 -r 512x512 -o $(BUILD)/demo.png
 demo: deps
@@ -116,6 +120,7 @@ MODEL_IMAGE_ARGS := -s scenes/avocado/Avocado.gltf -i 64 -r 512x512 -o docs/imag
 model-image: deps
 	$(MAKE) --no-print-directory $(BUILD)/smallvcm
 	$(BUILD)/smallvcm $(MODEL_IMAGE_ARGS)
+	$(COMPACT_PNG) docs/images/avocado_vcm.png
 
 # The sanitizer build (AddressSanitizer + UndefinedBehaviorSanitizer, and the renderer's
 # own invariant checks, SMALLVCM_CHECKS) lives in build/check/.
@@ -176,6 +181,7 @@ bench: deps $(BUILD)/bench
 	@$(ENSURE_MATPLOTLIB)
 	$(BUILD)/bench --repeat 2 --markdown docs/performance/bench.md --csv docs/performance/bench
 	/usr/bin/python3 docs/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
+	$(COMPACT_PNG) docs/performance
 
 # make bench-embree: smallvcm's BVH beside Embree 3 (Debian's libembree-dev, installed if
 # missing; a benchmark-only dependency the header never includes) on generated meshes and
@@ -227,6 +233,7 @@ figures: deps
 	  echo "figures: the programs took $$(( $$(date +%s) - start )) s"
 	/usr/bin/python3 docs/plot_figures.py $(FIGURE_OUT)
 	/usr/bin/python3 docs/make_gallery.py $(FIGURE_OUT) $(FIGURE_PAGE)
+	$(COMPACT_PNG) $(FIGURE_OUT)
 
 # make convergence: the convergence study and its charts (docs/performance.md says how
 # long; references are made if missing). Needs python3-matplotlib (installed if missing).
@@ -235,6 +242,7 @@ convergence: deps $(BUILD)/convergence
 	$(BUILD)/convergence --make-references --reference-iterations 2048 --max-iterations 4096 \
 	    --max-seconds 10 --clock cpu --out docs/performance/convergence.csv
 	/usr/bin/python3 docs/plot_convergence.py docs/performance/convergence.csv
+	$(COMPACT_PNG) docs/performance
 
 # The coursework kit (docs/exercises/README.md): tests/exercises/kit.py, Python 3 only.
 #   make exercise NAME=<name>|all [OUT=dir]  a student copy of the header with that exercise's
