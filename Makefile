@@ -198,6 +198,28 @@ bench-embree: deps
 $(BUILD)/bench_embree: examples/bench_embree.cpp $(HEADER) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) $< -o $@ $(LDFLAGS) -lembree3
 
+# make bench-mitsuba: smallvcm's path tracer beside Mitsuba 3's (`llvm_ad_rgb` and
+# `scalar_rgb`), one core each, on scene 4 and a generated mesh scene converted by
+# docs/mitsuba_compare.py: first whether the converged images agree, then efficiency
+# 1/(CPU seconds x MSE) at several sample budgets (about 15 minutes; results in
+# build/mitsuba/, the current table in docs/performance.md). Benchmark-only: Mitsuba and
+# NumPy are installed with pip into the virtual environment build/mitsuba-venv (python3-venv
+# from Debian), and Dr.Jit's LLVM back end gets Debian's libllvm19 (the LLVM 14 and 15 of
+# Debian 12 abort compiling its kernels on AVX-512 machines). BENCH_MITSUBA_ARGS=--quick:
+# tiny settings (about 15 s).
+MITSUBA_VENV := $(BUILD)/mitsuba-venv
+MITSUBA_LLVM := /usr/lib/x86_64-linux-gnu/libLLVM-19.so
+.PHONY: bench-mitsuba
+bench-mitsuba: deps $(BUILD)/smallvcm
+	@if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
+	for p in python3-venv libllvm19; do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || \
+	    { $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q $$p; }; \
+	done
+	@$(MITSUBA_VENV)/bin/python -c "import mitsuba, numpy" 2>/dev/null || \
+	  { python3 -m venv $(MITSUBA_VENV) && $(MITSUBA_VENV)/bin/pip install -q mitsuba==3.9.1 numpy; }
+	DRJIT_LIBLLVM_PATH=$(MITSUBA_LLVM) $(MITSUBA_VENV)/bin/python docs/mitsuba_compare.py $(BENCH_MITSUBA_ARGS)
+
 # make mutants [MUTANTS=M01,M02]: mutation testing of the transport code (tests/mutants.py,
 # the list in tests/mutant_list.py): each mutant is one edited line of the header, built
 # in a temporary copy of the tree and run against the suite without the golden images,
