@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """smallvcm's path tracer beside Mitsuba 3's, on the same scenes, one core each.
 
-    build/mitsuba-venv/bin/python docs/mitsuba_compare.py [--out DIR] [--quick] [STEP ...]
+    build/mitsuba-venv/bin/python docs/mitsuba_compare.py [--out DIR] [--quick] [--repeats N] [STEP ...]
 
 (`make bench-mitsuba` makes that virtual environment and runs this.) STEP is any of
 `convert`, `agree`, `efficiency` (default: all three, in that order).
@@ -513,6 +513,7 @@ def main():
     parser.add_argument("steps", nargs="*", metavar="STEP", help="convert, agree, efficiency (default: all)")
     parser.add_argument("--out", default=os.path.join(ROOT, "build", "mitsuba"))
     parser.add_argument("--quick", action="store_true", help="tiny settings: checks that everything runs")
+    parser.add_argument("--repeats", type=int, default=3, help="timed runs per program and budget (default 3)")
     args = parser.parse_args()
     args.steps = args.steps or ["convert", "agree", "efficiency"]
     for step in args.steps:
@@ -520,7 +521,9 @@ def main():
             sys.exit(f"mitsuba_compare: unknown step '{step}' (convert, agree or efficiency)")
     width = height = 128 if args.quick else 256
     batches, agree_spp = (4, 8) if args.quick else (16, 64)
-    budgets, repeats = ((1, 4), 1) if args.quick else ((4, 16, 64), 3)
+    budgets, repeats = ((1, 4), 1) if args.quick else ((4, 16, 64), args.repeats)
+    if repeats < 1:
+        sys.exit(f"mitsuba_compare: --repeats {repeats}: must be at least 1")
     os.makedirs(args.out, exist_ok=True)
     if not os.access(SMALLVCM, os.X_OK):
         sys.exit(f"mitsuba_compare: {SMALLVCM} is missing (make build/smallvcm)")
