@@ -19,7 +19,10 @@ test (Catch2 -a). A mutant is
 Score = killed / (applicable - equivalent). The last stage, which builds and runs the
 whole remaining suite with the Makefile, runs only for a mutant no earlier stage killed.
 
-Usage: tests/mutants.py [--only ID,ID,...] [--list] [--check] [--jobs N] [--keep]
+Before the mutants, the unmutated header runs through the same stages and must pass
+(--no-baseline skips that): a stage that fails by itself would kill every mutant.
+
+Usage: tests/mutants.py [--only ID,ID,...] [--list] [--check] [--jobs N] [--keep] [--no-baseline]
        (from the repository root; `make mutants` runs it with no arguments).
 """
 import argparse
@@ -42,20 +45,22 @@ CXX = os.environ.get("CXX", "g++")
 # only ~1 s more); no debug information, which is a third of the compile time.
 CXXFLAGS = ["-std=c++17", "-O2", "-w", "-I."]
 
-# Stages in order of cost: (name, test sources to add, Catch2 test spec, timeout in s).
-# The timeouts are 10-30x what a stage takes unmutated on 2 idle cores: a mutant
-# that makes a walk endless is killed by the timeout, as it would be in CI.
+# Stages in order of cost: (name, test sources to add, Catch2 test spec, timeout in s,
+# programs examples/NAME.cpp the stage's tests run as ../build/NAME, built from the
+# mutated header). The timeouts are 10-30x what a stage takes unmutated on 2 idle cores:
+# a mutant that makes a walk endless is killed by the timeout, as it would be in CI.
 STAGES = [
-    ("mis", ["test_vcm_mis"], "[mis]", 120),
+    ("mis", ["test_vcm_mis"], "[mis]", 120, []),
     ("units", ["test_sampling", "test_bsdf", "test_camera", "test_light_units", "test_exercises"],
-     "[sampling],[bsdf],[camera],[light_units],[exercise]", 300),
-    ("scenes", ["test_transport", "test_integrators", "test_lights"], "[transport],[integrators],[lights]", 600),
-    ("photons+stability", ["test_photon_mapping", "test_stability"], "[photon_mapping],[stability]", 600),
-    ("figures+convergence", ["test_figures", "test_convergence"], "[figures],[convergence]", 900),
+     "[sampling],[bsdf],[camera],[light_units],[exercise]", 300, []),
+    ("scenes", ["test_transport", "test_integrators", "test_lights"], "[transport],[integrators],[lights]", 600, []),
+    ("photons+stability", ["test_photon_mapping", "test_stability"], "[photon_mapping],[stability]", 600, []),
+    ("figures+convergence", ["test_figures", "test_convergence"], "[figures],[convergence]", 900, ["convergence"]),
 ]
-# The rest of the suite (every other test file; built with the Makefile, which also
-# builds build/smallvcm for the command-line tests): everything except the golden
-# images and what the stages above already ran.
+# The rest of the suite (every other test file; built with the Makefile, with the
+# programs its tests run: build/smallvcm for the command line, build/bench, build/minimal):
+# everything except the golden images and what the stages above already ran.
+REST_TARGETS = ["build/tests/run_tests", "build/smallvcm", "build/bench", "build/minimal"]
 REST_SPEC = "~[regression]~[sampling]~[bsdf]~[camera]~[mis]~[light_units]~[lights]~[exercise]~[transport]" \
             "~[integrators]~[photon_mapping]~[stability]~[figures]~[convergence]"
 REST_TIMEOUT = 900
@@ -184,15 +189,34 @@ def shared_objects(tree, jobs):
     return objdir
 
 
+def build_programs(tree, programs, objdir, impl):
+    """Builds examples/NAME.cpp into the tree's build/NAME for each NAME. None or the error."""
+    os.makedirs(os.path.join(tree, "build"), exist_ok=True)
+    for name in programs:
+        obj = os.path.join(objdir, name + ".prog.o")
+        code, out = run([CXX] + CXXFLAGS + ["-c", "examples/%s.cpp" % name, "-o", obj], tree, 600)
+        if code != 0:
+            return "examples/%s.cpp does not compile: %s" % (name, out[-500:])
+        code, out = run([CXX, obj, impl, "-o", os.path.join(tree, "build", name), "-pthread"], tree, 300)
+        if code != 0:
+            return "build/%s does not link: %s" % (name, out[-500:])
+    return None
+
+
 def test_mutant(tree, shared, mutant, header, jobs, stage_count):
-    """('killed' | 'survived' | 'broken', stage, details)."""
+    """('killed' | 'survived' | 'broken', stage, details). mutant None: the header as it is
+    (the baseline run, which must survive)."""
     with open(os.path.join(tree, HEADER), "w") as f:
-        f.write(mutated_header(header, mutant))
+        f.write(header if mutant is None else mutated_header(header, mutant))
     objdir = os.path.join(tree, "mutant-obj")
     shutil.rmtree(objdir, ignore_errors=True)
+    for stage in STAGES:  # the previous mutant's programs
+        for program in stage[4]:
+            if os.path.exists(os.path.join(tree, "build", program)):
+                os.remove(os.path.join(tree, "build", program))
     os.makedirs(objdir)
     impl = os.path.join(shared, "smallvcm_impl.o")
-    if mutant.get("impl"):
+    if mutant is not None and mutant.get("impl"):
         # The mutated line is compiled into the implementation unit too (Scene::Finalize is
         # emitted there and may be inlined into the loader): rebuild it for this mutant.
         impl = os.path.join(objdir, "smallvcm_impl.o")
@@ -200,8 +224,8 @@ def test_mutant(tree, shared, mutant, header, jobs, stage_count):
         if code != 0:
             return "broken", "build", "the implementation unit does not compile: " + out[-500:]
     objects = []
-    for name, sources, spec, timeout in STAGES[:stage_count]:
-        error = compile_objects(tree, sources, objdir, jobs)
+    for name, sources, spec, timeout, programs in STAGES[:stage_count]:
+        error = compile_objects(tree, sources, objdir, jobs) or build_programs(tree, programs, objdir, impl)
         if error:
             return "broken", name, error.splitlines()[0]
         objects += [os.path.join(objdir, s + ".o") for s in sources if os.path.exists(os.path.join(objdir, s + ".o"))]
@@ -220,8 +244,8 @@ def test_mutant(tree, shared, mutant, header, jobs, stage_count):
     if stage_count <= len(STAGES):
         return "survived", "(%d stages only)" % stage_count, ""
     # The rest of the suite, with the Makefile.
-    code, out = run(["make", "-j%d" % jobs, "--no-print-directory", "build/tests/run_tests", "build/smallvcm",
-                     "CXXFLAGS=" + " ".join(CXXFLAGS[:-1])], tree, 1200)
+    code, out = run(["make", "-j%d" % jobs, "--no-print-directory"] + REST_TARGETS +
+                    ["CXXFLAGS=" + " ".join(CXXFLAGS[:-1])], tree, 1200)
     if code != 0:
         return "broken", "rest", "make failed: " + out[-500:]
     junit = os.path.join(tree, "build", "report.xml")
@@ -243,6 +267,9 @@ def main():
     parser.add_argument("--stages", type=int, default=len(STAGES) + 1,
                         help="run only the first N stages (a quick survey; survivors then are 'survived (N stages)')")
     parser.add_argument("--keep", action="store_true", help="keep the temporary tree (its path is printed)")
+    parser.add_argument("--no-baseline", action="store_true",
+                        help="skip the first run, of the unmutated header through the same stages (it must pass, "
+                             "or every mutant would count as killed)")
     parser.add_argument("--report", default=os.path.join(ROOT, "build", "mutants", "report.txt"),
                         help="where the report is written (default build/mutants/report.txt)")
     args = parser.parse_args()
@@ -287,6 +314,19 @@ def main():
 
     emit("# make mutants: %s, header %s" % (time.strftime("%Y-%m-%d %H:%M"), HEADER))
     try:
+        if not args.no_baseline:
+            # The unmutated header through the same stages: a stage that fails without any
+            # mutant (a program its tests need is missing, a flaky bound) would kill every
+            # mutant that reaches it, and the score would mean nothing.
+            t0 = time.time()
+            outcome, stage, details = test_mutant(tree, shared, None, header, args.jobs, args.stages)
+            emit("base %-14s %-12s %-20s %5.0f s  the unmutated header%s" % (
+                "passed" if outcome == "survived" else "FAILED", "", stage, time.time() - t0,
+                "" if outcome == "survived" else " -- " + details))
+            if outcome != "survived":
+                emit("mutants: stopped: the unmutated header fails stage %s, so no mutant's outcome would mean "
+                     "anything" % stage)
+                return 1
         for m in selected:
             why = applicability(header, m)
             t0 = time.time()

@@ -17,6 +17,7 @@
 #include <catch2/catch.hpp>
 
 #include <cstdio>
+#include <sstream>
 
 using namespace smallvcm;
 using namespace testutil;
@@ -261,4 +262,100 @@ TEST_CASE("Next-event estimation, emission and a ray hitting a light report the 
             }
         }
     }
+}
+
+TEST_CASE("A textured area light gives each point it samples the texel at that point (Illuminate and Emit)", "[light_units]") {
+    // The area light of MakeLightScene given texture coordinates u = (x + 2.1) / 4.2,
+    // v = (y + 0.6) / 1.7 on all four triangles (inside [0, 1]) and a 4 x 4 texture whose 16 texels all
+    // differ, read bilinearly with clamp-to-edge: the emitted radiance varies smoothly over
+    // the light, and no two points on a triangle share it along the texture's diagonals.
+    // For each sample of next-event estimation (Illuminate) and of light sub-paths (Emit),
+    // the test finds the point's triangle and barycentric coordinates itself (in double,
+    // as the chi-square test above does), interpolates the triangle's texture coordinates
+    // and looks the texel up: the light must report emission x that texel. A point sampled
+    // with one set of barycentrics but given the texture coordinates of another (mutant
+    // M51: position and uv built from permuted barycentrics) gets another point's texel.
+    // Tolerance: 1e-4 relative (the texture coordinates from the two routes differ by float
+    // rounding, ~1e-7, and a texel step of 0.06 spans 1/4 of the coordinate: < 1e-5 change).
+    LightScene l = MakeLightScene();
+    Scene& scene = l.scene;
+    Texture texture;
+    texture.mWidth = texture.mHeight = 4;
+    texture.mWrapU = texture.mWrapV = TextureWrap::kClampToEdge;
+    for (int i = 0; i < 16; i++) texture.mTexels.push_back(Vec3(0.05f + 0.06f * float(i), 1.f - 0.055f * float(i), 0.3f));
+    scene.mTextures.push_back(texture);
+    const auto uvOf = [](const Vec3& aPoint) { return Vec2((aPoint.x + 2.1f) / 4.2f, (aPoint.y + 0.6f) / 1.7f); };
+    for (Triangle& triangle : scene.mTriangles) {
+        if (triangle.mLightId != l.area) continue;
+        triangle.mUv0 = uvOf(triangle.mP0);
+        triangle.mUv1 = uvOf(triangle.mP1);
+        triangle.mUv2 = uvOf(triangle.mP2);
+    }
+    scene.mLights[size_t(l.area)].mEmissionTexture = int(scene.mTextures.size()) - 1;
+    scene.Finalize();
+    const Light& light = scene.GetLight(l.area);
+    REQUIRE(light.mEmissionTexture >= 0);
+
+    // Emission x texel at aPoint, found from the scene's triangles (not from the light).
+    const auto expectedRadiance = [&](const Vec3& aPoint, bool& oFound) {
+        oFound = false;
+        for (const Triangle& triangle : scene.mTriangles) {
+            if (triangle.mLightId != l.area) continue;
+            const glm::dvec3 p0(triangle.mP0), e1 = glm::dvec3(triangle.mP1) - p0, e2 = glm::dvec3(triangle.mP2) - p0;
+            const glm::dvec3 q = glm::dvec3(aPoint) - p0, n = glm::cross(e1, e2);
+            if (std::abs(glm::dot(q, n)) > 1e-5 * glm::length(n)) continue;  // not in its plane
+            const double nn = glm::dot(n, n);
+            const double b1 = glm::dot(glm::cross(q, e2), n) / nn, b2 = glm::dot(glm::cross(e1, q), n) / nn;
+            if (b1 < -1e-6 || b2 < -1e-6 || b1 + b2 > 1.0 + 1e-6) continue;
+            const glm::dvec2 uv = (1.0 - b1 - b2) * glm::dvec2(triangle.mUv0) + b1 * glm::dvec2(triangle.mUv1) +
+                                  b2 * glm::dvec2(triangle.mUv2);
+            oFound = true;
+            return light.mEmission * texture.Lookup(Vec2(uv));
+        }
+        return Vec3(0.f);
+    };
+    const auto close = [](const Vec3& aA, const Vec3& aB) {
+        for (int c = 0; c < 3; c++)
+            if (std::abs(aA[c] - aB[c]) > 1e-4f * std::max(std::abs(aA[c]), std::abs(aB[c]))) return false;
+        return true;
+    };
+
+    Rng rng(31);
+    int illuminated = 0, emitted = 0, wrongIlluminate = 0, wrongEmit = 0;
+    std::ostringstream firstWrong;  // the first disagreement of each operation
+    const auto describe = [&](const char* aOperation, int aSample, const Vec3& aGot, const Vec3& aExpected) {
+        firstWrong << aOperation << ", sample " << aSample << ": radiance (" << aGot.x << ", " << aGot.y << ", " << aGot.z
+                   << "), the texture at the point gives (" << aExpected.x << ", " << aExpected.y << ", " << aExpected.z << ")\n";
+    };
+    for (int i = 0; i < 4000; i++) {
+        LightSample sample;
+        if (light.Illuminate(scene.GetSceneSphere(), Vec3(0.f), rng.GetVec2(), sample)) {
+            const Vec3 point = sample.mDirToLight * sample.mDistance;
+            bool found = false;
+            const Vec3 expected = expectedRadiance(point, found);
+            REQUIRE(found);
+            if (!close(sample.mRadiance, expected)) {
+                if (wrongIlluminate++ == 0) describe("Illuminate", i, sample.mRadiance, expected);
+            }
+            illuminated++;
+        }
+        LightEmission emission;
+        const Vec2 direction = rng.GetVec2();
+        if (light.Emit(scene.GetSceneSphere(), direction, rng.GetVec2(), emission)) {
+            bool found = false;
+            const Vec3 expected = expectedRadiance(emission.mPosition, found);
+            REQUIRE(found);
+            if (!close(emission.mRadiance, expected)) {
+                if (wrongEmit++ == 0) describe("Emit", i, emission.mRadiance, expected);
+            }
+            emitted++;
+        }
+    }
+    std::printf("[light_units] textured area light: %d of %d Illuminate and %d of %d Emit samples disagree with the texel at their point\n",
+                wrongIlluminate, illuminated, wrongEmit, emitted);
+    CHECK(illuminated > 2500);
+    CHECK(emitted > 3500);
+    INFO(firstWrong.str());
+    CHECK(wrongIlluminate == 0);
+    CHECK(wrongEmit == 0);
 }
