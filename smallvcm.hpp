@@ -357,30 +357,38 @@ inline float PdfAtoW(float aPdfA, float aDist, float aCosThere) {
 // =====================================================================================
 // [SECTION] Geometry: ray, sphere, triangle, BVH
 // =====================================================================================
-// Provides: Ray, Hit, exact intersection of a ray with a sphere and a triangle, and the
-// contract of the bounding-volume hierarchy over both kinds of primitive (its workings
-// are the appendix at the end). Intersection is two-sided: back faces occlude like
-// front faces.
-// Invariant: ray directions are unit length; Hit::mNormal is the geometric normal,
-// pointing out of spheres and to the counter-clockwise side of triangles;
-// Hit::mShadingNormal is the normal the BSDF shades with: the interpolated vertex normal
-// of a smooth triangle, turned to the side of mNormal, else mNormal itself (bit for bit).
+// Provides: Ray, SurfacePoint (what Scene::Intersect finds), exact intersection of a ray
+// with a sphere and a triangle, and the contract of the bounding-volume hierarchy over
+// both kinds of primitive (its workings are the appendix at the end). Intersection is
+// two-sided: back faces occlude like front faces.
+// Invariant: ray directions are unit length; a SurfacePoint's geometric frame has the
+// geometric normal as z, pointing out of spheres and to the counter-clockwise side of
+// triangles; its shading frame has as z the normal the BSDF shades with: the
+// interpolated vertex normal of a smooth triangle, turned to the side of the geometric
+// normal, else the geometric normal itself (and then the two frames are equal bit for bit).
 
 struct Ray {
     Vec3 mOrigin{0.f};
     Vec3 mDirection{0.f, 0.f, 1.f};
 };
 
-struct Hit {
+// The point where a ray meets the scene, with what shading it needs: both frames are
+// built here, once, and the Bsdf takes its frame from mShadingFrame. A ray that meets
+// nothing gives an invalid point (IsValid() false, mDist infinite) rather than an empty
+// std::optional: a miss is an ordinary outcome that the integrators test once, right
+// after tracing, and then read the fields many times as hit.mFoo (not hit->mFoo).
+struct SurfacePoint {
     Vec3 mPosition{0.f};    // the point hit: ray origin + mDist * ray direction
     float mDist = std::numeric_limits<float>::infinity();
     int mPrimitiveId = -1;  // triangles first, then spheres (see Scene)
     int mMaterialId = -1;
     int mLightId = -1;      // >= 0 when the primitive emits
-    Vec3 mNormal{0.f};      // geometric, unit length
-    Vec3 mShadingNormal{0.f};  // unit length, on mNormal's side (see the invariant above)
-    Vec2 mUv{0.f};          // texture coordinates (set when the hit's material or light has a texture)
+    Vec2 mUv{0.f};          // texture coordinates (set when the material or light has a texture)
+    Frame mGeometricFrame;  // z: the geometric normal, unit length
+    Frame mShadingFrame;    // z: the shading normal, unit length, on the geometric normal's side
     bool IsValid() const { return mPrimitiveId >= 0; }
+    const Vec3& GeometricNormal() const { return mGeometricFrame.mZ; }
+    const Vec3& ShadingNormal() const { return mShadingFrame.mZ; }
 };
 
 // Sphere: solves |o + t d - c|^2 = r^2 for the nearest t in (aTMin, aTMax).
@@ -954,7 +962,7 @@ struct Light {
     }
 
     // What a ray receives when it hits the light (area, sphere: at a point with geometric
-    // normal aHitNormal and texture coordinates aHitUv, Hit::mUv) or escapes the scene
+    // normal aHitNormal and texture coordinates aHitUv, SurfacePoint::mUv) or escapes the scene
     // (background): the radiance, and the pdfs with which next-event estimation
     // (mDirectPdfA: area measure; solid angle for the background) and emission would have
     // produced the same point. All zero where the light sends nothing that way.
@@ -1347,37 +1355,39 @@ public:
     const Material& GetMaterial(int aId) const { return mMaterials[size_t(aId)]; }
     const Bvh& GetBvh() const { return mBvh; }
 
-    // Nearest hit along aRay (origin already offset off any surface by the caller).
-    bool Intersect(const Ray& aRay, Hit& oHit) const {
+    // Nearest surface point along aRay (origin already offset off any surface by the
+    // caller); an invalid SurfacePoint when the ray leaves the scene.
+    SurfacePoint Intersect(const Ray& aRay) const {
         RayCounter()++;
+        SurfacePoint hit;
         float tMax = std::numeric_limits<float>::infinity();
         const int primitive = mBvh.Intersect(aRay, 0.f, tMax);
-        if (primitive < 0) return false;
-        oHit.mDist = tMax;
-        oHit.mPosition = aRay.mOrigin + tMax * aRay.mDirection;
-        oHit.mPrimitiveId = primitive;
+        if (primitive < 0) return hit;
+        hit.mDist = tMax;
+        hit.mPosition = aRay.mOrigin + tMax * aRay.mDirection;
+        hit.mPrimitiveId = primitive;
         const int triangleCount = int(mTriangles.size());
         if (primitive < triangleCount) {
             const Triangle& triangle = mTriangles[size_t(primitive)];
-            oHit.mMaterialId = triangle.mMaterialId;
-            oHit.mLightId = triangle.mLightId;
-            oHit.mNormal = triangle.mNormal;
-            oHit.mShadingNormal = triangle.mNormal;
+            hit.mMaterialId = triangle.mMaterialId;
+            hit.mLightId = triangle.mLightId;
+            hit.mGeometricFrame = Frame(triangle.mNormal);
+            hit.mShadingFrame = hit.mGeometricFrame;
             const bool textured = mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0 ||
                                   (triangle.mLightId >= 0 && mLights[size_t(triangle.mLightId)].mEmissionTexture >= 0);
             if (textured || triangle.mHasVertexNormals) {
-                const TriangleBarycentrics b = Barycentrics(triangle, oHit.mPosition);
-                if (textured) oHit.mUv = TriangleUv(triangle, b);
-                if (triangle.mHasVertexNormals) oHit.mShadingNormal = InterpolatedNormal(triangle, b);
+                const TriangleBarycentrics b = Barycentrics(triangle, hit.mPosition);
+                if (textured) hit.mUv = TriangleUv(triangle, b);
+                if (triangle.mHasVertexNormals) hit.mShadingFrame = Frame(InterpolatedNormal(triangle, b));
             }
         } else {
             const Sphere& sphere = mSpheres[size_t(primitive - triangleCount)];
-            oHit.mMaterialId = sphere.mMaterialId;
-            oHit.mLightId = sphere.mLightId;
-            oHit.mNormal = glm::normalize(oHit.mPosition - sphere.mCenter);
-            oHit.mShadingNormal = oHit.mNormal;  // a sphere's normal is exact
+            hit.mMaterialId = sphere.mMaterialId;
+            hit.mLightId = sphere.mLightId;
+            hit.mGeometricFrame = Frame(glm::normalize(hit.mPosition - sphere.mCenter));
+            hit.mShadingFrame = hit.mGeometricFrame;  // a sphere's normal is exact
         }
-        return true;
+        return hit;
     }
 
     // Shadow ray: is anything between aPoint and aPoint + aDistance * aDirection?
@@ -1388,8 +1398,8 @@ public:
         return mBvh.Occluded(ray, 0.f, aDistance - 2.f * mRayEpsilon);
     }
 
-    // The base-colour texel at a hit (white for untextured materials).
-    Vec3 BaseColorTexel(const Hit& aHit) const { return BaseColorTexel(aHit.mMaterialId, aHit.mUv); }
+    // The base-colour texel at a surface point (white for untextured materials).
+    Vec3 BaseColorTexel(const SurfacePoint& aHit) const { return BaseColorTexel(aHit.mMaterialId, aHit.mUv); }
     // The same from a material and texture coordinates (what a stored light vertex keeps).
     Vec3 BaseColorTexel(int aMaterialId, const Vec2& aUv) const {
         const int texture = mMaterials[size_t(aMaterialId)].mBaseColorTexture;
@@ -1586,17 +1596,20 @@ class Bsdf {
 public:
     Bsdf() = default;
 
-    // aRay is the ray that found aHit (its direction points into the surface).
+    // aRay is the ray that found aHit (its direction points into the surface); the Bsdf
+    // shades in aHit's shading frame.
     // aTransport: radiance on camera sub-paths, importance on light sub-paths.
-    void Setup(const Ray& aRay, const Hit& aHit, const Scene& aScene, Transport aTransport) {
+    void Setup(const Ray& aRay, const SurfacePoint& aHit, const Scene& aScene, Transport aTransport) {
         const Material& material = aScene.GetMaterial(aHit.mMaterialId);
-        if (material.mBaseColorTexture < 0) Setup(-aRay.mDirection, aHit.mNormal, aHit.mShadingNormal, material, aTransport);
+        if (material.mBaseColorTexture < 0)
+            SetupInFrame(-aRay.mDirection, aHit.GeometricNormal(), aHit.mShadingFrame, material, aTransport, nullptr);
         else {
             const Vec3 texel = aScene.BaseColorTexel(aHit);
-            Setup(-aRay.mDirection, aHit.mNormal, aHit.mShadingNormal, material, aTransport, &texel);
+            SetupInFrame(-aRay.mDirection, aHit.GeometricNormal(), aHit.mShadingFrame, material, aTransport, &texel);
         }
     }
-    // The same from explicit data (what tests use): aWorldDirFix points away from the surface.
+    // The same from explicit data (what tests and stored light vertices use): aWorldDirFix
+    // points away from the surface.
     // The Bsdf keeps a pointer to aMaterial, which must outlive it (a temporary is refused).
     void Setup(const Vec3& aWorldDirFix, const Vec3& aNormal, const Material&& aMaterial, Transport aTransport) = delete;
     void Setup(const Vec3& aWorldDirFix, const Vec3& aGeometricNormal, const Vec3& aShadingNormal,
@@ -1606,10 +1619,19 @@ public:
                const Vec3* aBaseColorTexel = nullptr) {
         Setup(aWorldDirFix, aNormal, aNormal, aMaterial, aTransport, aBaseColorTexel);
     }
-    // aGeometricNormal, aShadingNormal: unit length, on one side (Hit's invariant).
+    // aGeometricNormal, aShadingNormal: unit length, on one side (SurfacePoint's invariant);
+    // the shading frame is built from aShadingNormal as Scene::Intersect builds it.
     // aBaseColorTexel: the material's texture at this point (see Material::mBaseColorTexture).
     void Setup(const Vec3& aWorldDirFix, const Vec3& aGeometricNormal, const Vec3& aShadingNormal,
                const Material& aMaterial, Transport aTransport, const Vec3* aBaseColorTexel = nullptr) {
+        SetupInFrame(aWorldDirFix, aGeometricNormal, Frame(aShadingNormal), aMaterial, aTransport, aBaseColorTexel);
+    }
+
+private:
+    // What every Setup comes to: the shading frame is given, built once where the
+    // surface point was found (or from an explicit normal above).
+    void SetupInFrame(const Vec3& aWorldDirFix, const Vec3& aGeometricNormal, const Frame& aShadingFrame,
+                      const Material& aMaterial, Transport aTransport, const Vec3* aBaseColorTexel) {
         mMaterial = &aMaterial;
         mTransport = aTransport;
         mReflectance = Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance};
@@ -1623,10 +1645,10 @@ public:
         }
         // A two-sided non-glass material turns both normals towards whoever looks at it,
         // deciding by the geometric one (the side the ray really arrives from).
-        mShaded = aShadingNormal != aGeometricNormal;
+        mShaded = aShadingFrame.mZ != aGeometricNormal;
         const bool flip = aMaterial.mTwoSided && aMaterial.mIor < 0.f && glm::dot(aGeometricNormal, aWorldDirFix) < 0.f;
         mGeometricNormal = flip ? -aGeometricNormal : aGeometricNormal;
-        mFrame.SetFromZ(flip ? -aShadingNormal : aShadingNormal);
+        mFrame = flip ? Frame(-aShadingFrame.mZ) : aShadingFrame;
         mLocalDirFix = mFrame.ToLocal(aWorldDirFix);
         mCosFixGeometric = mShaded ? glm::dot(mGeometricNormal, aWorldDirFix) : mLocalDirFix.z;
         mValid = false;
@@ -1642,6 +1664,7 @@ public:
         mValid = true;
     }
 
+public:
     bool IsValid() const { return mValid; }
     bool IsDelta() const { return mIsDelta; }
     float ContinuationProb() const { return mContinuationProb; }
@@ -2175,10 +2198,10 @@ public:
             for (int x = 0; x < camera.Width(); x++) {
                 const Vec2 raster = Vec2(float(x), float(y)) + aRng.GetVec2();
                 const Ray ray = camera.GenerateRay(raster);
-                Hit hit;
-                if (!mScene.Intersect(ray, hit)) continue;
-                const float cosFront = glm::dot(hit.mShadingNormal, -ray.mDirection);
-                const bool front = glm::dot(hit.mNormal, -ray.mDirection) > 0.f;
+                const SurfacePoint hit = mScene.Intersect(ray);
+                if (!hit.IsValid()) continue;
+                const float cosFront = glm::dot(hit.ShadingNormal(), -ray.mDirection);
+                const bool front = glm::dot(hit.GeometricNormal(), -ray.mDirection) > 0.f;
                 const Vec3 color = front ? Vec3(std::abs(cosFront)) : Vec3(std::abs(cosFront), 0.f, 0.f);
                 mFilm.AddColor(y * camera.Width() + x, color);
             }
@@ -2241,8 +2264,8 @@ private:
     // share), and the continuation by BSDF sampling with Russian roulette.
     void TraceCameraPath(Rng& aRng, int aPixel, Ray aRay) {
         for (PathState path;; path.mPathLength++) {
-            Hit hit;
-            if (!mScene.Intersect(aRay, hit)) {
+            const SurfacePoint hit = mScene.Intersect(aRay);
+            if (!hit.IsValid()) {
                 AddBackgroundHit(aPixel, path, aRay.mDirection);
                 return;
             }
@@ -2270,15 +2293,15 @@ private:
 
     // A light hit by the path, found by BSDF sampling: MIS against next-event
     // estimation, whose area pdf is converted to solid angle at the previous vertex.
-    void AddEmitterHit(int aPixel, const PathState& aPath, const Ray& aRay, const Hit& aHit) {
+    void AddEmitterHit(int aPixel, const PathState& aPath, const Ray& aRay, const SurfacePoint& aHit) {
         const Light& light = mScene.GetLight(aHit.mLightId);
-        const Light::RadianceAtHit received = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, aHit.mNormal, aHit.mUv);
+        const Light::RadianceAtHit received = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, aHit.GeometricNormal(), aHit.mUv);
         const Vec3& radiance = received.mRadiance;
         const float directPdfA = received.mDirectPdfA;
         if (IsBlack(radiance)) return;
         float weight = 1.f;
         if (!aPath.mLastSpecular) {
-            const float cosAtLight = glm::dot(aHit.mNormal, -aRay.mDirection);
+            const float cosAtLight = glm::dot(aHit.GeometricNormal(), -aRay.mDirection);
             const float distance = aHit.mDist + mScene.RayEpsilon();
             const float directPdfW = PdfAtoW(directPdfA, distance, cosAtLight) * mScene.LightPickProb();
             weight = BsdfHitWeight(aPath.mLastPdfW, directPdfW);
@@ -2596,8 +2619,8 @@ inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLeng
         Ray ray = aScene.SpawnRay(emission.mPosition, emission.mDirection);
         bool onlySpecular = true;
         for (int pathLength = 1; pathLength < aMaxPathLength; pathLength++) {
-            Hit hit;
-            if (!aScene.Intersect(ray, hit)) break;
+            const SurfacePoint hit = aScene.Intersect(ray);
+            if (!hit.IsValid()) break;
             const Vec3& hitPoint = hit.mPosition;
             Bsdf bsdf;
             bsdf.Setup(ray, hit, aScene, Transport::kImportance);
@@ -2651,8 +2674,8 @@ private:
         Vec3 throughput(1.f);
         bool afterSpecular = false;
         for (int pathLength = 1; pathLength <= mOptions.mMaxPathLength; pathLength++) {
-            Hit hit;
-            if (!mScene.Intersect(aRay, hit)) {
+            const SurfacePoint hit = mScene.Intersect(aRay);
+            if (!hit.IsValid()) {
                 const Light* background = mScene.GetBackground();
                 if (background && pathLength >= mOptions.mMinPathLength)
                     Add(aPixel, afterSpecular ? kSpecular : kEmitted,
@@ -2662,7 +2685,7 @@ private:
             const Vec3& hitPoint = hit.mPosition;
             if (hit.mLightId >= 0 && pathLength >= mOptions.mMinPathLength)
                 Add(aPixel, afterSpecular ? kSpecular : kEmitted,
-                    throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.mNormal, hit.mUv).mRadiance);
+                    throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.GeometricNormal(), hit.mUv).mRadiance);
             Bsdf bsdf;
             bsdf.Setup(aRay, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
@@ -2739,8 +2762,8 @@ private:
         Vec3 gatherThroughput = aThroughput * scatter.mValue * (scatter.mCosThetaOut / scatter.mPdfW);
         Ray ray = mScene.SpawnRay(aHitPoint, scatter.mDirection);
         for (int length = aPathLength + 1; length < mOptions.mMaxPathLength; length++) {
-            Hit hit;
-            if (!mScene.Intersect(ray, hit)) return;
+            const SurfacePoint hit = mScene.Intersect(ray);
+            if (!hit.IsValid()) return;
             const Vec3& hitPoint = hit.mPosition;
             Bsdf bsdf;
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
@@ -3228,8 +3251,8 @@ private:
         if (IsBlack(light.mThroughput)) return;
         for (;;) {
             const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
-            Hit hit;
-            if (!mScene.Intersect(ray, hit)) return;
+            const SurfacePoint hit = mScene.Intersect(ray);
+            if (!hit.IsValid()) return;
             const Vec3& hitPoint = hit.mPosition;
             Bsdf bsdf;
             bsdf.Setup(ray, hit, mScene, Transport::kImportance);
@@ -3237,7 +3260,7 @@ private:
             // The area pdf of this vertex: a change of measure, by the geometric cosine.
             VcmMis::AfterSegment(mMisConstants, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
                                  light.mPathLength > 1 || light.mIsFiniteLight);
-            if (mPathRecords) mLightHistories.back().push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId});
+            if (mPathRecords) mLightHistories.back().push_back(PathVertex{hitPoint, hit.GeometricNormal(), hit.mMaterialId});
 
             if (!bsdf.IsDelta()) {
                 if (mUseVC || mUseVM) StoreLightVertex(light, ray, hit, hitPoint);
@@ -3255,15 +3278,15 @@ private:
     }
 
     // Stores a light vertex for connections and merging.
-    void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const Hit& aHit, const Vec3& aHitPoint) {
+    void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const SurfacePoint& aHit, const Vec3& aHitPoint) {
         LightVertex vertex;
         vertex.mHitPoint = aHitPoint;
         vertex.mPathLength = aLight.mPathLength;
         vertex.mThroughput = aLight.mThroughput;
         vertex.mMaterialId = aHit.mMaterialId;
         vertex.mDirFix = -aRay.mDirection;
-        vertex.mNormal = aHit.mNormal;
-        vertex.mShadingNormal = aHit.mShadingNormal;
+        vertex.mNormal = aHit.GeometricNormal();
+        vertex.mShadingNormal = aHit.ShadingNormal();
         vertex.mUv = aHit.mUv;
         vertex.mMis = aLight.mMis;
         mLightVertices.push_back(vertex);
@@ -3288,20 +3311,20 @@ private:
         if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
         Ray ray{cam.mOrigin, cam.mDirection};
         for (;;) {
-            Hit hit;
-            if (!mScene.Intersect(ray, hit)) {
+            const SurfacePoint hit = mScene.Intersect(ray);
+            if (!hit.IsValid()) {
                 AddBackgroundHit(aPixel, cam, ray.mDirection);
                 return;
             }
             const Vec3& hitPoint = hit.mPosition;
-            const float cosAtHit = glm::dot(hit.mNormal, -ray.mDirection);
+            const float cosAtHit = glm::dot(hit.GeometricNormal(), -ray.mDirection);
             const float distance = hit.mDist + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
             VcmMis::AfterSegment(mMisConstants, cam.mMis, distance, cosAtHit, true);
-            if (mPathRecords) mCameraHistory.push_back(PathVertex{hitPoint, hit.mNormal, hit.mMaterialId, hit.mLightId});
+            if (mPathRecords) mCameraHistory.push_back(PathVertex{hitPoint, hit.GeometricNormal(), hit.mMaterialId, hit.mLightId});
 
             // Continues after a light only if the emitter's material reflects (see PathTracer).
             if (hit.mLightId >= 0 && cam.mPathLength >= mOptions.mMinPathLength)
-                AddCameraHitLight(aPixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.mNormal, hit.mUv);
+                AddCameraHitLight(aPixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.GeometricNormal(), hit.mUv);
             Bsdf bsdf;
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;

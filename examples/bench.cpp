@@ -674,8 +674,8 @@ BvhRow MeasureBvh(const Options& aOptions, long aTriangles) {
         const auto start = Clock::now();
         do {
             for (const smallvcm::Ray& r : rays) {
-                smallvcm::Hit hit;
-                if (scene.Intersect(r, hit)) { hits++; checksum += hit.mDist; }
+                const smallvcm::SurfacePoint hit = scene.Intersect(r);
+                if (hit.IsValid()) { hits++; checksum += hit.mDist; }
             }
             traced += count;
         } while (SecondsSince(start) < aOptions.mBvhSeconds);

@@ -48,9 +48,9 @@ std::vector<Surface> SurfaceKinds(const Scene& aScene) {
                 for (int i = 0; i < 3; i++) {
                     const smallvcm::Vec2 raster(float(x) + (float(i) + 0.5f) / 3.f, float(y) + (float(j) + 0.5f) / 3.f);
                     const smallvcm::Ray ray = camera.GenerateRay(raster);
-                    smallvcm::Hit hit;
+                    const smallvcm::SurfacePoint hit = aScene.Intersect(ray);
                     Surface kind = Surface::kNothing;
-                    if (aScene.Intersect(ray, hit)) {
+                    if (hit.IsValid()) {
                         if (hit.mLightId >= 0) {
                             kind = Surface::kLight;
                         } else {
@@ -88,8 +88,8 @@ struct Landing {
 void FollowSpecular(const Scene& aScene, const smallvcm::Ray& aRay, const Vec3& aWeight, int aBounces,
                     std::vector<Landing>& oLandings) {
     if (aBounces > 12 || smallvcm::MaxComponent(aWeight) < 0.01f) return;
-    smallvcm::Hit hit;
-    if (!aScene.Intersect(aRay, hit) || hit.mLightId >= 0) return;
+    const smallvcm::SurfacePoint hit = aScene.Intersect(aRay);
+    if (!hit.IsValid() || hit.mLightId >= 0) return;
     const smallvcm::Material& material = aScene.GetMaterial(hit.mMaterialId);
     const Vec3 point = aRay.mOrigin + hit.mDist * aRay.mDirection;
     if (material.HasNonSpecular() || !material.HasSpecular()) {
@@ -97,8 +97,8 @@ void FollowSpecular(const Scene& aScene, const smallvcm::Ray& aRay, const Vec3& 
         return;
     }
     // The normal points out of the glass: a negative cosine means the ray leaves it.
-    const float cosIncident = -glm::dot(aRay.mDirection, hit.mNormal);
-    const Vec3 reflected = aRay.mDirection + 2.f * cosIncident * hit.mNormal;
+    const float cosIncident = -glm::dot(aRay.mDirection, hit.GeometricNormal());
+    const Vec3 reflected = aRay.mDirection + 2.f * cosIncident * hit.GeometricNormal();
     if (material.mIor < 0.f) {
         FollowSpecular(aScene, aScene.SpawnRay(point, reflected), aWeight * material.mMirrorReflectance, aBounces + 1,
                        oLandings);
@@ -109,7 +109,7 @@ void FollowSpecular(const Scene& aScene, const smallvcm::Ray& aRay, const Vec3& 
                    aBounces + 1, oLandings);
     if (fresnel >= 1.f) return;  // total internal reflection
     const bool entering = cosIncident > 0.f;
-    const Vec3 normal = entering ? hit.mNormal : -hit.mNormal;
+    const Vec3 normal = entering ? hit.GeometricNormal() : -hit.GeometricNormal();
     const float cosine = std::abs(cosIncident);
     const float eta = entering ? 1.f / material.mIor : material.mIor;
     const float k = 1.f - eta * eta * (1.f - cosine * cosine);

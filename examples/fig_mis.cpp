@@ -40,9 +40,9 @@ const Technique kTechniques[] = {
 // Region of each pixel: plate (0..3, by Phong exponent, roughest first) * 4 + image
 // quarter, or -1 where the pixel does not see a plate.
 std::vector<int> PlateRegions(const Scene& aScene) {
-    const std::vector<smallvcm::Hit> hits = FirstHits(aScene);
+    const std::vector<smallvcm::SurfacePoint> hits = FirstHits(aScene);
     std::map<float, int> plateOfExponent;  // the plates are the Phong materials, ordered by exponent
-    for (const smallvcm::Hit& hit : hits)
+    for (const smallvcm::SurfacePoint& hit : hits)
         if (hit.IsValid() && !smallvcm::IsBlack(aScene.GetMaterial(hit.mMaterialId).mPhongReflectance))
             plateOfExponent[aScene.GetMaterial(hit.mMaterialId).mPhongExponent] = 0;
     if (plateOfExponent.size() != 4) throw Error("scenes/veach_plates.gltf: expected 4 plates in view");
@@ -51,7 +51,7 @@ std::vector<int> PlateRegions(const Scene& aScene) {
     std::vector<int> regions(hits.size(), -1);
     const int width = aScene.mCamera.Width();
     for (size_t pixel = 0; pixel < hits.size(); pixel++) {
-        const smallvcm::Hit& hit = hits[pixel];
+        const smallvcm::SurfacePoint& hit = hits[pixel];
         if (!hit.IsValid() || smallvcm::IsBlack(aScene.GetMaterial(hit.mMaterialId).mPhongReflectance)) continue;
         const int quarter = std::min(3, int(pixel % size_t(width)) * 4 / width);
         regions[pixel] = plateOfExponent[aScene.GetMaterial(hit.mMaterialId).mPhongExponent] * 4 + quarter;

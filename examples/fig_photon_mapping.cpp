@@ -153,8 +153,8 @@ Mask DiffusePixels(const Scene& aScene) {
             for (int sx = 0; sx <= 4 && direct[size_t(pixel)]; sx++) {
                 const smallvcm::Ray ray = camera.GenerateRay(
                     smallvcm::Vec2(float(pixel % width) + float(sx) / 4.f, float(pixel / width) + float(sy) / 4.f));
-                smallvcm::Hit hit;
-                if (!aScene.Intersect(ray, hit) || hit.mLightId >= 0) {
+                const smallvcm::SurfacePoint hit = aScene.Intersect(ray);
+                if (!hit.IsValid() || hit.mLightId >= 0) {
                     direct[size_t(pixel)] = 0;
                     break;
                 }
@@ -654,8 +654,8 @@ float MatchedRadiusFactor(const Setup& aSetup, int aPhotonCount, int aNearest, f
         if (!aSetup.mDiffuse[size_t(pixel)]) continue;
         const smallvcm::Ray ray = camera.GenerateRay(
             smallvcm::Vec2(float(pixel % camera.Width()) + 0.5f, float(pixel / camera.Width()) + 0.5f));
-        smallvcm::Hit hit;
-        if (!scene.Intersect(ray, hit)) continue;
+        const smallvcm::SurfacePoint hit = scene.Intersect(ray);
+        if (!hit.IsValid()) continue;
         global.Tree().KNearest(ray.mOrigin + ray.mDirection * hit.mDist, aNearest, maxRadius * maxRadius,
                                [](size_t) { return true; }, neighbors);
         radii.push_back(int(neighbors.size()) == aNearest ? std::sqrt(neighbors.back().mDistSqr) : maxRadius);

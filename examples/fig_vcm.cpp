@@ -44,7 +44,7 @@
 #include <map>
 
 using namespace figures;
-using smallvcm::Hit;
+using smallvcm::SurfacePoint;
 using smallvcm::Material;
 using smallvcm::Ray;
 using smallvcm::Vec2;
@@ -107,8 +107,8 @@ Mask SpecularSeenMask(const Scene& aScene) {
     Mask mask(size_t(camera.PixelCount()), 0);
     for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
         const Vec2 centre(float(pixel % camera.Width()) + 0.5f, float(pixel / camera.Width()) + 0.5f);
-        Hit hit;
-        if (aScene.Intersect(camera.GenerateRay(centre), hit) && hit.mLightId < 0)
+        const SurfacePoint hit = aScene.Intersect(camera.GenerateRay(centre));
+        if (hit.IsValid() && hit.mLightId < 0)
             mask[size_t(pixel)] = IsPureSpecular(aScene.GetMaterial(hit.mMaterialId));
     }
     return mask;
@@ -178,14 +178,14 @@ std::vector<Photon> TracePhotons(const Scene& aScene, int aPaths, uint64_t aSeed
         Vec3 throughput = emission.mEnergy * (float(lightCount) / emission.mEmissionPdfW);
         Ray ray = aScene.SpawnRay(emission.mPosition, emission.mDirection);
         for (int bounce = 0; bounce < 10; bounce++) {
-            Hit hit;
-            if (!aScene.Intersect(ray, hit)) break;
+            const SurfacePoint hit = aScene.Intersect(ray);
+            if (!hit.IsValid()) break;
             const Vec3 point = ray.mOrigin + hit.mDist * ray.mDirection;
             smallvcm::Bsdf bsdf;
             bsdf.Setup(ray, hit, aScene, smallvcm::Transport::kImportance);
             if (!bsdf.IsValid()) break;
             if (!bsdf.IsDelta()) {
-                const Vec3 normal = glm::dot(hit.mNormal, ray.mDirection) < 0.f ? hit.mNormal : -hit.mNormal;
+                const Vec3 normal = glm::dot(hit.GeometricNormal(), ray.mDirection) < 0.f ? hit.GeometricNormal() : -hit.GeometricNormal();
                 photons.push_back({point, normal, Luminance(throughput), bounce > 0});
                 break;
             }
@@ -223,18 +223,18 @@ PixelRegions ClassifyPixels(const Scene& aScene, int aPhotonPaths, float aPhoton
         Ray ray = camera.GenerateRay(centre);
         FirstDiffuse& f = first[size_t(pixel)];
         for (int bounce = 0; bounce < 16; bounce++) {
-            Hit hit;
-            if (!aScene.Intersect(ray, hit) || hit.mLightId >= 0) break;  // escapes, or sees a light
+            const SurfacePoint hit = aScene.Intersect(ray);
+            if (!hit.IsValid() || hit.mLightId >= 0) break;  // escapes, or sees a light
             const Vec3 point = ray.mOrigin + hit.mDist * ray.mDirection;
             const Material& material = aScene.GetMaterial(hit.mMaterialId);
             if (material.HasNonSpecular()) {
                 f.mFound = true;
                 f.mPoint = point;
-                f.mNormal = glm::dot(hit.mNormal, ray.mDirection) < 0.f ? hit.mNormal : -hit.mNormal;
+                f.mNormal = glm::dot(hit.GeometricNormal(), ray.mDirection) < 0.f ? hit.GeometricNormal() : -hit.GeometricNormal();
                 break;
             }
             f.mSpecularBounces++;
-            ray = aScene.SpawnRay(point, SpecularContinuation(ray.mDirection, hit.mNormal, material));
+            ray = aScene.SpawnRay(point, SpecularContinuation(ray.mDirection, hit.GeometricNormal(), material));
         }
     }
     // Irradiance from the photons within the radius on the same side of the same surface
@@ -285,8 +285,8 @@ Mask SurfaceMask(const Scene& aScene) {
         for (int s = 0; s < kGrid * kGrid && mask[size_t(pixel)]; s++) {
             const Vec2 raster(float(pixel % camera.Width()) + (float(s % kGrid) + 0.5f) / kGrid,
                               float(pixel / camera.Width()) + (float(s / kGrid) + 0.5f) / kGrid);
-            Hit hit;
-            if (aScene.Intersect(camera.GenerateRay(raster), hit) && hit.mLightId >= 0) mask[size_t(pixel)] = 0;
+            const SurfacePoint hit = aScene.Intersect(camera.GenerateRay(raster));
+            if (hit.IsValid() && hit.mLightId >= 0) mask[size_t(pixel)] = 0;
         }
     return mask;
 }
@@ -495,11 +495,11 @@ PathDensities MeasurePathDensities(const Scene& aScene, int aPaths, float aPatch
     out.mLightArea = area;
     // The floor straight below (scenes keep SmallVCM's +z up).
     const Vec3 down(0.f, 0.f, -1.f);
-    Hit floorHit;
-    if (!aScene.Intersect(aScene.SpawnRay(centre + 10.f * aScene.RayEpsilon() * down, down), floorHit))
+    const SurfacePoint floorHit = aScene.Intersect(aScene.SpawnRay(centre + 10.f * aScene.RayEpsilon() * down, down));
+    if (!floorHit.IsValid())
         throw Error("F14: nothing below the light");
     out.mPoint = centre + 10.f * aScene.RayEpsilon() * down + floorHit.mDist * down;
-    const Vec3 normal = floorHit.mNormal.z > 0.f ? floorHit.mNormal : -floorHit.mNormal;
+    const Vec3 normal = floorHit.GeometricNormal().z > 0.f ? floorHit.GeometricNormal() : -floorHit.GeometricNormal();
     out.mContinuation = aScene.GetMaterial(floorHit.mMaterialId).ContinuationProbability();
 
     // Monte Carlo: first hits of light sub-paths on the disc of radius R around x.
@@ -511,11 +511,11 @@ PathDensities MeasurePathDensities(const Scene& aScene, int aPaths, float aPatch
         const Vec2 rndDirection = rng.GetVec2(), rndPosition = rng.GetVec2();
         smallvcm::LightEmission emission;
         if (!aScene.GetLight(l).Emit(aScene.GetSceneSphere(), rndDirection, rndPosition, emission)) continue;
-        Hit hit;
         const Ray ray = aScene.SpawnRay(emission.mPosition, emission.mDirection);
-        if (!aScene.Intersect(ray, hit)) continue;
+        const SurfacePoint hit = aScene.Intersect(ray);
+        if (!hit.IsValid()) continue;
         const Vec3 offset = ray.mOrigin + hit.mDist * ray.mDirection - out.mPoint;
-        if (glm::dot(offset, offset) < aPatchRadius * aPatchRadius && std::abs(glm::dot(hit.mNormal, normal)) > 0.999f)
+        if (glm::dot(offset, offset) < aPatchRadius * aPatchRadius && std::abs(glm::dot(hit.GeometricNormal(), normal)) > 0.999f)
             inside++;
     }
     const double patchArea = smallvcm::kPi * double(aPatchRadius) * aPatchRadius;

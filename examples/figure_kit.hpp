@@ -198,12 +198,12 @@ inline const Image& Layer(const RenderResult& aResult, const std::string& aName)
 
 // What the camera sees first through each pixel's centre (top row first): the masks
 // that tell the figures which pixels show a specular surface, a plate, a light.
-inline std::vector<smallvcm::Hit> FirstHits(const Scene& aScene) {
+inline std::vector<smallvcm::SurfacePoint> FirstHits(const Scene& aScene) {
     const smallvcm::Camera& camera = aScene.mCamera;
-    std::vector<smallvcm::Hit> hits(size_t(camera.PixelCount()));
+    std::vector<smallvcm::SurfacePoint> hits(size_t(camera.PixelCount()));
     for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
         const smallvcm::Vec2 centre(float(pixel % camera.Width()) + 0.5f, float(pixel / camera.Width()) + 0.5f);
-        aScene.Intersect(camera.GenerateRay(centre), hits[size_t(pixel)]);
+        hits[size_t(pixel)] = aScene.Intersect(camera.GenerateRay(centre));
     }
     return hits;
 }

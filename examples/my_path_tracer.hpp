@@ -34,8 +34,8 @@ public:
             Vec3 throughput(1.f), radiance(0.f);
             float bsdfPdfW = 0.f;  // pdf of the last scattering direction; 0: camera or specular
             for (int length = 1;; length++) {  // path length in segments; this segment is `length`
-                Hit hit;
-                if (!mScene.Intersect(ray, hit)) {  // left the scene: the background, if any
+                const SurfacePoint hit = mScene.Intersect(ray);
+                if (!hit.IsValid()) {  // left the scene: the background, if any
                     if (const Light* background = mScene.GetBackground()) {
                         const Light::RadianceAtHit emitted =
                             background->GetRadiance(mScene.GetSceneSphere(), ray.mDirection, Vec3(0.f), Vec2(0.f));
@@ -48,10 +48,10 @@ public:
                 const Vec3& point = hit.mPosition;
                 if (hit.mLightId >= 0) {  // a light found by BSDF sampling
                     const Light::RadianceAtHit emitted = mScene.GetLight(hit.mLightId).GetRadiance(
-                        mScene.GetSceneSphere(), ray.mDirection, hit.mNormal, hit.mUv);
+                        mScene.GetSceneSphere(), ray.mDirection, hit.GeometricNormal(), hit.mUv);
                     // The ray started RayEpsilon() off the previous surface.
                     const float lightPdfW = PdfAtoW(emitted.mDirectPdfA, hit.mDist + mScene.RayEpsilon(),
-                                                    glm::dot(hit.mNormal, -ray.mDirection));
+                                                    glm::dot(hit.GeometricNormal(), -ray.mDirection));
                     radiance += throughput * emitted.mRadiance * BsdfWeight(bsdfPdfW, lightPdfW * mScene.LightPickProb());
                 }
                 Bsdf bsdf;

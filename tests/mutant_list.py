@@ -101,7 +101,7 @@ MUTANTS = [
          find="return aPdfW * std::abs(aCosThere) / Sqr(aDist);",
          replace="return aPdfW / Sqr(aDist);"),
     dict(id="M27", cls="pdf", what="path tracing's hit-light MIS: cosine at the light taken as 1",
-         find="const float cosAtLight = glm::dot(aHit.mNormal, -aRay.mDirection);",
+         find="const float cosAtLight = glm::dot(aHit.GeometricNormal(), -aRay.mDirection);",
          replace="const float cosAtLight = 1.f;"),
     # --- Russian roulette ---------------------------------------------------------------------
     dict(id="M28", cls="roulette", what="throughput not compensated for Russian roulette",

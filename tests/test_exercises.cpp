@@ -218,14 +218,14 @@ void AnalyticDirectLight(const Scene& aScene, std::vector<int>& oWall, std::vect
             for (int j = 0; j < 4; j++)
                 for (int i = 0; i < 4; i++) {
                     const Ray ray = camera.GenerateRay(Vec2(float(x) + (float(i) + 0.5f) / 4.f, float(y) + (float(j) + 0.5f) / 4.f));
-                    Hit hit;
-                    const int w = aScene.Intersect(ray, hit) ? WallOf(hit.mNormal) : -1;
+                    const SurfacePoint hit = aScene.Intersect(ray);
+                    const int w = hit.IsValid() ? WallOf(hit.GeometricNormal()) : -1;
                     wall = (wall == -2 || wall == w) ? w : -1;
                     if (w < 0) continue;
                     const glm::dvec3 p = glm::dvec3(ray.mOrigin) + glm::dvec3(ray.mDirection) * double(hit.mDist);
                     const glm::dvec3 toLight = glm::dvec3(kBoxLight) - p;
                     const double d2 = glm::dot(toLight, toLight);
-                    const double cosine = glm::dot(glm::dvec3(hit.mNormal), toLight) / std::sqrt(d2);
+                    const double cosine = glm::dot(glm::dvec3(hit.GeometricNormal()), toLight) / std::sqrt(d2);
                     sum += double(kBoxAlbedo) / kPiD * double(kBoxIntensity) * std::max(0.0, cosine) / d2;
                 }
             const size_t pixel = size_t(y * camera.Width() + x);

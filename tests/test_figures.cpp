@@ -158,8 +158,8 @@ Mask PixelsWhoseFootprint(const Scene& aScene, Test&& aTest) {
             bool all = true;
             for (const Vec2 offset : {Vec2(0.f, 0.f), Vec2(1.f, 0.f), Vec2(0.f, 1.f), Vec2(1.f, 1.f), Vec2(0.5f, 0.5f)}) {
                 const Ray ray = camera.GenerateRay(Vec2(float(x), float(y)) + offset);
-                Hit hit;
-                const bool found = aScene.Intersect(ray, hit);
+                const SurfacePoint hit = aScene.Intersect(ray);
+                const bool found = hit.IsValid();
                 all = all && aTest(ray, hit, found);
             }
             mask[size_t(y * camera.Width() + x)] = all;
@@ -168,7 +168,7 @@ Mask PixelsWhoseFootprint(const Scene& aScene, Test&& aTest) {
 }
 
 Mask PixelsSeeingOnlyDeltaSurfaces(const Scene& aScene) {
-    return PixelsWhoseFootprint(aScene, [&](const Ray&, const Hit& aHit, bool aFound) {
+    return PixelsWhoseFootprint(aScene, [&](const Ray&, const SurfacePoint& aHit, bool aFound) {
         return aFound && aHit.mLightId < 0 && IsDeltaMaterial(aScene.GetMaterial(aHit.mMaterialId));
     });
 }
@@ -177,7 +177,7 @@ Mask PixelsSeeingOnlyDeltaSurfaces(const Scene& aScene) {
 // the same technique (the camera ray hits the emitter) and, at 16-32 pixels across, the
 // light's jagged outline makes most of the image's error, the same for all of them.
 Mask PixelsNotSeeingALight(const Scene& aScene) {
-    return PixelsWhoseFootprint(aScene, [](const Ray&, const Hit& aHit, bool aFound) { return !aFound || aHit.mLightId < 0; });
+    return PixelsWhoseFootprint(aScene, [](const Ray&, const SurfacePoint& aHit, bool aFound) { return !aFound || aHit.mLightId < 0; });
 }
 
 double ChannelMean(const Vec3& aColor) { return (double(aColor.x) + double(aColor.y) + double(aColor.z)) / 3.0; }
@@ -550,19 +550,18 @@ TEST_CASE("F07: light tracing is black on specular surfaces seen directly and be
         REQUIRE(area > 0.f);
         lightCentre /= area;
     }
-    const Mask floor = PixelsWhoseFootprint(scene, [&](const Ray&, const Hit& aHit, bool aFound) {
-        return aFound && aHit.mLightId < 0 && aHit.mNormal.z > 0.9f && !IsDeltaMaterial(scene.GetMaterial(aHit.mMaterialId));
+    const Mask floor = PixelsWhoseFootprint(scene, [&](const Ray&, const SurfacePoint& aHit, bool aFound) {
+        return aFound && aHit.mLightId < 0 && aHit.GeometricNormal().z > 0.9f && !IsDeltaMaterial(scene.GetMaterial(aHit.mMaterialId));
     });
     Mask caustic(floor.size(), 0);
     for (int pixel = 0; pixel < scene.mCamera.PixelCount(); pixel++) {
         if (!floor[size_t(pixel)]) continue;
         const Ray ray = scene.mCamera.GenerateRay(Vec2(float(pixel % size) + 0.5f, float(pixel / size) + 0.5f));
-        Hit hit;
-        scene.Intersect(ray, hit);
+        const SurfacePoint hit = scene.Intersect(ray);
         const Vec3 point = ray.mOrigin + ray.mDirection * hit.mDist;
         const Vec3 toLight = lightCentre - point;
-        Hit blocker;
-        caustic[size_t(pixel)] = scene.Intersect(scene.SpawnRay(point, glm::normalize(toLight)), blocker) &&
+        const SurfacePoint blocker = scene.Intersect(scene.SpawnRay(point, glm::normalize(toLight)));
+        caustic[size_t(pixel)] = blocker.IsValid() &&
                                  blocker.mDist < glm::length(toLight) && IsDeltaMaterial(scene.GetMaterial(blocker.mMaterialId));
     }
     REQUIRE(Count(glass) > 10 * scale * scale);

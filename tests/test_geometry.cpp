@@ -321,8 +321,7 @@ TEST_CASE("A ray through the edge shared by the two triangles of a quad hits at 
             const Ray ray{start, glm::normalize(onEdge - start)};
             rays++;
             for (int order = 0; order < 2; order++) {
-                Hit hit;
-                if (!quads[order].Intersect(ray, hit)) misses[order]++;
+                if (!quads[order].Intersect(ray).IsValid()) misses[order]++;
             }
         }
     }
@@ -380,8 +379,8 @@ TEST_CASE("Scene::Intersect finds the same nearest hit as brute force for 100,00
         const Ray ray{3.f * rng.GetVec3() - Vec3(1.5f), SampleUniformSphereW(rng.GetVec2())};
         float bruteT = kInfinity;
         const int brute = BruteForceNearest(primitives, ray, 0.f, bruteT);
-        Hit hit;
-        const bool found = scene.Intersect(ray, hit);
+        const SurfacePoint hit = scene.Intersect(ray);
+        const bool found = hit.IsValid();
         REQUIRE(found == (brute >= 0));
         if (!found) continue;
         hits++;
@@ -394,13 +393,13 @@ TEST_CASE("Scene::Intersect finds the same nearest hit as brute force for 100,00
         REQUIRE(hit.mMaterialId == 0);
         REQUIRE(hit.mLightId == -1);
         if (hit.mPrimitiveId < 2000) {
-            REQUIRE(hit.mNormal == scene.mTriangles[size_t(hit.mPrimitiveId)].mNormal);
+            REQUIRE(hit.GeometricNormal() == scene.mTriangles[size_t(hit.mPrimitiveId)].mNormal);
         } else {
             sphereHits++;
             const Sphere& sphere = scene.mSpheres[size_t(hit.mPrimitiveId - 2000)];
             const Vec3 outward = glm::normalize(ray.mOrigin + hit.mDist * ray.mDirection - sphere.mCenter);
-            REQUIRE(glm::length(hit.mNormal) == Approx(1.f).epsilon(1e-5));
-            REQUIRE(glm::dot(hit.mNormal, outward) > 0.9999f);
+            REQUIRE(glm::length(hit.GeometricNormal()) == Approx(1.f).epsilon(1e-5));
+            REQUIRE(glm::dot(hit.GeometricNormal(), outward) > 0.9999f);
         }
     }
     INFO(hits << " hits, " << sphereHits << " on spheres, " << ties << " exact ties");

@@ -833,9 +833,9 @@ TEST_CASE("An inside-out mesh reflects outside only with a doubleSided material,
         CHECK_THAT(note, Catch::Contains(doubleSided ? "doubleSided material reflects on both sides" : "its outside is black"));
         // Seen from outside (+z above the cube, whose top faces down): black or not.
         const Ray ray{Vec3(0.1f, 0.2f, 3.f), Vec3(0.f, 0.f, -1.f)};
-        Hit hit;
-        REQUIRE(scene.Intersect(ray, hit));
-        REQUIRE(hit.mNormal.z < 0.f);
+        const SurfacePoint hit = scene.Intersect(ray);
+        REQUIRE(hit.IsValid());
+        REQUIRE(hit.GeometricNormal().z < 0.f);
         Bsdf bsdf;
         bsdf.Setup(ray, hit, scene, Transport::kRadiance);
         CHECK(bsdf.IsValid() == doubleSided);
@@ -890,8 +890,8 @@ std::string WriteTexturedFloor(const TemporaryFolder& aFolder, const Image& aIma
 
 // The base-colour texel the scene finds at (x, y) on the floor, seen from above.
 Vec3 TexelAt(const Scene& aScene, float aX, float aY) {
-    Hit hit;
-    REQUIRE(aScene.Intersect(Ray{Vec3(aX, aY, 1.f), Vec3(0.f, 0.f, -1.f)}, hit));
+    const SurfacePoint hit = aScene.Intersect(Ray{Vec3(aX, aY, 1.f), Vec3(0.f, 0.f, -1.f)});
+    REQUIRE(hit.IsValid());
     return aScene.BaseColorTexel(hit);
 }
 
@@ -940,9 +940,9 @@ TEST_CASE("A glTF base-colour texture is read from a PNG file, sRGB-decoded and 
     // The BSDF sees base colour x texel: diffuse = 0.96 x (0.5, 1, 1) x texel / pi, plus
     // the untinted dielectric specular of metallic 0 (0.04, Phong exponent 0 at roughness
     // 1: 0.04 (0 + 2) / (2 pi) = 0.04 / pi), which the texel does not colour.
-    Hit hit;
     const Ray down{Vec3(0.25f, 0.75f, 1.f), Vec3(0.f, 0.f, -1.f)};
-    REQUIRE(scene.Intersect(down, hit));
+    const SurfacePoint hit = scene.Intersect(down);
+    REQUIRE(hit.IsValid());
     Bsdf bsdf;
     bsdf.Setup(down, hit, scene, Transport::kRadiance);
     float cosGen;
@@ -1036,11 +1036,11 @@ TEST_CASE("A glTF emissiveTexture is sRGB-decoded and multiplies emissiveFactor 
     REQUIRE(light.mEmissionTexture >= 0);
     const Vec3 scale = 3.f * Vec3(2.f, 1.f, 0.5f);
     const auto radianceAt = [&](float aX, float aY) {
-        Hit hit;
         const Ray down{Vec3(aX, aY, 1.f), Vec3(0.f, 0.f, -1.f)};
-        REQUIRE(scene.Intersect(down, hit));
+        const SurfacePoint hit = scene.Intersect(down);
+        REQUIRE(hit.IsValid());
         REQUIRE(hit.mLightId == 0);
-        return light.GetRadiance(scene.GetSceneSphere(), down.mDirection, hit.mNormal, hit.mUv).mRadiance;
+        return light.GetRadiance(scene.GetSceneSphere(), down.mDirection, hit.GeometricNormal(), hit.mUv).mRadiance;
     };
     CHECK(radianceAt(0.25f, 0.75f) == scale * Vec3(1.f, 0.f, 0.f));
     CHECK(radianceAt(0.25f, 0.25f) == scale * Vec3(0.f, 0.f, 1.f));

@@ -26,8 +26,8 @@ std::vector<bool> BlocksSeeingOnlyDiffuse(const Scene& aScene, int aBlockSize) {
         for (int x = 0; x < blocksX * aBlockSize; x++)
             for (float sub : {0.1f, 0.5f, 0.9f}) {
                 const Ray ray = camera.GenerateRay(Vec2(float(x) + sub, float(y) + 1.f - sub));
-                Hit hit;
-                if (aScene.Intersect(ray, hit) && (aScene.GetMaterial(hit.mMaterialId).HasSpecular() ||
+                const SurfacePoint hit = aScene.Intersect(ray);
+                if (hit.IsValid() && (aScene.GetMaterial(hit.mMaterialId).HasSpecular() ||
                                                    !IsBlack(aScene.GetMaterial(hit.mMaterialId).mPhongReflectance)))
                     usable[size_t((y / aBlockSize) * blocksX + x / aBlockSize)] = false;
             }

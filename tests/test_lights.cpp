@@ -402,11 +402,11 @@ TEST_CASE("A constant emission texture gives next-event samples, light sub-paths
             CHECK(ea.mDirectPdfA == eb.mDirectPdfA);
             // A ray from the receiver to the emitted point hits the square there: the hit
             // carries the texture coordinates the light looks its texel up with.
-            Hit hit;
             const Vec3 toPoint = glm::normalize(eb.mPosition - receiver);
-            REQUIRE(textured.Intersect(Ray{receiver, toPoint}, hit));
-            const Light::RadianceAtHit ha = a.GetRadiance(plain.GetSceneSphere(), toPoint, hit.mNormal, Vec2(0.f));
-            const Light::RadianceAtHit hb = b.GetRadiance(textured.GetSceneSphere(), toPoint, hit.mNormal, hit.mUv);
+            const SurfacePoint hit = textured.Intersect(Ray{receiver, toPoint});
+            REQUIRE(hit.IsValid());
+            const Light::RadianceAtHit ha = a.GetRadiance(plain.GetSceneSphere(), toPoint, hit.GeometricNormal(), Vec2(0.f));
+            const Light::RadianceAtHit hb = b.GetRadiance(textured.GetSceneSphere(), toPoint, hit.GeometricNormal(), hit.mUv);
             CHECK(CloseRelative(ha.mRadiance, hb.mRadiance, 1e-6f));
             CHECK(ha.mDirectPdfA == hb.mDirectPdfA);
             CHECK(ha.mEmissionPdfW == hb.mEmissionPdfW);

@@ -38,8 +38,8 @@ std::vector<Region> Regions(const Scene& aScene) {
     for (int p = 0; p < camera.PixelCount(); p++) {
         const Vec2 corner(float(p % camera.Width()), float(p / camera.Width()));
         for (const Vec2 offset : {Vec2(0.5f), Vec2(0.f), Vec2(1.f, 0.f), Vec2(0.f, 1.f), Vec2(1.f)}) {
-            Hit hit;
-            if (!aScene.Intersect(camera.GenerateRay(corner + offset * 0.999f), hit)) continue;
+            const SurfacePoint hit = aScene.Intersect(camera.GenerateRay(corner + offset * 0.999f));
+            if (!hit.IsValid()) continue;
             if (hit.mLightId >= 0) regions[size_t(p)] = Region::kNone;
             const bool smooth = hit.mPrimitiveId < int(aScene.mTriangles.size()) &&
                                 aScene.mTriangles[size_t(hit.mPrimitiveId)].mHasVertexNormals;
@@ -50,9 +50,9 @@ std::vector<Region> Regions(const Scene& aScene) {
 }
 
 // The point straight below aOrigin where a downward ray meets aScene.
-Hit HitBelow(const Scene& aScene, const Vec3& aOrigin) {
-    Hit hit;
-    REQUIRE(aScene.Intersect(Ray{aOrigin, Vec3(0.f, 0.f, -1.f)}, hit));
+SurfacePoint HitBelow(const Scene& aScene, const Vec3& aOrigin) {
+    const SurfacePoint hit = aScene.Intersect(Ray{aOrigin, Vec3(0.f, 0.f, -1.f)});
+    REQUIRE(hit.IsValid());
     return hit;
 }
 
@@ -84,21 +84,21 @@ TEST_CASE("A smooth triangle interpolates its vertex normals; flat triangles and
     scene.Finalize();
 
     // At (just inside) each vertex, the vertex normal; at the centroid, their normalised mean.
-    RequireNear(HitBelow(scene, Vec3(1e-6f, 1e-6f, 1.f)).mShadingNormal, n0, 1e-5f);
-    RequireNear(HitBelow(scene, Vec3(1.f - 2e-6f, 1e-6f, 1.f)).mShadingNormal, n1, 1e-5f);
-    RequireNear(HitBelow(scene, Vec3(1e-6f, 1.f - 2e-6f, 1.f)).mShadingNormal, n2, 1e-5f);
-    const Hit centroid = HitBelow(scene, Vec3(1.f / 3.f, 1.f / 3.f, 1.f));
-    RequireNear(centroid.mShadingNormal, glm::normalize(n0 + n1 + n2));
-    REQUIRE(centroid.mNormal == Vec3(0.f, 0.f, 1.f));
-    REQUIRE(std::abs(glm::length(centroid.mShadingNormal) - 1.f) < 1e-6f);
+    RequireNear(HitBelow(scene, Vec3(1e-6f, 1e-6f, 1.f)).ShadingNormal(), n0, 1e-5f);
+    RequireNear(HitBelow(scene, Vec3(1.f - 2e-6f, 1e-6f, 1.f)).ShadingNormal(), n1, 1e-5f);
+    RequireNear(HitBelow(scene, Vec3(1e-6f, 1.f - 2e-6f, 1.f)).ShadingNormal(), n2, 1e-5f);
+    const SurfacePoint centroid = HitBelow(scene, Vec3(1.f / 3.f, 1.f / 3.f, 1.f));
+    RequireNear(centroid.ShadingNormal(), glm::normalize(n0 + n1 + n2));
+    REQUIRE(centroid.GeometricNormal() == Vec3(0.f, 0.f, 1.f));
+    REQUIRE(std::abs(glm::length(centroid.ShadingNormal()) - 1.f) < 1e-6f);
     // Half way along the edge from vertex 1 to vertex 2.
-    RequireNear(HitBelow(scene, Vec3(0.5f, 0.5f - 1e-6f, 1.f)).mShadingNormal, glm::normalize(n1 + n2));
+    RequireNear(HitBelow(scene, Vec3(0.5f, 0.5f - 1e-6f, 1.f)).ShadingNormal(), glm::normalize(n1 + n2));
 
-    const Hit flat = HitBelow(scene, Vec3(3.25f, 0.25f, 1.f));
-    REQUIRE(flat.mShadingNormal == flat.mNormal);  // bit for bit: a Bsdf then computes as before
-    Hit sphere;
-    REQUIRE(scene.Intersect(Ray{Vec3(-3.f, -2.f, 0.1f), Vec3(0.f, 1.f, 0.f)}, sphere));
-    REQUIRE(sphere.mShadingNormal == sphere.mNormal);
+    const SurfacePoint flat = HitBelow(scene, Vec3(3.25f, 0.25f, 1.f));
+    REQUIRE(flat.ShadingNormal() == flat.GeometricNormal());  // bit for bit: a Bsdf then computes as before
+    const SurfacePoint sphere = scene.Intersect(Ray{Vec3(-3.f, -2.f, 0.1f), Vec3(0.f, 1.f, 0.f)});
+    REQUIRE(sphere.IsValid());
+    REQUIRE(sphere.ShadingNormal() == sphere.GeometricNormal());
 }
 
 TEST_CASE("Vertex normals that point against the winding are turned to its side", "[shading][geometry]") {
@@ -112,9 +112,9 @@ TEST_CASE("Vertex normals that point against the winding are turned to its side"
     triangle.mN0 = triangle.mN1 = triangle.mN2 = down;
     scene.AddPointLight(Vec3(0.f, 0.f, 3.f), Vec3(1.f));
     scene.Finalize();
-    const Hit hit = HitBelow(scene, Vec3(0.25f, 0.25f, 1.f));
-    REQUIRE(hit.mNormal == Vec3(0.f, 0.f, 1.f));
-    RequireNear(hit.mShadingNormal, -down);
+    const SurfacePoint hit = HitBelow(scene, Vec3(0.25f, 0.25f, 1.f));
+    REQUIRE(hit.GeometricNormal() == Vec3(0.f, 0.f, 1.f));
+    RequireNear(hit.ShadingNormal(), -down);
 }
 
 TEST_CASE("A double-sided smooth mesh wound against its normals still reflects from the side the normals face", "[shading][geometry]") {
@@ -132,10 +132,10 @@ TEST_CASE("A double-sided smooth mesh wound against its normals still reflects f
     scene.AddPointLight(Vec3(0.f, 0.f, 3.f), Vec3(1.f));
     scene.Finalize();
     const Ray ray{Vec3(0.25f, 0.25f, 1.f), Vec3(0.f, 0.f, -1.f)};
-    Hit hit;
-    REQUIRE(scene.Intersect(ray, hit));
-    REQUIRE(hit.mNormal.z < 0.f);
-    REQUIRE(hit.mShadingNormal.z < 0.f);  // turned to the winding's side
+    const SurfacePoint hit = scene.Intersect(ray);
+    REQUIRE(hit.IsValid());
+    REQUIRE(hit.GeometricNormal().z < 0.f);
+    REQUIRE(hit.ShadingNormal().z < 0.f);  // turned to the winding's side
     for (const Transport transport : {Transport::kRadiance, Transport::kImportance}) {
         Bsdf bsdf;
         bsdf.Setup(ray, hit, scene, transport);
@@ -157,12 +157,12 @@ TEST_CASE("NORMAL is normalised, noted and carried to world space by the inverse
     REQUIRE(noted);
     // World normals: diag(1/2, 1, 1) (-+0.6, 0, 0.8), normalised: the lean halves.
     const Vec3 left = glm::normalize(Vec3(-0.3f, 0.f, 0.8f)), right = glm::normalize(Vec3(0.3f, 0.f, 0.8f));
-    RequireNear(HitBelow(scene, Vec3(-2.f + 1e-5f, 0.5f, 0.5f)).mShadingNormal, left, 1e-4f);
-    RequireNear(HitBelow(scene, Vec3(2.f - 1e-5f, -0.5f, 0.5f)).mShadingNormal, right, 1e-4f);
+    RequireNear(HitBelow(scene, Vec3(-2.f + 1e-5f, 0.5f, 0.5f)).ShadingNormal(), left, 1e-4f);
+    RequireNear(HitBelow(scene, Vec3(2.f - 1e-5f, -0.5f, 0.5f)).ShadingNormal(), right, 1e-4f);
     // The vertex normals depend on x only, so interpolation is linear in x: at x = 1,
     // a quarter of the left normal and three quarters of the right one.
-    RequireNear(HitBelow(scene, Vec3(1.f, 0.5f, 0.5f)).mShadingNormal, glm::normalize(0.25f * left + 0.75f * right), 1e-5f);
-    RequireNear(HitBelow(scene, Vec3(0.f, -0.5f, 0.5f)).mShadingNormal, Vec3(0.f, 0.f, 1.f), 1e-5f);
+    RequireNear(HitBelow(scene, Vec3(1.f, 0.5f, 0.5f)).ShadingNormal(), glm::normalize(0.25f * left + 0.75f * right), 1e-5f);
+    RequireNear(HitBelow(scene, Vec3(0.f, -0.5f, 0.5f)).ShadingNormal(), Vec3(0.f, 0.f, 1.f), 1e-5f);
 }
 
 TEST_CASE("The adjoint shading factor and the Bsdf of both transport directions", "[shading][bsdf]") {
@@ -356,8 +356,8 @@ TEST_CASE("Path tracing, BPT and VCM agree on a box whose diffuse walls carry a 
     for (int p = 0; p < scene.mCamera.PixelCount(); p++) {
         const Vec2 corner(float(p % scene.mCamera.Width()), float(p / scene.mCamera.Width()));
         for (const Vec2 offset : {Vec2(0.5f), Vec2(0.f), Vec2(1.f, 0.f), Vec2(0.f, 1.f), Vec2(1.f)}) {
-            Hit hit;
-            if (scene.Intersect(scene.mCamera.GenerateRay(corner + offset * 0.999f), hit) && hit.mLightId >= 0)
+            const SurfacePoint hit = scene.Intersect(scene.mCamera.GenerateRay(corner + offset * 0.999f));
+            if (hit.IsValid() && hit.mLightId >= 0)
                 regionOfPixel[size_t(p)] = -1;
         }
     }

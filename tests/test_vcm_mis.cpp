@@ -214,8 +214,8 @@ bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
     };
 
     for (;;) {
-        Hit hit;
-        if (!aScene.Intersect(ray, hit)) {
+        const SurfacePoint hit = aScene.Intersect(ray);
+        if (!hit.IsValid()) {
             const Light* background = aScene.GetBackground();
             if (!background) return false;
             oPath = FullPath();
@@ -230,11 +230,11 @@ bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
         }
         const Vec3 hitPoint = ray.mOrigin + ray.mDirection * hit.mDist;
         if (hit.mLightId >= 0) {
-            if (!(glm::dot(hit.mNormal, -ray.mDirection) > 0.f)) return false;  // back of an emitter
+            if (!(glm::dot(hit.GeometricNormal(), -ray.mDirection) > 0.f)) return false;  // back of an emitter
             oPath = FullPath();
             oPath.lightId = hit.mLightId;
             points.push_back(hitPoint);
-            normals.push_back(hit.mNormal);
+            normals.push_back(hit.GeometricNormal());
             materials.push_back(-1);
             events.push_back(0);
             finish(oPath);
@@ -244,7 +244,7 @@ bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
         bsdf.Setup(ray, hit, aScene, Transport::kRadiance);
         if (!bsdf.IsValid()) return false;
         points.push_back(hitPoint);
-        normals.push_back(hit.mNormal);
+        normals.push_back(hit.GeometricNormal());
         materials.push_back(hit.mMaterialId);
         events.push_back(0);
         const int segments = int(points.size()) - 1;
@@ -261,16 +261,16 @@ bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
             oPath = FullPath();
             oPath.closedByLightSample = true;
             const Ray shadow = aScene.SpawnRay(hitPoint, sample.mDirToLight);
-            Hit lightHit;
             switch (light.mType) {
             case LightType::kArea: {
+                const SurfacePoint lightHit = aScene.Intersect(shadow);
                 // The ray towards the sampled point must reach an emitter's front side.
-                if (!aScene.Intersect(shadow, lightHit) || lightHit.mLightId < 0) return false;
+                if (!lightHit.IsValid() || lightHit.mLightId < 0) return false;
                 const Vec3 lightPoint = shadow.mOrigin + shadow.mDirection * lightHit.mDist;
-                if (!(glm::dot(lightHit.mNormal, -shadow.mDirection) > 0.f)) return false;
+                if (!(glm::dot(lightHit.GeometricNormal(), -shadow.mDirection) > 0.f)) return false;
                 lightId = lightHit.mLightId;
                 points.push_back(lightPoint);
-                normals.push_back(lightHit.mNormal);
+                normals.push_back(lightHit.GeometricNormal());
                 break;
             }
             case LightType::kPoint:
@@ -280,7 +280,7 @@ bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
                 break;
             case LightType::kDirectional:
             case LightType::kBackground:
-                if (aScene.Intersect(shadow, lightHit)) return false;
+                if (aScene.Intersect(shadow).IsValid()) return false;
                 oPath.dirToInfinity = sample.mDirToLight;
                 points.push_back(Vec3(0.f));
                 normals.push_back(Vec3(0.f));
@@ -846,10 +846,9 @@ std::vector<float> AllRecursiveWeights(const Scene& aScene, const FullPath& aPat
 bool FiniteUnitInterval(float aW) { return std::isfinite(aW) && aW >= 0.f && aW <= 1.f + 1e-6f; }
 
 // A probe ray's hit: the point, normal and material of the surface it meets.
-Hit Probe(const Scene& aScene, const Vec3& aFrom, const Vec3& aTowards, Vec3& oPoint) {
+SurfacePoint Probe(const Scene& aScene, const Vec3& aFrom, const Vec3& aTowards, Vec3& oPoint) {
     const Ray ray{aFrom, glm::normalize(aTowards - aFrom)};
-    Hit hit;
-    aScene.Intersect(ray, hit);
+    const SurfacePoint hit = aScene.Intersect(ray);
     oPoint = ray.mOrigin + ray.mDirection * hit.mDist;
     return hit;
 }
@@ -974,10 +973,10 @@ bool PathFromVertices(const Scene& aScene, const std::vector<VertexCM::PathVerte
     // surface seen from x_1 in its direction gives it.
     if (!oPath.infiniteLight && !oPath.deltaLight && oPath.n[0] == Vec3(0.f)) {
         Vec3 point;
-        const Hit hit = Probe(aScene, oPath.x[1] + aScene.RayEpsilon() * glm::normalize(oPath.x[0] - oPath.x[1]),
+        const SurfacePoint hit = Probe(aScene, oPath.x[1] + aScene.RayEpsilon() * glm::normalize(oPath.x[0] - oPath.x[1]),
                               oPath.x[0], point);
         if (hit.mLightId != oPath.lightId) return false;
-        oPath.n[0] = hit.mNormal;
+        oPath.n[0] = hit.GeometricNormal();
     }
     return true;
 }
@@ -1226,24 +1225,24 @@ TEST_CASE("Degenerate paths and pdfs give finite weights in [0, 1], never NaN", 
         const Scene& scene = CornellScene(4);
         const Vec3 eye = scene.mCamera.Position();
         Vec3 floorProbe, wallProbe, lightProbe, leftProbe;
-        const Hit floorHit = Probe(scene, eye, Vec3(0.f, 0.f, -1.28002f), floorProbe);
-        const Hit wallHit = Probe(scene, eye, Vec3(0.f, 1.30455f, 0.f), wallProbe);
-        const Hit lightHit = Probe(scene, Vec3(0.01f, 0.02f, 0.f), Vec3(0.01f, 0.02f, 2.f), lightProbe);
-        const Hit leftHit = Probe(scene, Vec3(0.f, 0.f, 0.f), Vec3(-2.f, 0.f, 0.f), leftProbe);
+        const SurfacePoint floorHit = Probe(scene, eye, Vec3(0.f, 0.f, -1.28002f), floorProbe);
+        const SurfacePoint wallHit = Probe(scene, eye, Vec3(0.f, 1.30455f, 0.f), wallProbe);
+        const SurfacePoint lightHit = Probe(scene, Vec3(0.01f, 0.02f, 0.f), Vec3(0.01f, 0.02f, 2.f), lightProbe);
+        const SurfacePoint leftHit = Probe(scene, Vec3(0.f, 0.f, 0.f), Vec3(-2.f, 0.f, 0.f), leftProbe);
         REQUIRE(floorHit.IsValid());
         REQUIRE(wallHit.IsValid());
         REQUIRE(lightHit.mLightId >= 0);
         REQUIRE(leftHit.IsValid());
-        auto makePath = [&](const std::vector<Vec3>& aInterior, const std::vector<const Hit*>& aHits) {
+        auto makePath = [&](const std::vector<Vec3>& aInterior, const std::vector<const SurfacePoint*>& aHits) {
             FullPath path;
             path.lightId = lightHit.mLightId;
             path.x.push_back(lightProbe);
-            path.n.push_back(lightHit.mNormal);
+            path.n.push_back(lightHit.GeometricNormal());
             path.material.push_back(-1);
             path.event.push_back(0);
             for (size_t i = 0; i < aInterior.size(); i++) {
                 path.x.push_back(aInterior[i]);
-                path.n.push_back(aHits[i]->mNormal);
+                path.n.push_back(aHits[i]->GeometricNormal());
                 path.material.push_back(aHits[i]->mMaterialId);
                 path.event.push_back(0);
             }
