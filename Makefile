@@ -206,7 +206,7 @@ $(BUILD)/bench_embree: examples/bench_embree.cpp $(HEADER) | $(BUILD)
 # NumPy are installed with pip into the virtual environment build/mitsuba-venv (python3-venv
 # from Debian), and Dr.Jit's LLVM back end gets Debian's libllvm19 (the LLVM 14 and 15 of
 # Debian 12 abort compiling its kernels on AVX-512 machines). BENCH_MITSUBA_ARGS=--quick:
-# tiny settings (about 15 s).
+# tiny settings (under a minute).
 MITSUBA_VENV := $(BUILD)/mitsuba-venv
 MITSUBA_LLVM := /usr/lib/x86_64-linux-gnu/libLLVM-19.so
 .PHONY: bench-mitsuba
