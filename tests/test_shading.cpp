@@ -101,6 +101,75 @@ TEST_CASE("A smooth triangle interpolates its vertex normals; flat triangles and
     REQUIRE(sphere.ShadingNormal() == sphere.GeometricNormal());
 }
 
+TEST_CASE("A surface point carries orthonormal geometric and shading frames, and a Bsdf set up from it equals one set up from its normals", "[shading][geometry]") {
+    // A smooth triangle (front +z), a flat one, a sphere, and a two-sided smooth triangle
+    // seen from behind (whose Bsdf turns the shading frame around).
+    Scene scene;
+    Material white;
+    white.mDiffuseReflectance = Vec3(0.5f);
+    white.mPhongReflectance = Vec3(0.3f);
+    white.mPhongExponent = 20.f;
+    Material twoSided = white;
+    twoSided.mTwoSided = true;
+    const int oneSidedId = scene.AddMaterial(white), twoSidedId = scene.AddMaterial(twoSided);
+    for (const float x : {0.f, 6.f}) {
+        scene.AddTriangle(Vec3(x, 0.f, 0.f), Vec3(x + 1.f, 0.f, 0.f), Vec3(x, 1.f, 0.f), x == 0.f ? oneSidedId : twoSidedId);
+        Triangle& triangle = scene.mTriangles.back();
+        triangle.mHasVertexNormals = true;
+        triangle.mN0 = glm::normalize(Vec3(-0.3f, -0.3f, 1.f));
+        triangle.mN1 = glm::normalize(Vec3(0.4f, 0.f, 1.f));
+        triangle.mN2 = glm::normalize(Vec3(0.f, 0.5f, 1.f));
+    }
+    scene.AddTriangle(Vec3(3.f, 0.f, 0.f), Vec3(4.f, 0.f, 0.f), Vec3(3.f, 1.f, 0.f), oneSidedId);
+    scene.AddSphere(Vec3(-3.f, 0.f, 0.f), 0.5f, oneSidedId);
+    scene.AddPointLight(Vec3(0.f, 0.f, 3.f), Vec3(1.f));
+    scene.Finalize();
+
+    const auto sameFrame = [](const Frame& aA, const Frame& aB) { return aA.mX == aB.mX && aA.mY == aB.mY && aA.mZ == aB.mZ; };
+    const Ray smoothRay{Vec3(0.3f, 0.2f, 1.f), Vec3(0.f, 0.f, -1.f)}, flatRay{Vec3(3.25f, 0.25f, 1.f), Vec3(0.f, 0.f, -1.f)};
+    const Ray sphereRay{Vec3(-3.1f, -2.f, 0.2f), Vec3(0.f, 1.f, 0.f)}, behindRay{Vec3(6.3f, 0.2f, -1.f), Vec3(0.f, 0.f, 1.f)};
+    for (const Ray& ray : {smoothRay, flatRay, sphereRay, behindRay}) {
+        const SurfacePoint hit = scene.Intersect(ray);
+        REQUIRE(hit.IsValid());
+        for (const Frame& frame : {hit.mGeometricFrame, hit.mShadingFrame}) {
+            CHECK(std::abs(glm::length(frame.mX) - 1.f) < 1e-6f);
+            CHECK(std::abs(glm::length(frame.mY) - 1.f) < 1e-6f);
+            CHECK(std::abs(glm::length(frame.mZ) - 1.f) < 1e-6f);
+            CHECK(std::abs(glm::dot(frame.mX, frame.mY)) < 1e-6f);
+            RequireNear(glm::cross(frame.mX, frame.mY), frame.mZ, 1e-6f);  // right-handed
+        }
+        // Both are the header's one construction from the normal, bit for bit.
+        CHECK(sameFrame(hit.mGeometricFrame, Frame(hit.GeometricNormal())));
+        CHECK(sameFrame(hit.mShadingFrame, Frame(hit.ShadingNormal())));
+        const bool smooth = hit.mPrimitiveId < int(scene.mTriangles.size()) && scene.mTriangles[size_t(hit.mPrimitiveId)].mHasVertexNormals;
+        CHECK(sameFrame(hit.mShadingFrame, hit.mGeometricFrame) == !smooth);
+
+        // The Bsdf from the surface point (its frame taken as it is) and from the two
+        // normals (its frame built from the shading normal) compute the same bits.
+        const Material& material = scene.GetMaterial(hit.mMaterialId);
+        for (const Transport transport : {Transport::kRadiance, Transport::kImportance}) {
+            Bsdf fromPoint, fromNormals;
+            fromPoint.Setup(ray, hit, scene, transport);
+            fromNormals.Setup(-ray.mDirection, hit.GeometricNormal(), hit.ShadingNormal(), material, transport);
+            REQUIRE(fromPoint.IsValid());
+            REQUIRE(fromNormals.IsValid());
+            CHECK(fromPoint.WorldDirFix() == fromNormals.WorldDirFix());
+            CHECK(fromPoint.CosThetaFixGeometric() == fromNormals.CosThetaFixGeometric());
+            Rng rng(7);
+            for (int i = 0; i < 64; i++) {
+                const Vec3 gen = SampleUniformSphereW(rng.GetVec2());
+                float cosA = 0.f, cosB = 0.f, directA = 0.f, directB = 0.f, reverseA = 0.f, reverseB = 0.f;
+                const Vec3 fA = fromPoint.Evaluate(gen, cosA, &directA, &reverseA);
+                const Vec3 fB = fromNormals.Evaluate(gen, cosB, &directB, &reverseB);
+                CHECK(fA == fB);
+                CHECK(cosA == cosB);
+                CHECK(directA == directB);
+                CHECK(reverseA == reverseB);
+            }
+        }
+    }
+}
+
 TEST_CASE("Vertex normals that point against the winding are turned to its side", "[shading][geometry]") {
     Scene scene;
     Material white;
