@@ -47,8 +47,9 @@ CXXFLAGS = ["-std=c++17", "-O2", "-w", "-I."]
 
 # Stages in order of cost: (name, test sources to add, Catch2 test spec, timeout in s,
 # programs examples/NAME.cpp the stage's tests run as ../build/NAME, built from the
-# mutated header). The timeouts are 10-30x what a stage takes unmutated on 2 idle cores:
-# a mutant that makes a walk endless is killed by the timeout, as it would be in CI.
+# mutated header). The timeouts are 10-30x what a stage takes unmutated on 2 idle cores
+# (after a baseline run, at least 10x what it took then): a mutant that makes a walk
+# endless is killed by the timeout, as it would be in CI.
 STAGES = [
     ("mis", ["test_vcm_mis"], "[mis]", 120, []),
     ("units", ["test_sampling", "test_bsdf", "test_camera", "test_light_units", "test_exercises"],
@@ -64,6 +65,7 @@ REST_TARGETS = ["build/tests/run_tests", "build/smallvcm", "build/bench", "build
 REST_SPEC = "~[regression]~[sampling]~[bsdf]~[camera]~[mis]~[light_units]~[lights]~[exercise]~[transport]" \
             "~[integrators]~[photon_mapping]~[stability]~[figures]~[convergence]"
 REST_TIMEOUT = 900
+REST_BUILD_TIMEOUT = 5400
 
 
 def log(message):
@@ -203,9 +205,11 @@ def build_programs(tree, programs, objdir, impl):
     return None
 
 
-def test_mutant(tree, shared, mutant, header, jobs, stage_count):
+def test_mutant(tree, shared, mutant, header, jobs, stage_count, timeouts=None, times=None):
     """('killed' | 'survived' | 'broken', stage, details). mutant None: the header as it is
-    (the baseline run, which must survive)."""
+    (the baseline run, which must survive). timeouts: a test run's limit per stage name
+    (default: the STAGES' own); times: filled with each stage's test run time."""
+    timeouts = timeouts or {}
     with open(os.path.join(tree, HEADER), "w") as f:
         f.write(header if mutant is None else mutated_header(header, mutant))
     objdir = os.path.join(tree, "mutant-obj")
@@ -236,7 +240,11 @@ def test_mutant(tree, shared, mutant, header, jobs, stage_count):
         if code != 0:
             return "broken", name, "link failed: " + out[-500:]
         junit = os.path.join(objdir, "report.xml")
+        timeout = timeouts.get(name, timeout)
+        started = time.time()
         code, out = run([binary, spec, "-a", "-r", "junit", "-o", junit], os.path.join(tree, "tests"), timeout)
+        if times is not None:
+            times[name] = time.time() - started
         if code == "timeout":
             return "killed", name, "timed out after %d s" % timeout
         if code != 0:
@@ -244,15 +252,23 @@ def test_mutant(tree, shared, mutant, header, jobs, stage_count):
     if stage_count <= len(STAGES):
         return "survived", "(%d stages only)" % stage_count, ""
     # The rest of the suite, with the Makefile.
+    # A build cannot loop, so its limit only guards against a hung machine: on 2 cores
+    # shared by a dozen jobs the whole suite took more than 20 minutes to compile.
     code, out = run(["make", "-j%d" % jobs, "--no-print-directory"] + REST_TARGETS +
-                    ["CXXFLAGS=" + " ".join(CXXFLAGS[:-1])], tree, 1200)
+                    ["CXXFLAGS=" + " ".join(CXXFLAGS[:-1])], tree, REST_BUILD_TIMEOUT)
+    if code == "timeout":
+        return "broken", "rest", "the build took more than %d s" % REST_BUILD_TIMEOUT
     if code != 0:
         return "broken", "rest", "make failed: " + out[-500:]
     junit = os.path.join(tree, "build", "report.xml")
+    rest_timeout = timeouts.get("rest", REST_TIMEOUT)
+    started = time.time()
     code, out = run(["../build/tests/run_tests", REST_SPEC, "-a", "-r", "junit", "-o", junit],
-                    os.path.join(tree, "tests"), REST_TIMEOUT)
+                    os.path.join(tree, "tests"), rest_timeout)
+    if times is not None:
+        times["rest"] = time.time() - started
     if code == "timeout":
-        return "killed", "rest", "timed out after %d s" % REST_TIMEOUT
+        return "killed", "rest", "timed out after %d s" % rest_timeout
     if code != 0:
         return "killed", "rest", "; ".join(failed_tests(junit, out))
     return "survived", "", ""
@@ -313,13 +329,16 @@ def main():
         report.flush()
 
     emit("# make mutants: %s, header %s" % (time.strftime("%Y-%m-%d %H:%M"), HEADER))
+    timeouts = {name: limit for name, _, _, limit, _ in STAGES}
+    timeouts["rest"] = REST_TIMEOUT
+    baseline_times = {}
     try:
         if not args.no_baseline:
             # The unmutated header through the same stages: a stage that fails without any
             # mutant (a program its tests need is missing, a flaky bound) would kill every
             # mutant that reaches it, and the score would mean nothing.
             t0 = time.time()
-            outcome, stage, details = test_mutant(tree, shared, None, header, args.jobs, args.stages)
+            outcome, stage, details = test_mutant(tree, shared, None, header, args.jobs, args.stages, times=baseline_times)
             emit("base %-14s %-12s %-20s %5.0f s  the unmutated header%s" % (
                 "passed" if outcome == "survived" else "FAILED", "", stage, time.time() - t0,
                 "" if outcome == "survived" else " -- " + details))
@@ -327,13 +346,17 @@ def main():
                 emit("mutants: stopped: the unmutated header fails stage %s, so no mutant's outcome would mean "
                      "anything" % stage)
                 return 1
+            # On a loaded machine a stage takes several times its idle time: a mutant's limit
+            # is at least 10 times what the unmutated header took here and now.
+            for name, seconds in baseline_times.items():
+                timeouts[name] = max(timeouts.get(name, 0), 10 * seconds)
         for m in selected:
             why = applicability(header, m)
             t0 = time.time()
             if why:
                 outcome, stage, details = "not applicable", "", why
             else:
-                outcome, stage, details = test_mutant(tree, shared, m, header, args.jobs, args.stages)
+                outcome, stage, details = test_mutant(tree, shared, m, header, args.jobs, args.stages, timeouts)
                 if outcome == "survived" and m.get("equivalent"):
                     outcome, details = "equivalent", m["equivalent"]
                 elif outcome == "killed" and m.get("equivalent"):
