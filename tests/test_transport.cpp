@@ -240,9 +240,10 @@ constexpr float kSceneRadiusFactor = 0.003f;
 
 struct LengthAgreementSetup {
     std::vector<Algorithm> estimators;  // each rendered with --min = --max = k
+    std::vector<int> estimatorIterations;  // per estimator: iterations of each of its renders
     bool allTechniques = false;         // every (s, t) samples every path (no specular vertex)
     bool deltaLights = false;           // s = 0 cannot hit them
-    int maxLength = 4, renders = 16, iterations = 128, size = 16;
+    int maxLength = 4, renders = 32, referenceIterations = 64, size = 16;
     uint64_t seed = 1;
 };
 
@@ -251,20 +252,27 @@ struct LengthAgreementSetup {
 // BPT's MIS-weighted sum of length k.
 // Tolerance: |mean difference| <= 5 SE of the difference (+ 1e-6 relative: float
 // rounding when both are the same sum). The SE is measured from the spread of the
-// per-render differences over `renders` = 16 independent renders (fixed seeds), each
+// per-render differences over `renders` = 32 independent renders (fixed seeds), each
 // paired with the reference render of the same index: the technique layers and the
-// reference come from one render, so their correlation is in the spread. With 15
-// degrees of freedom a 5 SE deviation has probability ~1.6e-4 (Student t) per check,
-// ~1 % over the ~100 checks below; the seeds are fixed, so the outcome is reproducible.
-// Resolution, measured on 2026-11-25 (16 x 16 pixels, 16 renders of 128 iterations,
-// about 10 s of CPU for the four scenes): the SE of a difference is 0.004-0.38 % of the
-// image mean (median 0.07 %), so 5 SE resolves 0.2 % of the image mean in 10 of the 61
-// non-trivial checks and 0.5 % in 39; the noisiest are pure path tracing (s = 0) behind
-// glass and the s = 2 connections of the spot room (printed per check). Killed by
-// them: a spot light's NEE without the falloff (M81), a sphere light of area pi r^2
-// (M49), and the other mutants listed in docs/testing.md.
+// reference come from one render, so their correlation is in the spread. With 31
+// degrees of freedom a 5 SE deviation has probability ~2e-5 (Student t) per check,
+// ~2e-3 over the ~100 checks below; the seeds are fixed, so the outcome is reproducible.
+// Resolution (printed per check, and per scene as the number of checks whose 5 SE are
+// at most 0.2 % of the image mean). With 16 renders of 128 iterations for everything
+// (~10 s of CPU for the four scenes) the SE was 0.004-0.38 % of the image mean and 5 SE
+// resolved 0.2 % in 10 of the 61 non-trivial checks. The iterations are now spent where
+// the measured SEs said they pay: the reference render (BPT with technique layers, cheap
+// per sample, and the only source of the technique checks' noise) gets 2-24x, each
+// estimator 1-6x, per scene as set in the test cases (~38 s of CPU for the four): 5 SE
+// resolve 0.2 % in 35 of 61 checks (glossy room 17 of 24, spot room 9 of 18, specular
+// room 7 of 11, camera in glass 2 of 8; measured 2026-11-25). The rest need 2-30x more
+// still: length 1 (the emitter's edges seen directly), the camera in glass at length 2,
+// pt and s = 2 in the spot room at length 3. Killed by these checks: a spot light's
+// NEE without the falloff (M81), a sphere light of area pi r^2 (M49), and the other
+// mutants listed in docs/testing.md.
 // Returns the worst |z|.
 double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSetup) {
+    REQUIRE(aSetup.estimatorIterations.size() == aSetup.estimators.size());
     const int K = aSetup.maxLength;
     // reference[k][r], technique[k][s][r], estimator[e][k][r]
     std::vector<std::vector<double>> reference(size_t(K) + 1);
@@ -272,8 +280,8 @@ double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSe
     std::vector<std::vector<std::vector<double>>> estimator(aSetup.estimators.size(), std::vector<std::vector<double>>(size_t(K) + 1));
     for (int r = 0; r < aSetup.renders; r++) {
         const uint64_t seed = aSetup.seed + 7919u * uint64_t(r);
-        const RenderResult bpt = RenderLengths(aScene, Algorithm::kBidirectionalPathTracing, 0, K, aSetup.iterations, seed, true,
-                                               kSceneRadiusFactor);
+        const RenderResult bpt = RenderLengths(aScene, Algorithm::kBidirectionalPathTracing, 0, K, aSetup.referenceIterations, seed,
+                                               true, kSceneRadiusFactor);
         for (int k = 1; k <= K; k++) {
             double weighted = 0.0;
             for (int s = 0; s <= k + 1; s++) {
@@ -288,12 +296,13 @@ double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSe
         for (size_t e = 0; e < aSetup.estimators.size(); e++)
             for (int k = 1; k <= K; k++)
                 estimator[e][size_t(k)].push_back(ImageMean(
-                    RenderLengths(aScene, aSetup.estimators[e], k, k, aSetup.iterations, seed + 104729u * uint64_t(k + 10 * e),
-                                  false, kSceneRadiusFactor).mImage));
+                    RenderLengths(aScene, aSetup.estimators[e], k, k, aSetup.estimatorIterations[e],
+                                  seed + 104729u * uint64_t(k + 10 * e), false, kSceneRadiusFactor).mImage));
     }
     double imageMean = 0.0;
     for (int k = 1; k <= K; k++) imageMean += MeanOf(reference[size_t(k)]).mean;
     double worst = 0.0;
+    int checks = 0, resolving = 0;  // non-trivial checks, and those whose 5 SE are <= 0.2 % of the image mean
     auto compare = [&](const std::string& aWhat, int aK, const std::vector<double>& aValues) {
         std::vector<double> differences;
         for (size_t r = 0; r < aValues.size(); r++) differences.push_back(aValues[r] - reference[size_t(aK)][r]);
@@ -301,6 +310,10 @@ double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSe
         const double ref = MeanOf(reference[size_t(aK)]).mean;
         const double z = d.standardError > 0.0 ? d.mean / d.standardError : (d.mean == 0.0 ? 0.0 : 1e30);
         worst = std::max(worst, std::abs(z));
+        if (d.standardError > 0.0) {
+            checks++;
+            resolving += kAgreementZ * d.standardError <= 0.002 * imageMean;
+        }
         std::printf("[transport] %-44s k=%d %-12s L_k %.5f diff %+.5f +- %.5f (%.3f %% of the image mean) z %+.2f\n",
                     aScene.mName.c_str(), aK, aWhat.c_str(), ref, d.mean, d.standardError, 100.0 * d.standardError / imageMean, z);
         INFO(aScene.mName << ", path length " << aK << ", " << aWhat << ": " << ref + d.mean << " vs BPT's " << ref
@@ -319,6 +332,8 @@ double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSe
             compare("s" + std::to_string(s) + "_t" + std::to_string(k + 1 - s), k, technique[size_t(k)][size_t(s)]);
         }
     }
+    std::printf("[transport] %-44s 5 SE resolve 0.2 %% of the image mean in %d of %d checks\n", aScene.mName.c_str(), resolving,
+                checks);
     return worst;
 }
 
@@ -327,6 +342,8 @@ double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSe
 TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree with BPT on a glossy room lit by a sphere light and a two-sided panel", "[transport]") {
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kVertexConnectionMerging};
+    setup.estimatorIterations = {256, 192, 64};
+    setup.referenceIterations = 768;
     setup.allTechniques = true;
     setup.seed = 3;
     CheckLengthAgreement(MakeGlossyRoom(setup.size), setup);
@@ -335,6 +352,8 @@ TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree wi
 TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree with BPT on a room lit by a spot light", "[transport]") {
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kVertexConnectionMerging};
+    setup.estimatorIterations = {64, 384, 64};
+    setup.referenceIterations = 1536;
     setup.allTechniques = true;
     setup.deltaLights = true;
     setup.seed = 5;
@@ -344,6 +363,8 @@ TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree wi
 TEST_CASE("Per length k = 1..4, pt, vcm and BPT's emitter hits agree with BPT through a mirror and a glass ball", "[transport]") {
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kVertexConnectionMerging};
+    setup.estimatorIterations = {256, 64};
+    setup.referenceIterations = 384;
     setup.seed = 9;
     CheckLengthAgreement(MakeSpecularRoom(setup.size), setup);
 }
@@ -351,6 +372,8 @@ TEST_CASE("Per length k = 1..4, pt, vcm and BPT's emitter hits agree with BPT th
 TEST_CASE("Per length k = 1..4, pt, vcm and BPT's emitter hits agree with BPT with the camera inside a glass ball", "[transport]") {
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kVertexConnectionMerging};
+    setup.estimatorIterations = {64, 64};
+    setup.referenceIterations = 128;
     setup.seed = 13;
     CheckLengthAgreement(MakeCameraInGlassRoom(setup.size), setup);
 }
