@@ -361,19 +361,21 @@ inline float PdfAtoW(float aPdfA, float aDist, float aCosThere) {
 // with a sphere and a triangle, and the contract of the bounding-volume hierarchy over
 // both kinds of primitive (its workings are the appendix at the end). Intersection is
 // two-sided: back faces occlude like front faces.
-// Invariant: ray directions are unit length; a SurfacePoint's geometric frame has the
-// geometric normal as z, pointing out of spheres and to the counter-clockwise side of
-// triangles; its shading frame has as z the normal the BSDF shades with: the
-// interpolated vertex normal of a smooth triangle, turned to the side of the geometric
-// normal, else the geometric normal itself (and then the two frames are equal bit for bit).
+// Invariant: ray directions are unit length; a SurfacePoint's geometric normal points
+// out of spheres and to the counter-clockwise side of triangles; its shading normal is
+// the one the BSDF shades with: the interpolated vertex normal of a smooth triangle,
+// turned to the side of the geometric normal, else the geometric normal itself (and then
+// the two are equal bit for bit).
 
 struct Ray {
     Vec3 mOrigin{0.f};
     Vec3 mDirection{0.f, 0.f, 1.f};
 };
 
-// The point where a ray meets the scene, with what shading it needs: both frames are
-// built here, once, and the Bsdf takes its frame from mShadingFrame. A ray that meets
+// The point where a ray meets the scene, with what shading it needs. It carries the two
+// normals, not frames around them: the Bsdf builds its one frame (around the shading
+// normal, turned to the viewer if two-sided), so no frame is built or copied twice, and
+// the point stays 60 bytes, which every ray writes and every vertex reads. A ray that meets
 // nothing gives an invalid point (IsValid() false, mDist infinite) rather than an empty
 // std::optional: a miss is an ordinary outcome that the integrators test once, right
 // after tracing, and then read the fields many times as hit.mFoo (not hit->mFoo).
@@ -384,11 +386,11 @@ struct SurfacePoint {
     int mMaterialId = -1;
     int mLightId = -1;      // >= 0 when the primitive emits
     Vec2 mUv{0.f};          // texture coordinates (set when the material or light has a texture)
-    Frame mGeometricFrame;  // z: the geometric normal, unit length
-    Frame mShadingFrame;    // z: the shading normal, unit length, on the geometric normal's side
+    Vec3 mGeometricNormal{0.f, 0.f, 1.f};  // unit length
+    Vec3 mShadingNormal{0.f, 0.f, 1.f};    // unit length, on the geometric normal's side
     bool IsValid() const { return mPrimitiveId >= 0; }
-    const Vec3& GeometricNormal() const { return mGeometricFrame.mZ; }
-    const Vec3& ShadingNormal() const { return mShadingFrame.mZ; }
+    const Vec3& GeometricNormal() const { return mGeometricNormal; }
+    const Vec3& ShadingNormal() const { return mShadingNormal; }
 };
 
 // Sphere: solves |o + t d - c|^2 = r^2 for the nearest t in (aTMin, aTMax).
@@ -1371,21 +1373,21 @@ public:
             const Triangle& triangle = mTriangles[size_t(primitive)];
             hit.mMaterialId = triangle.mMaterialId;
             hit.mLightId = triangle.mLightId;
-            hit.mGeometricFrame = Frame(triangle.mNormal);
-            hit.mShadingFrame = hit.mGeometricFrame;
+            hit.mGeometricNormal = triangle.mNormal;
+            hit.mShadingNormal = triangle.mNormal;
             const bool textured = mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0 ||
                                   (triangle.mLightId >= 0 && mLights[size_t(triangle.mLightId)].mEmissionTexture >= 0);
             if (textured || triangle.mHasVertexNormals) {
                 const TriangleBarycentrics b = Barycentrics(triangle, hit.mPosition);
                 if (textured) hit.mUv = TriangleUv(triangle, b);
-                if (triangle.mHasVertexNormals) hit.mShadingFrame = Frame(InterpolatedNormal(triangle, b));
+                if (triangle.mHasVertexNormals) hit.mShadingNormal = InterpolatedNormal(triangle, b);
             }
         } else {
             const Sphere& sphere = mSpheres[size_t(primitive - triangleCount)];
             hit.mMaterialId = sphere.mMaterialId;
             hit.mLightId = sphere.mLightId;
-            hit.mGeometricFrame = Frame(glm::normalize(hit.mPosition - sphere.mCenter));
-            hit.mShadingFrame = hit.mGeometricFrame;  // a sphere's normal is exact
+            hit.mGeometricNormal = glm::normalize(hit.mPosition - sphere.mCenter);
+            hit.mShadingNormal = hit.mGeometricNormal;  // a sphere's normal is exact
         }
         return hit;
     }
@@ -1597,15 +1599,15 @@ public:
     Bsdf() = default;
 
     // aRay is the ray that found aHit (its direction points into the surface); the Bsdf
-    // shades in aHit's shading frame.
+    // shades in a frame around aHit's shading normal.
     // aTransport: radiance on camera sub-paths, importance on light sub-paths.
     void Setup(const Ray& aRay, const SurfacePoint& aHit, const Scene& aScene, Transport aTransport) {
         const Material& material = aScene.GetMaterial(aHit.mMaterialId);
         if (material.mBaseColorTexture < 0)
-            SetupInFrame(-aRay.mDirection, aHit.GeometricNormal(), aHit.mShadingFrame, material, aTransport, nullptr);
+            Setup(-aRay.mDirection, aHit.GeometricNormal(), aHit.ShadingNormal(), material, aTransport, nullptr);
         else {
             const Vec3 texel = aScene.BaseColorTexel(aHit);
-            SetupInFrame(-aRay.mDirection, aHit.GeometricNormal(), aHit.mShadingFrame, material, aTransport, &texel);
+            Setup(-aRay.mDirection, aHit.GeometricNormal(), aHit.ShadingNormal(), material, aTransport, &texel);
         }
     }
     // The same from explicit data (what tests and stored light vertices use): aWorldDirFix
@@ -1619,19 +1621,11 @@ public:
                const Vec3* aBaseColorTexel = nullptr) {
         Setup(aWorldDirFix, aNormal, aNormal, aMaterial, aTransport, aBaseColorTexel);
     }
-    // aGeometricNormal, aShadingNormal: unit length, on one side (SurfacePoint's invariant);
-    // the shading frame is built from aShadingNormal as Scene::Intersect builds it.
+    // What every Setup comes to. aGeometricNormal, aShadingNormal: unit length, on one
+    // side (SurfacePoint's invariant); the shading frame is built here, once.
     // aBaseColorTexel: the material's texture at this point (see Material::mBaseColorTexture).
     void Setup(const Vec3& aWorldDirFix, const Vec3& aGeometricNormal, const Vec3& aShadingNormal,
                const Material& aMaterial, Transport aTransport, const Vec3* aBaseColorTexel = nullptr) {
-        SetupInFrame(aWorldDirFix, aGeometricNormal, Frame(aShadingNormal), aMaterial, aTransport, aBaseColorTexel);
-    }
-
-private:
-    // What every Setup comes to: the shading frame is given, built once where the
-    // surface point was found (or from an explicit normal above).
-    void SetupInFrame(const Vec3& aWorldDirFix, const Vec3& aGeometricNormal, const Frame& aShadingFrame,
-                      const Material& aMaterial, Transport aTransport, const Vec3* aBaseColorTexel) {
         mMaterial = &aMaterial;
         mTransport = aTransport;
         mReflectance = Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance};
@@ -1645,10 +1639,10 @@ private:
         }
         // A two-sided non-glass material turns both normals towards whoever looks at it,
         // deciding by the geometric one (the side the ray really arrives from).
-        mShaded = aShadingFrame.mZ != aGeometricNormal;
+        mShaded = aShadingNormal != aGeometricNormal;
         const bool flip = aMaterial.mTwoSided && aMaterial.mIor < 0.f && glm::dot(aGeometricNormal, aWorldDirFix) < 0.f;
         mGeometricNormal = flip ? -aGeometricNormal : aGeometricNormal;
-        mFrame = flip ? Frame(-aShadingFrame.mZ) : aShadingFrame;
+        mFrame.SetFromZ(flip ? -aShadingNormal : aShadingNormal);
         mLocalDirFix = mFrame.ToLocal(aWorldDirFix);
         mCosFixGeometric = mShaded ? glm::dot(mGeometricNormal, aWorldDirFix) : mLocalDirFix.z;
         mValid = false;
@@ -1664,7 +1658,6 @@ private:
         mValid = true;
     }
 
-public:
     bool IsValid() const { return mValid; }
     bool IsDelta() const { return mIsDelta; }
     float ContinuationProb() const { return mContinuationProb; }
