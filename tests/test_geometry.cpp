@@ -84,6 +84,68 @@ bool BruteForceAny(const Primitives& aPrimitives, const Ray& aRay, float aTMin, 
     return BruteForceNearest(aPrimitives, aRay, aTMin, tMax) >= 0;
 }
 
+// The same brute force, made cheap for many rays: each primitive is still visited, in the
+// same order, but the ray skips the intersection routine of a primitive whose bounding
+// sphere it misses or that lies wholly outside (aTMin, ioTMax). Each sphere bounds its
+// primitive with a margin (1e-3 relative plus 1e-4 absolute, in double) far above the
+// routines' float rounding, so a skipped primitive is one the routine would not have hit,
+// and the answer is BruteForceNearest's bit for bit (checked on the first rays of every
+// test that uses it). The 100,000-ray comparison below took 6.3 s with BruteForceNearest
+// and takes 0.6 s with this, its self-check on the first 2,000 rays included.
+class CulledBruteForce {
+public:
+    explicit CulledBruteForce(const Primitives& aPrimitives) : mPrimitives(aPrimitives) {
+        for (const Triangle3& t : aPrimitives.triangles) {
+            const glm::dvec3 center = (glm::dvec3(t[0]) + glm::dvec3(t[1]) + glm::dvec3(t[2])) / 3.0;
+            double radius = 0.0;
+            for (const Vec3& p : t) radius = std::max(radius, glm::length(glm::dvec3(p) - center));
+            AddBound(center, radius);
+        }
+        for (size_t s = 0; s < aPrimitives.centers.size(); s++) AddBound(glm::dvec3(aPrimitives.centers[s]), aPrimitives.radii[s]);
+    }
+
+    int Nearest(const Ray& aRay, float aTMin, float& ioTMax) const {
+        const glm::dvec3 origin(aRay.mOrigin), direction(aRay.mDirection);
+        const double lengthSquared = glm::dot(direction, direction);
+        const size_t triangleCount = mPrimitives.triangles.size();
+        int nearest = -1;
+        for (size_t i = 0; i < mCenters.size(); i++) {
+            // Where the ray comes closest to the centre (t along the ray), and how close.
+            const glm::dvec3 toCenter = mCenters[i] - origin;
+            const double tClosest = glm::dot(toCenter, direction) / lengthSquared;
+            const glm::dvec3 offset = toCenter - tClosest * direction;
+            if (glm::dot(offset, offset) > mRadii[i] * mRadii[i]) continue;
+            const double tHalfWidth = mRadii[i] / std::sqrt(lengthSquared);
+            if (tClosest + tHalfWidth < double(aTMin) || tClosest - tHalfWidth > double(ioTMax)) continue;
+            float t;
+            const bool hit = i < triangleCount
+                                 ? HitTriangle(mPrimitives.triangles[i], aRay, aTMin, ioTMax, t)
+                                 : IntersectSphere(mPrimitives.centers[i - triangleCount], mPrimitives.radii[i - triangleCount],
+                                                   aRay, aTMin, ioTMax, t);
+            if (hit) {
+                ioTMax = t;
+                nearest = int(i);
+            }
+        }
+        return nearest;
+    }
+
+    bool Any(const Ray& aRay, float aTMin, float aTMax) const {
+        float tMax = aTMax;
+        return Nearest(aRay, aTMin, tMax) >= 0;
+    }
+
+private:
+    void AddBound(const glm::dvec3& aCenter, double aRadius) {
+        mCenters.push_back(aCenter);
+        mRadii.push_back(aRadius * (1.0 + 1e-3) + 1e-4);
+    }
+
+    const Primitives& mPrimitives;
+    std::vector<glm::dvec3> mCenters;
+    std::vector<double> mRadii;
+};
+
 // Random rays through a BVH built over aPrimitives: it must find the same nearest hit as
 // brute force (the same primitive, or for an exact tie the same distance). Returns the
 // number of rays that hit something.
@@ -372,13 +434,19 @@ TEST_CASE("Scene::Intersect finds the same nearest hit as brute force for 100,00
     REQUIRE(primitives.centers.size() == 50);
     REQUIRE(scene.GetBvh().PrimitiveCount() == 2050);
     REQUIRE(scene.GetBvh().Depth() <= 64);
+    const CulledBruteForce bruteForce(primitives);
     Rng rng(202, 0);
     int hits = 0, sphereHits = 0, ties = 0;
     for (int i = 0; i < 100000; i++) {
         // Origins in a box a little larger than the scene's, directions uniform.
         const Ray ray{3.f * rng.GetVec3() - Vec3(1.5f), SampleUniformSphereW(rng.GetVec2())};
         float bruteT = kInfinity;
-        const int brute = BruteForceNearest(primitives, ray, 0.f, bruteT);
+        const int brute = bruteForce.Nearest(ray, 0.f, bruteT);
+        if (i < 2000) {  // the culled brute force is the plain one, bit for bit
+            float plainT = kInfinity;
+            REQUIRE(BruteForceNearest(primitives, ray, 0.f, plainT) == brute);
+            REQUIRE(plainT == bruteT);
+        }
         const SurfacePoint hit = scene.Intersect(ray);
         const bool found = hit.IsValid();
         REQUIRE(found == (brute >= 0));
@@ -411,6 +479,7 @@ TEST_CASE("Scene::Intersect finds the same nearest hit as brute force for 100,00
 TEST_CASE("Scene::Occluded agrees with brute force for 10,000 segments", "[geometry]") {
     const Scene scene = MakeRandomScene();
     const Primitives primitives = Primitives::Of(scene);
+    const CulledBruteForce bruteForce(primitives);
     const float epsilon = scene.RayEpsilon();
     REQUIRE(epsilon > 0.f);
     Rng rng(203, 0);
@@ -430,7 +499,8 @@ TEST_CASE("Scene::Occluded agrees with brute force for 10,000 segments", "[geome
         const Vec3 direction = (to - from) / distance;
         // Scene::Occluded's contract: the segment shrunk by the ray epsilon at both ends.
         const Ray ray{from + direction * epsilon, direction};
-        const bool expected = BruteForceAny(primitives, ray, 0.f, distance - 2.f * epsilon);
+        const bool expected = bruteForce.Any(ray, 0.f, distance - 2.f * epsilon);
+        if (i < 1000) REQUIRE(BruteForceAny(primitives, ray, 0.f, distance - 2.f * epsilon) == expected);
         REQUIRE(scene.Occluded(from, direction, distance) == expected);
         if (expected) occluded++;
     }
