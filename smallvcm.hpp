@@ -1372,28 +1372,36 @@ public:
         hit.mDist = tMax;
         hit.mPosition = aRay.mOrigin + tMax * aRay.mDirection;
         hit.mPrimitiveId = primitive;
+        FillSurfacePoint(hit);
+        return hit;
+    }
+    // The rest of a surface point from its primitive and position (ioPoint.mPrimitiveId,
+    // mPosition): material, light, normals, texture coordinates. Intersect ends here, and
+    // a stored light vertex, which keeps only those two, rebuilds its surface here bit
+    // for bit.
+    void FillSurfacePoint(SurfacePoint& ioPoint) const {
+        const int primitive = ioPoint.mPrimitiveId;
         const int triangleCount = int(mTriangles.size());
         if (primitive < triangleCount) {
             const Triangle& triangle = mTriangles[size_t(primitive)];
-            hit.mMaterialId = triangle.mMaterialId;
-            hit.mLightId = triangle.mLightId;
-            hit.mGeometricNormal = triangle.mNormal;
-            hit.mShadingNormal = triangle.mNormal;
+            ioPoint.mMaterialId = triangle.mMaterialId;
+            ioPoint.mLightId = triangle.mLightId;
+            ioPoint.mGeometricNormal = triangle.mNormal;
+            ioPoint.mShadingNormal = triangle.mNormal;
             const bool textured = mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0 ||
                                   (triangle.mLightId >= 0 && mLights[size_t(triangle.mLightId)].mEmissionTexture >= 0);
             if (textured || triangle.mHasVertexNormals) {
-                const TriangleBarycentrics b = Barycentrics(triangle, hit.mPosition);
-                if (textured) hit.mUv = TriangleUv(triangle, b);
-                if (triangle.mHasVertexNormals) hit.mShadingNormal = InterpolatedNormal(triangle, b);
+                const TriangleBarycentrics b = Barycentrics(triangle, ioPoint.mPosition);
+                if (textured) ioPoint.mUv = TriangleUv(triangle, b);
+                if (triangle.mHasVertexNormals) ioPoint.mShadingNormal = InterpolatedNormal(triangle, b);
             }
         } else {
             const Sphere& sphere = mSpheres[size_t(primitive - triangleCount)];
-            hit.mMaterialId = sphere.mMaterialId;
-            hit.mLightId = sphere.mLightId;
-            hit.mGeometricNormal = glm::normalize(hit.mPosition - sphere.mCenter);
-            hit.mShadingNormal = hit.mGeometricNormal;  // a sphere's normal is exact
+            ioPoint.mMaterialId = sphere.mMaterialId;
+            ioPoint.mLightId = sphere.mLightId;
+            ioPoint.mGeometricNormal = glm::normalize(ioPoint.mPosition - sphere.mCenter);
+            ioPoint.mShadingNormal = ioPoint.mGeometricNormal;  // a sphere's normal is exact
         }
-        return hit;
     }
 
     // Shadow ray: is anything between aPoint and aPoint + aDistance * aDirection?
@@ -1406,7 +1414,7 @@ public:
 
     // The base-colour texel at a surface point (white for untextured materials).
     Vec3 BaseColorTexel(const SurfacePoint& aHit) const { return BaseColorTexel(aHit.mMaterialId, aHit.mUv); }
-    // The same from a material and texture coordinates (what a stored light vertex keeps).
+    // The same from a material and texture coordinates.
     Vec3 BaseColorTexel(int aMaterialId, const Vec2& aUv) const {
         const int texture = mMaterials[size_t(aMaterialId)].mBaseColorTexture;
         return texture < 0 ? Vec3(1.f) : mTextures[size_t(texture)].Lookup(aUv);
@@ -3212,20 +3220,21 @@ private:
     };
 
 public:
-    // A stored light vertex: what a connection or a merge needs, in 88 bytes. The BSDF
-    // is not stored (it would double the size): a connection rebuilds it from the
-    // incoming direction, normals, material and texture coordinates -- exactly the inputs
-    // it was made from -- and a merge needs only the incoming direction.
+    // A stored light vertex: what a connection or a merge needs, in 56 bytes. Neither the
+    // BSDF nor the surface is stored: the primitive and the point determine the normals,
+    // material and texture coordinates (Scene::FillSurfacePoint, as Intersect found
+    // them), from which and the incoming direction a connection rebuilds the BSDF bit
+    // for bit; a merge needs only the incoming direction. Storing them took 88 bytes, and
+    // the vertices are written once but read by every connection and merge, from memory.
+    // What a merge reads comes first, in 40 adjacent bytes, as it visits vertices in no
+    // order.
     struct LightVertex {
-        Vec3 mHitPoint{0.f};
         int mPathLength = 0;
         Vec3 mThroughput{0.f};
-        int mMaterialId = 0;
         Vec3 mDirFix{0.f};  // the exact direction it arrived from (minus the ray direction)
-        Vec3 mNormal{0.f};  // geometric normal of the hit
-        Vec3 mShadingNormal{0.f};
-        Vec2 mUv{0.f};  // where to read the base-colour texture (8 bytes; the texel itself would take 12)
         SubpathMis mMis;
+        Vec3 mHitPoint{0.f};
+        int mPrimitiveId = -1;  // the primitive hit (see Scene)
     };
 
 private:
@@ -3289,11 +3298,8 @@ private:
         vertex.mHitPoint = aHitPoint;
         vertex.mPathLength = aLight.mPathLength;
         vertex.mThroughput = aLight.mThroughput;
-        vertex.mMaterialId = aHit.mMaterialId;
+        vertex.mPrimitiveId = aHit.mPrimitiveId;
         vertex.mDirFix = -aRay.mDirection;
-        vertex.mNormal = aHit.GeometricNormal();
-        vertex.mShadingNormal = aHit.ShadingNormal();
-        vertex.mUv = aHit.mUv;
         vertex.mMis = aLight.mMis;
         mLightVertices.push_back(vertex);
     }
@@ -3315,6 +3321,7 @@ private:
         SubpathState cam;
         GenerateCameraSample(raster, cam);
         if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
+        if (mUseVC) ForgetPixelLightBsdfs(aPixel);
         Ray ray{cam.mOrigin, cam.mDirection};
         for (;;) {
             const SurfacePoint hit = mScene.Intersect(ray);
@@ -3554,8 +3561,7 @@ private:
     // Vertex connection (s, t >= 2) with every vertex of this pixel's own light sub-path,
     // weighted by [tech. rep. (40), (41)].
     void ConnectToLightVertices(int aPixel, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
-        const size_t begin = aPixel == 0 ? 0 : mPathEnds[size_t(aPixel) - 1];
-        const size_t end = mPathEnds[size_t(aPixel)];
+        const size_t begin = LightSubpathBegin(aPixel), end = LightSubpathEnd(aPixel);
         for (size_t i = begin; i < end; i++) {
             const LightVertex& vertex = mLightVertices[i];
             const int pathLength = vertex.mPathLength + aCamera.mPathLength + 1;
@@ -3570,7 +3576,7 @@ private:
 
             const BsdfEval cameraSide = aBsdf.EvaluateWithRoulette(direction);
             if (cameraSide.IsBlack()) continue;
-            const Bsdf lightBsdf = LightVertexBsdf(vertex);
+            const Bsdf& lightBsdf = PixelLightBsdf(i - begin, vertex);
             const BsdfEval lightSide = lightBsdf.EvaluateWithRoulette(-direction);
             if (lightSide.IsBlack()) continue;
 
@@ -3589,13 +3595,38 @@ private:
         }
     }
 
+    // The stored light vertices of the light sub-path traced for aPixel: [begin, end).
+    size_t LightSubpathBegin(int aPixel) const { return aPixel == 0 ? 0 : mPathEnds[size_t(aPixel) - 1]; }
+    size_t LightSubpathEnd(int aPixel) const { return mPathEnds[size_t(aPixel)]; }
+
+    // The BSDF of the aSlot-th light vertex of this pixel's light sub-path, built at its
+    // first connection and kept for the pixel's later camera vertices: each connects to
+    // it again, and building a BSDF (surface, then Bsdf::Setup) costs more than evaluating one.
+    const Bsdf& PixelLightBsdf(size_t aSlot, const LightVertex& aVertex) {
+        if (!mPixelLightBsdfBuilt[aSlot]) {
+            mPixelLightBsdfs[aSlot] = LightVertexBsdf(aVertex);
+            mPixelLightBsdfBuilt[aSlot] = true;
+        }
+        return mPixelLightBsdfs[aSlot];
+    }
+    // A new camera sub-path (of aPixel): none of its light vertices' BSDFs is built yet.
+    void ForgetPixelLightBsdfs(int aPixel) {
+        const size_t count = LightSubpathEnd(aPixel) - LightSubpathBegin(aPixel);
+        if (mPixelLightBsdfs.size() < count) mPixelLightBsdfs.resize(count);
+        mPixelLightBsdfBuilt.assign(count, false);
+    }
+
     // A stored light vertex's BSDF as its light sub-path saw it, texel included; an
     // untextured material gets no texel, as in Bsdf::Setup from a hit.
     Bsdf LightVertexBsdf(const LightVertex& aVertex) const {
-        const Material& material = mScene.GetMaterial(aVertex.mMaterialId);
-        const Vec3 texel = mScene.BaseColorTexel(aVertex.mMaterialId, aVertex.mUv);
+        SurfacePoint surface;
+        surface.mPosition = aVertex.mHitPoint;
+        surface.mPrimitiveId = aVertex.mPrimitiveId;
+        mScene.FillSurfacePoint(surface);
+        const Material& material = mScene.GetMaterial(surface.mMaterialId);
+        const Vec3 texel = mScene.BaseColorTexel(surface);
         Bsdf bsdf;
-        bsdf.Setup(aVertex.mDirFix, aVertex.mNormal, aVertex.mShadingNormal, material, Transport::kImportance,
+        bsdf.Setup(aVertex.mDirFix, surface.GeometricNormal(), surface.ShadingNormal(), material, Transport::kImportance,
                    material.mBaseColorTexture >= 0 ? &texel : nullptr);
         return bsdf;
     }
@@ -3687,6 +3718,8 @@ private:
     VcmMisConstants mMisConstants;
     std::vector<LightVertex> mLightVertices;
     std::vector<size_t> mPathEnds;  // mPathEnds[p]: one past the last vertex of light sub-path p
+    std::vector<Bsdf> mPixelLightBsdfs;      // PixelLightBsdf's cache, for the current pixel
+    std::vector<bool> mPixelLightBsdfBuilt;  // which of its entries are built
     HashGrid mGrid;
     int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1};
     int mPyramidLayers[kPyramidMaxLength + 1][kPyramidMaxLength + 1][2] = {};
