@@ -4600,10 +4600,10 @@ private:
     static constexpr float kTraversalCost = 1.5f;
     // The binary build stops at this depth (splitting by the median when the SAH split
     // fails keeps real scenes far below it). The kWidth-wide tree is no deeper, and a visit
-    // leaves at most kWidth - 1 children on the stack, so (kWidth - 1) * 64 entries hold
-    // every path.
+    // leaves at most kWidth - 1 children on the stack (sorting them there takes one more
+    // entry for a moment), so (kWidth - 1) * 64 + 1 entries hold every path.
     static constexpr int kMaxDepth = 60;
-    static constexpr int kStackSize = (kWidth - 1) * 64;
+    static constexpr int kStackSize = (kWidth - 1) * 64 + 1;
     // A hit exactly on a face must survive rounding in the slab test: the far distance
     // is widened by 2 ulp.
     static constexpr float kFarWidening = 1.00000024f;
@@ -4661,20 +4661,46 @@ private:
         FloatN tNear;
         int hits = SlabTestChildren(aNode, aRay, aTMax, tNear);
         if (hits == 0) return false;
-        Pending children[kWidth];
+        // The hit children, nearest entered, the others pushed farthest first (of equal
+        // tNear, the later lane is entered first). One or two hit children, the usual
+        // case, take one branch each instead of a sorting loop, whose exit the branch
+        // predictor misses on random rays.
+        const int first = detail::FirstLane(hits);
+        hits &= hits - 1;
+        if (hits == 0) {
+            ioIndex = aNode.mIndex[first];
+            ioCount = aNode.mCount[first];
+            return true;
+        }
+        const int second = detail::FirstLane(hits);
+        hits &= hits - 1;
+        if (hits == 0) {
+            const bool firstNearer = tNear[first] < tNear[second];
+            const int nearer = firstNearer ? first : second, farther = firstNearer ? second : first;
+            ioStack[ioStackSize++] = Pending{aNode.mIndex[farther], aNode.mCount[farther], tNear[farther]};
+            ioIndex = aNode.mIndex[nearer];
+            ioCount = aNode.mCount[nearer];
+            return true;
+        }
+        // Three or more: insertion onto the stack by decreasing tNear, then the nearest,
+        // now on top, is taken off again.
+        Pending* children = ioStack + ioStackSize;
         int childCount = 0;
-        while (hits) {
-            const int c = detail::FirstLane(hits);
-            hits &= hits - 1;
-            // Insertion by decreasing tNear: the nearest ends last.
+        const auto insert = [&](int aLane) {
             int slot = childCount++;
-            while (slot > 0 && children[slot - 1].mTNear < tNear[c]) {
+            while (slot > 0 && children[slot - 1].mTNear < tNear[aLane]) {
                 children[slot] = children[slot - 1];
                 slot--;
             }
-            children[slot] = Pending{aNode.mIndex[c], aNode.mCount[c], tNear[c]};
+            children[slot] = Pending{aNode.mIndex[aLane], aNode.mCount[aLane], tNear[aLane]};
+        };
+        insert(first);
+        insert(second);
+        while (hits) {
+            insert(detail::FirstLane(hits));
+            hits &= hits - 1;
         }
-        for (int i = 0; i + 1 < childCount; i++) ioStack[ioStackSize++] = children[i];
+        ioStackSize += childCount - 1;
         ioIndex = children[childCount - 1].mIndex;
         ioCount = children[childCount - 1].mCount;
         return true;
