@@ -240,10 +240,15 @@ constexpr float kSceneRadiusFactor = 0.003f;
 
 struct LengthAgreementSetup {
     std::vector<Algorithm> estimators;  // each rendered with --min = --max = k
-    std::vector<int> estimatorIterations;  // per estimator: iterations of each of its renders
+    // Per estimator, per length k = 1..maxLength: iterations of each of its renders.
+    std::vector<std::vector<int>> estimatorIterations;
     bool allTechniques = false;         // every (s, t) samples every path (no specular vertex)
     bool deltaLights = false;           // s = 0 cannot hit them
     int maxLength = 4, renders = 32, referenceIterations = 64, size = 16;
+    // > 0: length 1 (the emitter seen directly) gets its own reference, BPT with --min =
+    // --max = 1 and this many iterations (a quarter of the cost of one over all lengths),
+    // and the reference over all lengths starts at length 2.
+    int lengthOneReferenceIterations = 0;
     uint64_t seed = 1;
 };
 
@@ -260,33 +265,52 @@ struct LengthAgreementSetup {
 // Resolution (printed per check, and per scene as the number of checks whose 5 SE are
 // at most 0.2 % of the image mean). With 16 renders of 128 iterations for everything
 // (~10 s of CPU for the four scenes) the SE was 0.004-0.38 % of the image mean and 5 SE
-// resolved 0.2 % in 10 of the 61 non-trivial checks. The iterations are now spent where
-// the measured SEs said they pay: the reference render (BPT with technique layers, cheap
-// per sample, and the only source of the technique checks' noise) gets 2-24x, each
-// estimator 1-6x, per scene as set in the test cases (~38 s of CPU for the four): 5 SE
-// resolve 0.2 % in 35 of 61 checks (glossy room 17 of 24, spot room 9 of 18, specular
-// room 7 of 11, camera in glass 2 of 8; measured 2026-11-25). The rest need 2-30x more
-// still: length 1 (the emitter's edges seen directly), the camera in glass at length 2,
-// pt and s = 2 in the spot room at length 3. Killed by these checks: a spot light's
-// NEE without the falloff (M81), a sphere light of area pi r^2 (M49), and the other
-// mutants listed in docs/testing.md.
+// resolved 0.2 % in 10 of the 61 non-trivial checks; with the iterations set per scene
+// and per estimator (~38 s) in 35 of 61. Iterations are now set per scene, per estimator
+// and per length k from the measured SEs: each check prints the SE of the difference and
+// the SEs of its two sides alone (the reference's L_k, and the estimator or technique),
+// and the variance of a side falls as 1 / iterations, so the iterations a side needs for
+// a difference SE of 0.034 % (5 SE = 0.17 %, a margin for the ~13 % spread of an SE
+// measured from 32 renders) follow from one run, at the measured CPU cost per iteration
+// of each estimator at each length (at 16 x 16: pt 0.026 ms at k = 1, 0.07-0.11 ms at
+// k = 2..4; BPT over all lengths with layers 0.24-0.27 ms, at k = 1 alone 0.06 ms).
+// Iterations are raised only where that buys a check for a few seconds of CPU (the
+// numbers per test case below are those iterations, rounded up). Measured 2026-11-25
+// (~84 s of CPU for the four rooms): 5 SE resolve 0.2 % in 53 of 61 checks (glossy room
+// 23 of 24, spot room 15 of 18, specular room 10 of 11, camera in glass 5 of 8). Not
+// resolved: four technique checks whose noise is the technique's own in the reference
+// render, which would need 1.9-3.2x its iterations (7-14 s of CPU each): glossy s1_t2
+// and specular s0_t3 at k = 2, spot s2_t3 and s3_t2 at k = 4; and, needing 3-30x, spot
+// s2_t2 at k = 3, the camera in glass's s0_t4 at k = 3 and pt and vcm at k = 2 (the
+// reference itself is noisy there: the glass's choice between reflection and refraction
+// at the first vertex). A pt that sees the emitter 0.4 % too bright (length 1, glossy
+// room) fails here with z = 8.1; with the iterations of before it passed (z = 2.5).
+// Killed by these checks: a spot light's NEE without the falloff (M81), a sphere light
+// of area pi r^2 (M49), and the other mutants listed in docs/testing.md.
 // Returns the worst |z|.
 double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSetup) {
     REQUIRE(aSetup.estimatorIterations.size() == aSetup.estimators.size());
+    for (const std::vector<int>& perLength : aSetup.estimatorIterations) REQUIRE(perLength.size() == size_t(aSetup.maxLength));
     const int K = aSetup.maxLength;
+    const bool separateLengthOne = aSetup.lengthOneReferenceIterations > 0;
     // reference[k][r], technique[k][s][r], estimator[e][k][r]
     std::vector<std::vector<double>> reference(size_t(K) + 1);
     std::vector<std::vector<std::vector<double>>> technique(size_t(K) + 1, std::vector<std::vector<double>>(size_t(K) + 2));
     std::vector<std::vector<std::vector<double>>> estimator(aSetup.estimators.size(), std::vector<std::vector<double>>(size_t(K) + 1));
     for (int r = 0; r < aSetup.renders; r++) {
         const uint64_t seed = aSetup.seed + 7919u * uint64_t(r);
-        const RenderResult bpt = RenderLengths(aScene, Algorithm::kBidirectionalPathTracing, 0, K, aSetup.referenceIterations, seed,
-                                               true, kSceneRadiusFactor);
+        const RenderResult bpt = RenderLengths(aScene, Algorithm::kBidirectionalPathTracing, separateLengthOne ? 2 : 0, K,
+                                               aSetup.referenceIterations, seed, true, kSceneRadiusFactor);
+        const RenderResult lengthOne =
+            separateLengthOne ? RenderLengths(aScene, Algorithm::kBidirectionalPathTracing, 1, 1, aSetup.lengthOneReferenceIterations,
+                                              seed + 15485863u, true, kSceneRadiusFactor)
+                              : RenderResult();
         for (int k = 1; k <= K; k++) {
+            const RenderResult& source = k == 1 && separateLengthOne ? lengthOne : bpt;
             double weighted = 0.0;
             for (int s = 0; s <= k + 1; s++) {
                 const std::string name = "s" + std::to_string(s) + "_t" + std::to_string(k + 1 - s);
-                for (const auto& entry : bpt.mLayers) {
+                for (const auto& entry : source.mLayers) {
                     if (entry.first == name) weighted += ImageMean(entry.second);
                     if (entry.first == name + "_unweighted") technique[size_t(k)][size_t(s)].push_back(ImageMean(entry.second));
                 }
@@ -296,7 +320,7 @@ double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSe
         for (size_t e = 0; e < aSetup.estimators.size(); e++)
             for (int k = 1; k <= K; k++)
                 estimator[e][size_t(k)].push_back(ImageMean(
-                    RenderLengths(aScene, aSetup.estimators[e], k, k, aSetup.estimatorIterations[e],
+                    RenderLengths(aScene, aSetup.estimators[e], k, k, aSetup.estimatorIterations[e][size_t(k - 1)],
                                   seed + 104729u * uint64_t(k + 10 * e), false, kSceneRadiusFactor).mImage));
     }
     double imageMean = 0.0;
@@ -314,8 +338,10 @@ double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSe
             checks++;
             resolving += kAgreementZ * d.standardError <= 0.002 * imageMean;
         }
-        std::printf("[transport] %-44s k=%d %-12s L_k %.5f diff %+.5f +- %.5f (%.3f %% of the image mean) z %+.2f\n",
-                    aScene.mName.c_str(), aK, aWhat.c_str(), ref, d.mean, d.standardError, 100.0 * d.standardError / imageMean, z);
+        std::printf("[transport] %-44s k=%d %-12s L_k %.5f diff %+.5f +- %.5f (%.3f %% of the image mean; alone: BPT %.3f %%, "
+                    "this %.3f %%) z %+.2f\n",
+                    aScene.mName.c_str(), aK, aWhat.c_str(), ref, d.mean, d.standardError, 100.0 * d.standardError / imageMean,
+                    100.0 * MeanOf(reference[size_t(aK)]).standardError / imageMean, 100.0 * MeanOf(aValues).standardError / imageMean, z);
         INFO(aScene.mName << ", path length " << aK << ", " << aWhat << ": " << ref + d.mean << " vs BPT's " << ref
                           << ", difference " << d.mean << " +- " << d.standardError << " (z = " << z << ")");
         CHECK(std::abs(d.mean) <= kAgreementZ * d.standardError + 1e-6 * std::abs(ref));
@@ -342,8 +368,9 @@ double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSe
 TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree with BPT on a glossy room lit by a sphere light and a two-sided panel", "[transport]") {
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kVertexConnectionMerging};
-    setup.estimatorIterations = {256, 192, 64};
+    setup.estimatorIterations = {{2112, 672, 256, 256}, {1536, 480, 192, 192}, {1024, 224, 64, 64}};
     setup.referenceIterations = 768;
+    setup.lengthOneReferenceIterations = 1920;
     setup.allTechniques = true;
     setup.seed = 3;
     CheckLengthAgreement(MakeGlossyRoom(setup.size), setup);
@@ -352,7 +379,7 @@ TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree wi
 TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree with BPT on a room lit by a spot light", "[transport]") {
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kVertexConnectionMerging};
-    setup.estimatorIterations = {64, 384, 64};
+    setup.estimatorIterations = {{64, 64, 1792, 576}, {64, 1920, 768, 384}, {64, 224, 288, 64}};
     setup.referenceIterations = 1536;
     setup.allTechniques = true;
     setup.deltaLights = true;
@@ -363,8 +390,9 @@ TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree wi
 TEST_CASE("Per length k = 1..4, pt, vcm and BPT's emitter hits agree with BPT through a mirror and a glass ball", "[transport]") {
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kVertexConnectionMerging};
-    setup.estimatorIterations = {256, 64};
-    setup.referenceIterations = 384;
+    setup.estimatorIterations = {{2368, 256, 256, 256}, {1472, 64, 64, 64}};
+    setup.referenceIterations = 1088;
+    setup.lengthOneReferenceIterations = 2432;
     setup.seed = 9;
     CheckLengthAgreement(MakeSpecularRoom(setup.size), setup);
 }
@@ -372,8 +400,8 @@ TEST_CASE("Per length k = 1..4, pt, vcm and BPT's emitter hits agree with BPT th
 TEST_CASE("Per length k = 1..4, pt, vcm and BPT's emitter hits agree with BPT with the camera inside a glass ball", "[transport]") {
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kVertexConnectionMerging};
-    setup.estimatorIterations = {64, 64};
-    setup.referenceIterations = 128;
+    setup.estimatorIterations = {{64, 64, 192, 64}, {64, 64, 224, 64}};
+    setup.referenceIterations = 896;
     setup.seed = 13;
     CheckLengthAgreement(MakeCameraInGlassRoom(setup.size), setup);
 }
