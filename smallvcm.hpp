@@ -3292,16 +3292,17 @@ private:
         }
     }
 
-    // Stores a light vertex for connections and merging.
+    // Stores a light vertex for connections and merging. It is written in place: one
+    // assembled on the stack and copied in was read back in 16-byte pieces from smaller
+    // stores, three store-forwarding stalls per vertex.
     void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const SurfacePoint& aHit, const Vec3& aHitPoint) {
-        LightVertex vertex;
+        LightVertex& vertex = mLightVertices.emplace_back();
         vertex.mHitPoint = aHitPoint;
         vertex.mPathLength = aLight.mPathLength;
         vertex.mThroughput = aLight.mThroughput;
         vertex.mPrimitiveId = aHit.mPrimitiveId;
         vertex.mDirFix = -aRay.mDirection;
         vertex.mMis = aLight.mMis;
-        mLightVertices.push_back(vertex);
     }
 
     // --- stage 2: the range-search structure over the light vertices (merging) ---------
@@ -3604,7 +3605,7 @@ private:
     // it again, and building a BSDF (surface, then Bsdf::Setup) costs more than evaluating one.
     const Bsdf& PixelLightBsdf(size_t aSlot, const LightVertex& aVertex) {
         if (!mPixelLightBsdfBuilt[aSlot]) {
-            mPixelLightBsdfs[aSlot] = LightVertexBsdf(aVertex);
+            SetupLightVertexBsdf(aVertex, mPixelLightBsdfs[aSlot]);
             mPixelLightBsdfBuilt[aSlot] = true;
         }
         return mPixelLightBsdfs[aSlot];
@@ -3617,18 +3618,18 @@ private:
     }
 
     // A stored light vertex's BSDF as its light sub-path saw it, texel included; an
-    // untextured material gets no texel, as in Bsdf::Setup from a hit.
-    Bsdf LightVertexBsdf(const LightVertex& aVertex) const {
+    // untextured material gets no texel, as in Bsdf::Setup from a hit. Set up in place
+    // (a returned Bsdf was copied in 16-byte pieces from smaller stores: stalls).
+    void SetupLightVertexBsdf(const LightVertex& aVertex, Bsdf& oBsdf) const {
         SurfacePoint surface;
         surface.mPosition = aVertex.mHitPoint;
         surface.mPrimitiveId = aVertex.mPrimitiveId;
         mScene.FillSurfacePoint(surface);
         const Material& material = mScene.GetMaterial(surface.mMaterialId);
         const Vec3 texel = mScene.BaseColorTexel(surface);
-        Bsdf bsdf;
-        bsdf.Setup(aVertex.mDirFix, surface.GeometricNormal(), surface.ShadingNormal(), material, Transport::kImportance,
-                   material.mBaseColorTexture >= 0 ? &texel : nullptr);
-        return bsdf;
+        oBsdf = Bsdf();  // a reused Bsdf: nothing of the previous setup stays
+        oBsdf.Setup(aVertex.mDirFix, surface.GeometricNormal(), surface.ShadingNormal(), material, Transport::kImportance,
+                    material.mBaseColorTexture >= 0 ? &texel : nullptr);
     }
 
     // Vertex merging: the light vertices within the radius, density-estimated with a
