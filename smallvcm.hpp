@@ -4531,7 +4531,7 @@ public:
         for (;;) {
             if (count > 0) {  // a leaf: test its blocks
                 for (uint32_t b = 0; b < count; b++) IntersectBlock(mBlocks[index + b], aRay, ray, aTMin, ioTMax, hitPrimitive);
-            } else if (Descend(mNodes[index], ray, ioTMax, stack, stackSize, index, count)) {
+            } else if (Descend(mNodes[index], ray, ioTMax, true, stack, stackSize, index, count)) {
                 continue;
             }
             // Pop the next child whose box starts before the nearest hit so far.
@@ -4556,7 +4556,7 @@ public:
             if (count > 0) {
                 for (uint32_t b = 0; b < count; b++)
                     if (OccludedByBlock(mBlocks[index + b], aRay, ray, aTMin, aTMax)) return true;
-            } else if (Descend(mNodes[index], ray, aTMax, stack, stackSize, index, count)) {
+            } else if (Descend(mNodes[index], ray, aTMax, false, stack, stackSize, index, count)) {
                 continue;
             }
             if (stackSize == 0) return false;
@@ -4655,10 +4655,10 @@ private:
     }
 
     // Visits an inner node: continues (true) into its nearest hit child, given back in
-    // ioIndex / ioCount, after pushing the other hit children farthest first; false when
-    // the ray misses them all.
-    static bool Descend(const Node& aNode, const RayData& aRay, float aTMax, Pending* ioStack, int& ioStackSize,
-                        uint32_t& ioIndex, uint32_t& ioCount) {
+    // ioIndex / ioCount, after pushing the other hit children (farthest first when
+    // aSortAll); false when the ray misses them all.
+    static bool Descend(const Node& aNode, const RayData& aRay, float aTMax, bool aSortAll, Pending* ioStack,
+                        int& ioStackSize, uint32_t& ioIndex, uint32_t& ioCount) {
         FloatN tNear;
         int hits = SlabTestChildren(aNode, aRay, aTMax, tNear);
         if (hits == 0) return false;
@@ -4683,10 +4683,32 @@ private:
             ioCount = aNode.mCount[nearer];
             return true;
         }
-        // Three or more: insertion onto the stack by decreasing tNear, then the nearest,
-        // now on top, is taken off again.
         Pending* children = ioStack + ioStackSize;
         int childCount = 0;
+        if (!aSortAll) {
+            // Three or more for a shadow ray: only the nearest matters (entered first, it
+            // is the likeliest to occlude); the others go on the stack in lane order. Saves
+            // the sort's mispredicted branches: any-hit on the soup of triangles 0.68 ->
+            // 0.78 of Embree, 8 wide.
+            children[0] = Pending{aNode.mIndex[first], aNode.mCount[first], tNear[first]};
+            children[1] = Pending{aNode.mIndex[second], aNode.mCount[second], tNear[second]};
+            int nearest = tNear[second] < tNear[first] ? 1 : 0;
+            childCount = 2;
+            while (hits) {
+                const int c = detail::FirstLane(hits);
+                hits &= hits - 1;
+                children[childCount] = Pending{aNode.mIndex[c], aNode.mCount[c], tNear[c]};
+                nearest = tNear[c] < children[nearest].mTNear ? childCount : nearest;
+                childCount++;
+            }
+            ioIndex = children[nearest].mIndex;
+            ioCount = children[nearest].mCount;
+            children[nearest] = children[childCount - 1];
+            ioStackSize += childCount - 1;
+            return true;
+        }
+        // Three or more: insertion onto the stack by decreasing tNear, then the nearest,
+        // now on top, is taken off again.
         const auto insert = [&](int aLane) {
             int slot = childCount++;
             while (slot > 0 && children[slot - 1].mTNear < tNear[aLane]) {
