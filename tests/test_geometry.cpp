@@ -595,6 +595,156 @@ TEST_CASE("The BVH over a million coincident triangles builds and finds the near
     CHECK(bvh.Intersect(Ray{Vec3(2.f, 0.f, 5.f), down}, 0.f, t) == -1);
 }
 
+namespace {
+
+// Rays aimed at each primitive in turn, a thousandth of its size outside its surface and
+// straight at it (into a random point of a sphere, along either normal of a triangle),
+// so each distinct primitive is the nearest hit of some of them however the others
+// overlap it. The BVH must find brute force's nearest primitive at its distance, and
+// Occluded must agree on a segment that ends past that hit but before the next surface
+// (only that primitive, or its copies, can block it) and on one that ends before it.
+// Exact copies hit at the same t and may stand in for each other; brute force returns
+// the first of them, and each first must be the nearest hit of some ray.
+void CheckEveryPrimitiveIsFound(const Primitives& aPrimitives, const Bvh& aBvh, int aRaysPerPrimitive, uint64_t aSeed) {
+    const size_t triangleCount = aPrimitives.triangles.size();
+    const size_t count = triangleCount + aPrimitives.centers.size();
+    const auto same = [&](size_t a, size_t b) {
+        if ((a < triangleCount) != (b < triangleCount)) return false;
+        if (a < triangleCount) return aPrimitives.triangles[a] == aPrimitives.triangles[b];
+        return aPrimitives.centers[a - triangleCount] == aPrimitives.centers[b - triangleCount] &&
+               aPrimitives.radii[a - triangleCount] == aPrimitives.radii[b - triangleCount];
+    };
+    std::vector<int> nearestCount(count, 0);
+    Rng rng(aSeed, 0);
+    for (size_t p = 0; p < count; p++)
+        for (int i = 0; i < aRaysPerPrimitive; i++) {
+            Vec3 surface, outward;
+            float size;
+            if (p < triangleCount) {
+                const Triangle3& triangle = aPrimitives.triangles[p];
+                const Vec2 b = SampleUniformTriangle(rng.GetVec2());
+                surface = b.x * triangle[0] + b.y * triangle[1] + (1.f - b.x - b.y) * triangle[2];
+                outward = glm::normalize(glm::cross(triangle[1] - triangle[0], triangle[2] - triangle[0]));
+                if (rng.GetFloat() < 0.5f) outward = -outward;
+                size = glm::length(triangle[1] - triangle[0]);
+            } else {
+                const size_t s = p - triangleCount;
+                outward = SampleUniformSphereW(rng.GetVec2());
+                surface = aPrimitives.centers[s] + aPrimitives.radii[s] * outward;
+                size = aPrimitives.radii[s];
+            }
+            const Ray ray{surface + 1e-3f * size * outward, -outward};
+            float bruteT = kInfinity, bvhT = kInfinity;
+            const int brute = BruteForceNearest(aPrimitives, ray, 0.f, bruteT);
+            const int bvh = aBvh.Intersect(ray, 0.f, bvhT);
+            INFO("ray " << i << " aimed at primitive " << p << ": brute force finds " << brute << " at t = " << bruteT
+                        << ", the BVH " << bvh << " at t = " << bvhT);
+            REQUIRE(brute >= 0);
+            nearestCount[size_t(brute)]++;
+            REQUIRE(bvh >= 0);
+            REQUIRE((bvh == brute || same(size_t(bvh), size_t(brute))));
+            REQUIRE(bvhT == Approx(bruteT).epsilon(1e-6));
+            float nextT = kInfinity;  // the next surface along the ray (a copy's is this one)
+            BruteForceNearest(aPrimitives, ray, bruteT * (1.f + 1e-4f), nextT);
+            const float pastHit = std::isfinite(nextT) ? 0.5f * (bruteT + nextT) : 2.f * bruteT;
+            REQUIRE(BruteForceAny(aPrimitives, ray, 0.f, pastHit));
+            REQUIRE(aBvh.Occluded(ray, 0.f, pastHit));
+            REQUIRE_FALSE(BruteForceAny(aPrimitives, ray, 0.f, 0.5f * bruteT));
+            REQUIRE_FALSE(aBvh.Occluded(ray, 0.f, 0.5f * bruteT));
+        }
+    for (size_t p = 0; p < count; p++) {
+        size_t first = 0;
+        while (!same(first, p)) first++;
+        INFO("primitive " << p << " (first copy " << first << ") is the nearest hit of no ray");
+        REQUIRE(nearestCount[first] > 0);
+    }
+}
+
+} // namespace
+
+TEST_CASE("The BVH tests every distinct sphere of a leaf: same radius, same centre, beside copies and triangles", "[geometry]") {
+    // A leaf's spheres share blocks of kBvhLanes lanes (4, 8 with AVX2, 4 scalar) that
+    // are tested one sphere at a time, up to the lanes filled with copies of the last one;
+    // a leaf of primitives sharing one centroid keeps one of each group of exact copies.
+    // Each scene below is one leaf in every build (NodeCount() == 1: up to kBvhLanes
+    // primitives cost one block, which no split beats, and the SAH does not split a few
+    // overlapping primitives whose halves would each cost nearly the whole box), so a
+    // block that skips a distinct sphere (taken for a copy by its centre, its radius or
+    // its kind) misses the rays aimed at it. Together, 10 apart, they check the same
+    // leaves below inner nodes.
+    struct Case {
+        const char* name;
+        Primitives primitives;
+        uint32_t leafSize;  // its copies included when it has at most eight primitives
+    };
+    std::vector<Case> cases;
+    {
+        // Radius 1, centres 0.1 apart at the corners of a small cube.
+        Primitives p;
+        for (int corner = 0; corner < 8; corner++)
+            p.AddSphere(0.05f * Vec3(corner & 1 ? 1.f : -1.f, corner & 2 ? 1.f : -1.f, corner & 4 ? 1.f : -1.f), 1.f);
+        cases.push_back({"eight spheres of one radius, centres 0.1 apart", p, 8});
+    }
+    {
+        Primitives p;
+        for (float radius : {1.f, 0.4f, 1.6f, 0.6f, 1.2f, 0.8f, 1.4f}) p.AddSphere(Vec3(0.3f, -0.2f, 0.1f), radius);
+        cases.push_back({"seven concentric spheres", p, 7});
+    }
+    {
+        // More than eight primitives on one centroid (centre and radii in eighths, so
+        // every bounding box has it exactly): the leaf keeps one of each copy group,
+        // seven spheres sorted by radius, and fills its last block with the largest.
+        Primitives p;
+        for (float radius : {0.75f, 0.5f, 1.25f, 0.5f, 0.625f, 1.5f, 0.75f, 0.875f, 1.25f, 0.5f, 1.f, 1.25f, 0.75f})
+            p.AddSphere(Vec3(-0.125f, 0.25f, 0.375f), radius);
+        cases.push_back({"thirteen concentric spheres, seven distinct", p, 7});
+    }
+    {
+        // A sphere and its exact copy (two primitives of a leaf of at most eight, both
+        // kept), then spheres of the same centre, of the same radius and of neither.
+        Primitives p;
+        p.AddSphere(Vec3(0.f), 1.f);
+        p.AddSphere(Vec3(0.f), 1.f);
+        p.AddSphere(Vec3(0.f), 0.7f);
+        p.AddSphere(Vec3(0.1f, 0.f, 0.f), 1.f);
+        p.AddSphere(Vec3(0.f, -0.05f, 0.08f), 0.9f);
+        p.AddSphere(Vec3(0.f, 0.1f, 0.f), 1.f);
+        cases.push_back({"a sphere, its copy, and spheres of its centre and of its radius", p, 6});
+    }
+    {
+        // Triangles first in the leaf's blocks, then the spheres.
+        Primitives p;
+        p.AddTriangle(Vec3(-1.f, -1.f, 0.f), Vec3(1.f, -1.f, 0.f), Vec3(0.f, 1.f, 0.f));
+        p.AddTriangle(Vec3(-1.f, 0.f, -1.f), Vec3(0.f, 0.f, 1.f), Vec3(1.f, 0.f, -1.f));
+        p.AddTriangle(Vec3(0.f, -1.f, -1.f), Vec3(0.f, 1.f, -1.f), Vec3(0.f, 0.f, 1.f));
+        p.AddSphere(Vec3(0.1f, 0.1f, 0.f), 0.5f);
+        p.AddSphere(Vec3(0.1f, 0.1f, 0.f), 0.3f);
+        p.AddSphere(Vec3(-0.1f, 0.f, 0.1f), 0.5f);
+        p.AddSphere(Vec3(0.f, -0.1f, -0.1f), 0.6f);
+        p.AddSphere(Vec3(0.f, -0.1f, -0.1f), 0.6f);
+        cases.push_back({"three triangles and five spheres, one a copy", p, 8});
+    }
+    Primitives together;
+    uint64_t seed = 209;
+    for (size_t c = 0; c < cases.size(); c++) {
+        const Case& one = cases[c];
+        INFO(one.name);
+        Bvh bvh;
+        bvh.Build(one.primitives.Soup());
+        REQUIRE(bvh.NodeCount() == 1);
+        REQUIRE(bvh.LargestLeaf() == one.leafSize);
+        CheckEveryPrimitiveIsFound(one.primitives, bvh, 200, seed++);
+        const Vec3 offset(10.f * float(c), 0.f, 0.f);
+        for (const Triangle3& t : one.primitives.triangles) together.AddTriangle(t[0] + offset, t[1] + offset, t[2] + offset);
+        for (size_t s = 0; s < one.primitives.centers.size(); s++)
+            together.AddSphere(one.primitives.centers[s] + offset, one.primitives.radii[s]);
+    }
+    Bvh bvh;
+    bvh.Build(together.Soup());
+    REQUIRE(bvh.NodeCount() > 1);
+    CheckEveryPrimitiveIsFound(together, bvh, 50, seed);
+}
+
 TEST_CASE("TriangleNormal: unit normal by the winding in double precision, false for lines and points", "[geometry]") {
     Vec3 n;
     REQUIRE(TriangleNormal(Vec3(0.f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f), n));
