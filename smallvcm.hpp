@@ -4809,11 +4809,16 @@ private:
         if (!(hits | fallback)) return;
         for (int lane = 0; lane < kWidth; lane++) t[lane] = tLanes[lane];
         if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, ioTMax, t, hits);
-        for (int lane = 0; lane < kWidth; lane++)
-            if ((hits & (1 << lane)) && t[lane] < ioTMax) {
+        // The hit lanes only, in lane order (a loop over all lanes would be kWidth
+        // branches the predictor misses).
+        while (hits) {
+            const int lane = detail::FirstLane(hits);
+            hits &= hits - 1;
+            if (t[lane] < ioTMax) {
                 ioTMax = t[lane];
                 ioPrimitive = int(aBlock.mId[lane] & ~kSphereBit);
             }
+        }
     }
 
     static bool OccludedByBlock(const Block& aBlock, const Ray& aRay, const RayData& aData, float aTMin, float aTMax) {
