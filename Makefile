@@ -147,17 +147,45 @@ $(BUILD)/check/tests/%.o: tests/%.cpp $(HEADER) $(wildcard tests/*.hpp) | $(BUIL
 $(BUILD)/check/tests/run_tests: $(BUILD)/check/tests/catch_main.o $(SAN_TEST_OBJ) $(BUILD)/check/smallvcm_impl.o
 	$(CXX) $(SAN_FLAGS) $^ -o $@ $(LDFLAGS)
 
+# The BVH's other builds ([SECTION] Appendix: BVH): the default is 4-wide SSE; -mavx2
+# selects 8-wide nodes and SMALLVCM_BVH_SCALAR the portable scalar loops. make test builds
+# each variant's geometry tests and command line into build/bvh-VARIANT/ (every unit of a
+# variant with its flag: the header's BVH types change with it) and tests/run_suite.sh
+# --bvh-variants runs its [geometry] tests and checks that its renders equal the default
+# build's bit for bit, as the BVH promises the same hits in every build. The AVX2 variant
+# is built only where the CPU can run it (make test says when it is left out).
+BVH_FLAGS_scalar := -DSMALLVCM_BVH_SCALAR
+BVH_FLAGS_avx2   := -mavx2
+HAVE_AVX2 := $(shell grep -qw avx2 /proc/cpuinfo 2>/dev/null && echo yes)
+BVH_VARIANTS := scalar $(if $(HAVE_AVX2),avx2)
+BVH_VARIANT_PROGRAMS := $(foreach v,$(BVH_VARIANTS),$(BUILD)/bvh-$(v)/run_geometry $(BUILD)/bvh-$(v)/smallvcm)
+define BVH_VARIANT_RULES
+$(BUILD)/bvh-$(1):
+	mkdir -p $$@
+$(BUILD)/bvh-$(1)/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)/bvh-$(1)
+	$$(CXX) $$(CPPFLAGS) $$(TEST_CXXFLAGS) $$(BVH_FLAGS_$(1)) -c $$< -o $$@
+$(BUILD)/bvh-$(1)/test_geometry.o: tests/test_geometry.cpp $(HEADER) $(wildcard tests/*.hpp) | $(BUILD)/bvh-$(1)
+	$$(CXX) $$(CPPFLAGS) $$(TEST_CXXFLAGS) $$(BVH_FLAGS_$(1)) -c $$< -o $$@
+$(BUILD)/bvh-$(1)/run_geometry: $(BUILD)/tests/catch_main.o $(BUILD)/bvh-$(1)/test_geometry.o $(BUILD)/bvh-$(1)/smallvcm_impl.o
+	$$(CXX) $$^ -o $$@ $$(LDFLAGS)
+$(BUILD)/bvh-$(1)/smallvcm: $(BUILD)/bvh-$(1)/smallvcm.o $(BUILD)/bvh-$(1)/smallvcm_impl.o
+	$$(CXX) $$^ -o $$@ $$(LDFLAGS)
+endef
+$(foreach v,scalar avx2,$(eval $(call BVH_VARIANT_RULES,$(v))))
+
 # make test: the Catch2 suite (tests tagged [.] are slow and run only when asked for),
 # then the sanitizer smoke stage: the sanitized command line renders every algorithm on
-# every Cornell scene and is fed every bad scene file, then the coursework kit's proof
+# every Cornell scene and is fed every bad scene file, then the BVH's other builds (scalar,
+# AVX2) against the default one (see BVH_VARIANTS above), then the coursework kit's proof
 # (tests/exercises/kit.py prove: every exercise cut from the header compiles, fails its
 # own grader and passes the others'), then every figure program runs at quick settings
 # and the gallery check passes (tests/run_suite.sh says how each run counts). Ends with
 # the plain line "tests: N passed, N failed" that CI reads.
 test: deps
-	$(MAKE) -j$(JOBS) --no-print-directory all $(BUILD)/check/smallvcm $(FIGURE_PROGRAMS:%=$(BUILD)/%)
+	$(MAKE) -j$(JOBS) --no-print-directory all $(BUILD)/check/smallvcm $(FIGURE_PROGRAMS:%=$(BUILD)/%) $(BVH_VARIANT_PROGRAMS)
 	@$(ENSURE_MATPLOTLIB)
 	@tests/run_suite.sh --catch ../$(BUILD)/tests/run_tests $(TEST_ARGS) -- --smoke ../$(BUILD)/check/smallvcm \
+	    --bvh-variants ../$(BUILD)/smallvcm $(BVH_VARIANTS:%=../$(BUILD)/bvh-%) -- \
 	    --exercises --figures $(FIGURE_PROGRAMS:%=../$(BUILD)/%)
 
 # make unit: the fast loop while changing the header: the Catch2 tests that render no

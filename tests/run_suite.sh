@@ -12,6 +12,14 @@
 #             their fix, tests/test_gltf.cpp checks which), and no run may
 #             print a sanitizer report (AddressSanitizer / UndefinedBehaviorSanitizer) or
 #             fail a SMALLVCM_CHECKS invariant.
+#   --bvh-variants REFERENCE DIR... --
+#             the BVH's other builds (Makefile: BVH_VARIANTS; build/bvh-scalar, build/bvh-avx2):
+#             each DIR's run_geometry runs the [geometry] tests (its test cases count), and
+#             its command line renders pt, lt, bpt and vcm on every Cornell scene and six
+#             glTF scenes (meshes, textures, smooth normals, spot light, glass) at 32x32,
+#             2 iterations; each scene counts as one test and passes when all four images
+#             equal the REFERENCE build's byte for byte (the BVH returns the same hits in
+#             every build, so any difference is a bug of one of them)
 #   --exercises the coursework kit's proof (tests/exercises/kit.py prove): the markers
 #             pair up, bad input is refused as documented, and every exercise cut from the
 #             header compiles, fails its own grader and passes the others' (each check
@@ -26,14 +34,10 @@ passed=0
 failed=0
 status=0
 
-if [ "${1:-}" = "--catch" ]; then
-  shift
-  binary=$1; shift
-  args=()
-  while [ $# -gt 0 ] && [ "$1" != "--" ]; do args+=("$1"); shift; done
-  [ "${1:-}" = "--" ] && shift
+run_catch() {  # a Catch2 binary and its arguments: its test cases are counted
+  local binary=$1 log code summary total bad; shift
   log=$(mktemp)
-  "$binary" "${args[@]}" 2>&1 | tee "$log"
+  "$binary" "$@" 2>&1 | tee "$log"
   code=${PIPESTATUS[0]}
   summary=$(grep -E "^(All tests passed|test cases:)" "$log" | tail -n 1)
   total=$(echo "$summary" | sed -nE 's/.*in ([0-9]+) test cases?.*/\1/p; s/^test cases: *([0-9]+).*/\1/p' | head -n 1)
@@ -43,6 +47,15 @@ if [ "${1:-}" = "--catch" ]; then
   passed=$((passed + total - bad)); failed=$((failed + bad))
   [ "$code" != 0 ] && status=1
   rm -f "$log"
+}
+
+if [ "${1:-}" = "--catch" ]; then
+  shift
+  binary=$1; shift
+  args=()
+  while [ $# -gt 0 ] && [ "$1" != "--" ]; do args+=("$1"); shift; done
+  [ "${1:-}" = "--" ] && shift
+  run_catch "$binary" "${args[@]}"
 fi
 
 if [ "${1:-}" = "--smoke" ]; then
@@ -112,6 +125,44 @@ OPTIONS
   echo "smoke stage with $binary: $((passed)) passed so far, $failed failed so far"
   rm -rf "$out"
   shift 2
+fi
+
+if [ "${1:-}" = "--bvh-variants" ]; then
+  shift
+  reference=$1; shift
+  variants=()
+  while [ $# -gt 0 ] && [ "$1" != "--" ]; do variants+=("$1"); shift; done
+  [ "${1:-}" = "--" ] && shift
+  out=$(mktemp -d)
+  scenes="0 1 2 3 4 ../scenes/textured_torus.gltf ../scenes/smooth_sphere_box.gltf ../scenes/avocado/Avocado.gltf
+          ../scenes/veach_plates.gltf ../scenes/spot_light.gltf ../scenes/caustic_glass_sphere.gltf"
+  render_all() {  # binary, folder: four algorithms on every scene
+    local binary=$1 folder=$2 scene algorithm
+    mkdir -p "$folder"
+    for scene in $scenes; do
+      for algorithm in pt lt bpt vcm; do
+        "$binary" -q -s "$scene" -a "$algorithm" -r 32x32 -i 2 -j 1 \
+          -o "$folder/$(basename "$scene" .gltf)_$algorithm.pfm" > /dev/null 2>&1 || return 1
+      done
+    done
+  }
+  render_all "$reference" "$out/reference" || { echo "bvh variants: the reference renders failed"; status=1; }
+  for variant in "${variants[@]}"; do
+    name=$(basename "$variant")
+    run_catch "$variant/run_geometry" "[geometry]"
+    render_all "$variant/smallvcm" "$out/$name"
+    for scene in $scenes; do
+      same=yes
+      for algorithm in pt lt bpt vcm; do
+        image="$(basename "$scene" .gltf)_$algorithm.pfm"
+        cmp -s "$out/reference/$image" "$out/$name/$image" || { same=no; echo "bvh variant FAILED: $name $image differs from the default build's"; }
+      done
+      if [ "$same" = yes ]; then passed=$((passed + 1)); else failed=$((failed + 1)); status=1; fi
+    done
+  done
+  grep -qw avx2 /proc/cpuinfo 2>/dev/null || echo "bvh variants: this CPU has no AVX2, so the 8-wide build was not tested"
+  echo "bvh variants stage: ${variants[*]##*/}"
+  rm -rf "$out"
 fi
 
 if [ "${1:-}" = "--exercises" ]; then
