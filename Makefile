@@ -20,6 +20,12 @@ BUILD    := build
 # Programs and tests build in parallel, one job per core.
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 
+# Every object depends on the compiler and flags it was built with (build/cxxflags.txt,
+# rewritten only when they change): a build with other CXXFLAGS, e.g. -mavx2, which
+# changes the BVH's node layout, rebuilds every object instead of linking objects that
+# disagree about it.
+FLAGS_STAMP := $(BUILD)/cxxflags.txt
+
 DEB_PACKAGES := g++ make libglm-dev libtinygltf-dev libstb-dev catch2 nlohmann-json3-dev
 
 HEADER   := smallvcm.hpp
@@ -45,11 +51,11 @@ deps:
 $(BUILD) $(BUILD)/tests:
 	mkdir -p $@
 
-$(IMPL_OBJ): examples/smallvcm_impl.cpp $(HEADER) | $(BUILD)
+$(IMPL_OBJ): examples/smallvcm_impl.cpp $(HEADER) $(FLAGS_STAMP) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
 # Every examples/NAME.cpp is a program build/NAME linked with the implementation unit.
-$(BUILD)/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)
+$(BUILD)/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) $(FLAGS_STAMP) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
 $(BUILD)/%: $(BUILD)/%.o $(IMPL_OBJ)
@@ -68,7 +74,7 @@ INTEGRATORS ?= examples/integrators/my_path_tracer.cpp
 INTEGRATOR_LIST := $(BUILD)/integrators.list
 integrator_obj = $(foreach f,$(INTEGRATORS),$(1)/integrators/$(basename $(notdir $(f))).o)
 define INTEGRATOR_RULES
-$(BUILD)/integrators/$(basename $(notdir $(1))).o: $(1) $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)/integrators
+$(BUILD)/integrators/$(basename $(notdir $(1))).o: $(1) $(HEADER) $(wildcard examples/*.hpp) $(FLAGS_STAMP) | $(BUILD)/integrators
 	$$(CXX) $$(CPPFLAGS) $$(CXXFLAGS) -c $$< -o $$@
 $(BUILD)/check/integrators/$(basename $(notdir $(1))).o: $(1) $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)/check/integrators
 	$$(CXX) $$(CPPFLAGS) $$(SAN_FLAGS) -c $$< -o $$@
@@ -89,6 +95,8 @@ $(BUILD)/smallvcm: $(BUILD)/smallvcm.o $(IMPL_OBJ) $(call integrator_obj,$(BUILD
 # from in every image's sidecar. build/commit.txt changes only when that does, so only
 # the command line's object is rebuilt, and only then.
 COMMIT := $(shell git describe --always --dirty 2>/dev/null)
+$(FLAGS_STAMP): FORCE | $(BUILD)
+	@echo '$(CXX) $(CXXFLAGS) | $(TEST_CXXFLAGS)' | cmp -s - $@ || echo '$(CXX) $(CXXFLAGS) | $(TEST_CXXFLAGS)' > $@
 $(BUILD)/commit.txt: FORCE | $(BUILD)
 	@echo '$(COMMIT)' | cmp -s - $@ || echo '$(COMMIT)' > $@
 $(BUILD)/smallvcm.o $(BUILD)/check/smallvcm.o: $(BUILD)/commit.txt
@@ -96,13 +104,13 @@ $(BUILD)/smallvcm.o $(BUILD)/check/smallvcm.o: CPPFLAGS += -DSMALLVCM_COMMIT='"$
 
 # The header's first-screen example is a whole program: it defines SMALLVCM_IMPLEMENTATION
 # itself, so it is built alone, not linked with the implementation unit.
-$(BUILD)/minimal: examples/minimal.cpp $(HEADER) | $(BUILD)
+$(BUILD)/minimal: examples/minimal.cpp $(HEADER) $(FLAGS_STAMP) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) $< -o $@ $(LDFLAGS)
 
-$(BUILD)/tests/catch_main.o: tests/catch_main.cpp | $(BUILD)/tests
+$(BUILD)/tests/catch_main.o: tests/catch_main.cpp $(FLAGS_STAMP) | $(BUILD)/tests
 	$(CXX) $(CPPFLAGS) $(TEST_CXXFLAGS) -c $< -o $@
 
-$(BUILD)/tests/%.o: tests/%.cpp $(HEADER) $(wildcard tests/*.hpp) | $(BUILD)/tests
+$(BUILD)/tests/%.o: tests/%.cpp $(HEADER) $(wildcard tests/*.hpp) $(FLAGS_STAMP) | $(BUILD)/tests
 	$(CXX) $(CPPFLAGS) $(TEST_CXXFLAGS) -c $< -o $@
 
 $(BUILD)/tests/run_tests: $(BUILD)/tests/catch_main.o $(TEST_OBJ) $(IMPL_OBJ)
@@ -162,9 +170,9 @@ BVH_VARIANT_PROGRAMS := $(foreach v,$(BVH_VARIANTS),$(BUILD)/bvh-$(v)/run_geomet
 define BVH_VARIANT_RULES
 $(BUILD)/bvh-$(1):
 	mkdir -p $$@
-$(BUILD)/bvh-$(1)/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)/bvh-$(1)
+$(BUILD)/bvh-$(1)/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) $(FLAGS_STAMP) | $(BUILD)/bvh-$(1)
 	$$(CXX) $$(CPPFLAGS) $$(TEST_CXXFLAGS) $$(BVH_FLAGS_$(1)) -c $$< -o $$@
-$(BUILD)/bvh-$(1)/test_geometry.o: tests/test_geometry.cpp $(HEADER) $(wildcard tests/*.hpp) | $(BUILD)/bvh-$(1)
+$(BUILD)/bvh-$(1)/test_geometry.o: tests/test_geometry.cpp $(HEADER) $(wildcard tests/*.hpp) $(FLAGS_STAMP) | $(BUILD)/bvh-$(1)
 	$$(CXX) $$(CPPFLAGS) $$(TEST_CXXFLAGS) $$(BVH_FLAGS_$(1)) -c $$< -o $$@
 $(BUILD)/bvh-$(1)/run_geometry: $(BUILD)/tests/catch_main.o $(BUILD)/bvh-$(1)/test_geometry.o $(BUILD)/bvh-$(1)/smallvcm_impl.o
 	$$(CXX) $$^ -o $$@ $$(LDFLAGS)
@@ -229,7 +237,7 @@ bench-embree: deps
 	@$(ENSURE_EMBREE)
 	$(MAKE) --no-print-directory $(BUILD)/bench_embree
 	$(BUILD)/bench_embree $(BENCH_EMBREE_ARGS)
-$(BUILD)/bench_embree: examples/bench_embree.cpp $(HEADER) | $(BUILD)
+$(BUILD)/bench_embree: examples/bench_embree.cpp $(HEADER) $(FLAGS_STAMP) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) $< -o $@ $(LDFLAGS) -lembree3
 
 # make bench-mitsuba: smallvcm's path tracer beside Mitsuba 3's (`llvm_ad_rgb` and
