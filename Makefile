@@ -7,11 +7,24 @@ SHELL := /bin/bash
 # implementation unit with tinygltf and stb, ~10 s) compile once and are reused.
 
 CXX      ?= g++
-CXXFLAGS ?= -std=c++17 -O2 -g -Wall -Wextra -Wpedantic -Wshadow
+# The BVH's vector width follows the build machine ([SECTION] Appendix: BVH): on a CPU with
+# AVX2 (/proc/cpuinfo) the default flags add -mavx2, which gives 8-wide nodes and leaf
+# blocks (faster than the 4-wide SSE tree: docs/performance.md, the Embree section);
+# elsewhere the tree is 4-wide SSE, which every x86-64 runs. The images are the same bit
+# for bit either way (-mavx2 brings no FMA, so no multiply-add is contracted). The
+# binaries then need a CPU with AVX2: for ones that run on any x86-64, `make BVH_ARCH=`
+# (or give the whole CXXFLAGS, which are then used as given, without BVH_ARCH).
+HAVE_AVX2 := $(shell grep -qw avx2 /proc/cpuinfo 2>/dev/null && echo yes)
+BVH_ARCH ?= $(if $(HAVE_AVX2),-mavx2)
+CXXFLAGS ?= -std=c++17 -O2 -g -Wall -Wextra -Wpedantic -Wshadow $(BVH_ARCH)
+# Whether the flags in effect give the 8-wide tree (the compiler says: -march=native may too).
+DEFAULT_IS_AVX2 := $(shell $(CXX) $(CXXFLAGS) -dM -E -x c++ /dev/null 2>/dev/null | grep -qw __AVX2__ && echo yes)
 # The Catch2 suite's objects (build/tests/) compile without -g: its ~30 translation units
 # are most of `make test`'s compile time, and the debug information costs a fifth to a
 # quarter of their compile CPU (docs/testing.md). To debug a test, rebuild them with it:
-#   rm -r build/tests && make build/tests/run_tests TEST_CXXFLAGS="-std=c++17 -O2 -g"
+#   rm -r build/tests && make build/tests/run_tests TEST_CXXFLAGS="-std=c++17 -O2 -g $(BVH_ARCH)"
+# (with the BVH_ARCH of the build, e.g. -mavx2: the tests link with the implementation unit,
+# and both must see the same BVH width).
 # (make check's sanitizer build, build/check/, keeps -g as well).
 TEST_CXXFLAGS ?= $(filter-out -g,$(CXXFLAGS))
 CPPFLAGS += -I.
@@ -137,9 +150,11 @@ model-image: deps
 	$(COMPACT_PNG) docs/images/avocado_vcm.png
 
 # The sanitizer build (AddressSanitizer + UndefinedBehaviorSanitizer, and the renderer's
-# own invariant checks, SMALLVCM_CHECKS) lives in build/check/.
+# own invariant checks, SMALLVCM_CHECKS) lives in build/check/; its BVH has the default
+# build's width.
 SAN_FLAGS := -std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined \
-             -fno-sanitize-recover=undefined -DSMALLVCM_CHECKS -Wall -Wextra -Wpedantic -Wshadow
+             -fno-sanitize-recover=undefined -DSMALLVCM_CHECKS -Wall -Wextra -Wpedantic -Wshadow \
+             $(if $(DEFAULT_IS_AVX2),-mavx2)
 SAN_TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/check/tests/%.o,$(TEST_SRC))
 
 $(BUILD)/check/tests:
@@ -155,36 +170,39 @@ $(BUILD)/check/tests/%.o: tests/%.cpp $(HEADER) $(wildcard tests/*.hpp) | $(BUIL
 $(BUILD)/check/tests/run_tests: $(BUILD)/check/tests/catch_main.o $(SAN_TEST_OBJ) $(BUILD)/check/smallvcm_impl.o
 	$(CXX) $(SAN_FLAGS) $^ -o $@ $(LDFLAGS)
 
-# The BVH's other builds ([SECTION] Appendix: BVH): the default is 4-wide SSE; -mavx2
-# selects 8-wide nodes and SMALLVCM_BVH_SCALAR the portable scalar loops. make test builds
-# each variant's geometry tests and command line into build/bvh-VARIANT/ (every unit of a
-# variant with its flag: the header's BVH types change with it) and tests/run_suite.sh
-# --bvh-variants runs its [geometry] tests and checks that its renders equal the default
-# build's bit for bit, as the BVH promises the same hits in every build. The AVX2 variant
-# is built only where the CPU can run it (make test says when it is left out).
+# The BVH's other builds ([SECTION] Appendix: BVH): the default build is 8-wide AVX2 where
+# the CPU has it (BVH_ARCH above), else 4-wide SSE; SMALLVCM_BVH_SCALAR selects the portable
+# scalar loops. make test builds each other variant's geometry tests and command line into
+# build/bvh-VARIANT/ (every unit of a variant with its flag: the header's BVH types change
+# with it) and tests/run_suite.sh --bvh-variants runs its [geometry] tests and checks that
+# its renders equal the default build's bit for bit, as the BVH promises the same hits in
+# every build. The variants are scalar and whichever of SSE and AVX2 the default build is
+# not (the compiler says whether the default flags enable AVX2); AVX2 only where the CPU
+# can run it (make test says when it is left out). A variant compiles with the default
+# flags less BVH_ARCH, plus its own (-mno-avx also undoes a -march that brings AVX).
 BVH_FLAGS_scalar := -DSMALLVCM_BVH_SCALAR
+BVH_FLAGS_sse    := -mno-avx
 BVH_FLAGS_avx2   := -mavx2
-HAVE_AVX2 := $(shell grep -qw avx2 /proc/cpuinfo 2>/dev/null && echo yes)
-BVH_VARIANTS := scalar $(if $(HAVE_AVX2),avx2)
+BVH_VARIANTS := scalar $(if $(DEFAULT_IS_AVX2),sse,$(if $(HAVE_AVX2),avx2))
 BVH_VARIANT_PROGRAMS := $(foreach v,$(BVH_VARIANTS),$(BUILD)/bvh-$(v)/run_geometry $(BUILD)/bvh-$(v)/smallvcm)
 define BVH_VARIANT_RULES
 $(BUILD)/bvh-$(1):
 	mkdir -p $$@
 $(BUILD)/bvh-$(1)/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) $(FLAGS_STAMP) | $(BUILD)/bvh-$(1)
-	$$(CXX) $$(CPPFLAGS) $$(TEST_CXXFLAGS) $$(BVH_FLAGS_$(1)) -c $$< -o $$@
+	$$(CXX) $$(CPPFLAGS) $$(filter-out $$(BVH_ARCH),$$(TEST_CXXFLAGS)) $$(BVH_FLAGS_$(1)) -c $$< -o $$@
 $(BUILD)/bvh-$(1)/test_geometry.o: tests/test_geometry.cpp $(HEADER) $(wildcard tests/*.hpp) $(FLAGS_STAMP) | $(BUILD)/bvh-$(1)
-	$$(CXX) $$(CPPFLAGS) $$(TEST_CXXFLAGS) $$(BVH_FLAGS_$(1)) -c $$< -o $$@
+	$$(CXX) $$(CPPFLAGS) $$(filter-out $$(BVH_ARCH),$$(TEST_CXXFLAGS)) $$(BVH_FLAGS_$(1)) -c $$< -o $$@
 $(BUILD)/bvh-$(1)/run_geometry: $(BUILD)/tests/catch_main.o $(BUILD)/bvh-$(1)/test_geometry.o $(BUILD)/bvh-$(1)/smallvcm_impl.o
 	$$(CXX) $$^ -o $$@ $$(LDFLAGS)
 $(BUILD)/bvh-$(1)/smallvcm: $(BUILD)/bvh-$(1)/smallvcm.o $(BUILD)/bvh-$(1)/smallvcm_impl.o
 	$$(CXX) $$^ -o $$@ $$(LDFLAGS)
 endef
-$(foreach v,scalar avx2,$(eval $(call BVH_VARIANT_RULES,$(v))))
+$(foreach v,scalar sse avx2,$(eval $(call BVH_VARIANT_RULES,$(v))))
 
 # make test: the Catch2 suite (tests tagged [.] are slow and run only when asked for),
 # then the sanitizer smoke stage: the sanitized command line renders every algorithm on
 # every Cornell scene and is fed every bad scene file, then the BVH's other builds (scalar,
-# AVX2) against the default one (see BVH_VARIANTS above), then the coursework kit's proof
+# and SSE or AVX2) against the default one (see BVH_VARIANTS above), then the coursework kit's proof
 # (tests/exercises/kit.py prove: every exercise cut from the header compiles, fails its
 # own grader and passes the others'), then every figure program runs at quick settings
 # and the gallery check passes (tests/run_suite.sh says how each run counts). Ends with

@@ -43,7 +43,19 @@ HEADER = "smallvcm.hpp"
 CXX = os.environ.get("CXX", "g++")
 # -O2 as the suite is built (the statistical stages run faster than at -O1, and a TU takes
 # only ~1 s more); no debug information, which is a third of the compile time.
-CXXFLAGS = ["-std=c++17", "-O2", "-w", "-I."]
+# Plus the machine flags (-m...) the suite's objects in build/ were compiled with
+# (build/cxxflags.txt; without it the Makefile's default, -mavx2 where the CPU has AVX2):
+# the BVH's layout depends on its vector width, so objects linked together must agree.
+def machine_flags():
+    try:
+        with open(os.path.join(ROOT, "build", "cxxflags.txt")) as f:
+            return [w for w in f.read().split("|")[0].split() if w.startswith("-m") or w.startswith("-ffp-contract")]
+    except OSError:
+        with open("/proc/cpuinfo") as f:
+            return ["-mavx2"] if " avx2" in f.read() else []
+
+
+CXXFLAGS = ["-std=c++17", "-O2", "-w"] + machine_flags() + ["-I."]
 
 # Stages in order of cost: (name, test sources to add, Catch2 test spec, timeout in s,
 # programs examples/NAME.cpp the stage's tests run as ../build/NAME, built from the
@@ -179,7 +191,7 @@ def shared_objects(tree, jobs):
     # The suite's implementation unit, if it is newer than the header and its source.
     impl = os.path.join(ROOT, "build", "smallvcm_impl.o")
     if os.path.exists(impl) and all(os.path.getmtime(impl) > os.path.getmtime(os.path.join(ROOT, f))
-                                    for f in (HEADER, "examples/smallvcm_impl.cpp")):
+                                    for f in (HEADER, "examples/smallvcm_impl.cpp", "build/cxxflags.txt")):
         shutil.copy2(impl, os.path.join(objdir, "smallvcm_impl.o"))
         commands = [c for c in commands if "examples/smallvcm_impl.cpp" not in c]
     processes = [subprocess.Popen(c, cwd=tree, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

@@ -13,7 +13,8 @@
 #             print a sanitizer report (AddressSanitizer / UndefinedBehaviorSanitizer) or
 #             fail a SMALLVCM_CHECKS invariant.
 #   --bvh-variants REFERENCE DIR... --
-#             the BVH's other builds (Makefile: BVH_VARIANTS; build/bvh-scalar, build/bvh-avx2):
+#             the BVH's other builds (Makefile: BVH_VARIANTS; build/bvh-scalar, and
+#             build/bvh-sse when the default build is 8-wide AVX2, else build/bvh-avx2):
 #             each DIR's run_geometry runs the [geometry] tests (its test cases count), and
 #             its command line renders pt, lt, bpt and vcm on every Cornell scene and six
 #             glTF scenes (meshes, textures, smooth normals, spot light, glass) at 32x32,

@@ -322,6 +322,18 @@ def run_jobs(jobs, parallel):
     return failed
 
 
+# The machine flags (-m...) the reference objects were compiled with (build/cxxflags.txt,
+# which make keeps current): the BVH's layout depends on its vector width (-mavx2 gives the
+# 8-wide tree, the Makefile's default on CPUs with AVX2), so the graders, compiled with
+# their own CXXFLAGS, take these too before they are linked with the reference objects.
+def reference_machine_flags():
+    try:
+        with open(os.path.join(BUILD, "cxxflags.txt")) as f:
+            return [w for w in f.read().split("|")[0].split() if w.startswith("-m") or w.startswith("-ffp-contract")]
+    except OSError:
+        return []
+
+
 def ensure_reference_objects(need_impl):
     targets = ["build/tests/catch_main.o"] + (["build/smallvcm_impl.o"] if need_impl else [])
     code = subprocess.call(["make", "--no-print-directory", "-s"] + targets, cwd=ROOT)
@@ -355,7 +367,7 @@ def build_grader(student, work, reuse_impl, parallel=2):
             f.write(content)
     impl_reused = reuse_impl and reference_impl_is_safe()
     ensure_reference_objects(impl_reused)
-    flags = CXXFLAGS + ["-I" + include, "-I" + ROOT]
+    flags = CXXFLAGS + reference_machine_flags() + ["-I" + include, "-I" + ROOT]
     # Objects made with other flags are not reused.
     stamp = os.path.join(work, "flags.txt")
     if not os.path.exists(stamp) or open(stamp).read() != " ".join(flags):
