@@ -220,6 +220,15 @@ inline bool IsBlack(const Vec3& aV) { return aV.x <= 0.f && aV.y <= 0.f && aV.z 
 inline bool IsFinite(const Vec3& aV) {
     return std::isfinite(aV.x) && std::isfinite(aV.y) && std::isfinite(aV.z);
 }
+// Asks the processor to start loading the cache line of aAddress, which the caller will
+// read soon: a hint only (no effect on any result; nothing on compilers without it).
+inline void Prefetch(const void* aAddress) {
+#if defined(__GNUC__) || defined(__clang__)
+    __builtin_prefetch(aAddress);
+#else
+    (void)aAddress;
+#endif
+}
 // Luminance with the sRGB / Rec. 709 weights; SmallVCM uses it to pick BSDF components.
 inline float Luminance(const Vec3& aRgb) {
     return 0.212671f * aRgb.x + 0.715160f * aRgb.y + 0.072169f * aRgb.z;
@@ -2003,6 +2012,8 @@ public:
         SMALLVCM_CHECK(aPixelIndex >= 0 && size_t(aPixelIndex) < mPixels.size(), "a film write outside the image");
         mPixels[size_t(aPixelIndex)] += glm::dvec3(aColor);
     }
+    // A pixel AddColor will soon write (see Prefetch).
+    void PrefetchPixel(int aPixelIndex) const { Prefetch(&mPixels[size_t(aPixelIndex)]); }
 
     // Layers: created before rendering; AddLayer returns the index to write with.
     int AddLayer(const std::string& aName) {
@@ -3040,12 +3051,15 @@ inline float WeightMerge(const VcmMisConstants& c, const SubpathMis& aLight, con
 // large as the point count (SmallVCM's scheme). A query visits the cells overlapping the
 // query's bounding box -- at most 2 x 2 x 2 -- skipping buckets already visited (two
 // cells can hash to one bucket; visiting it twice would count its points twice). The
-// grid keeps its own copy of the positions in bucket order, so the distance tests of a
-// query read consecutive memory; only the points that pass touch the caller's records.
-class HashGrid {
+// grid keeps its own copy of the positions in bucket order, each with an item (by
+// default the point's index), so the distance tests of a query read consecutive memory
+// and a point that passes hands its item over without a look-up elsewhere.
+template <class Item>
+class HashGridOf {
 public:
-    template <class PositionOf>
-    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf) {
+    // aItemOf(i): what Process hands over for point i (copied into the grid).
+    template <class PositionOf, class ItemOf>
+    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf) {
         mRadius = aRadius;
         mRadiusSqr = Sqr(aRadius);
         mInvCellSize = 1.f / (2.f * aRadius);
@@ -3064,11 +3078,11 @@ public:
         mCursor = mBucketEnds;
         for (size_t i = aCount; i-- > 0;) {
             const uint32_t slot = --mCursor[mBucketOf[i]];
-            mPoints[slot] = Point{aPositionOf(i), uint32_t(i)};
+            mPoints[slot] = Point{aPositionOf(i), aItemOf(i)};
         }
     }
 
-    // Calls aVisit(index) for every point within the radius of aQuery (distance <= r).
+    // Calls aVisit(item) for every point within the radius of aQuery (distance <= r).
     template <class Visit>
     void Process(const Vec3& aQuery, Visit&& aVisit) const {
         if (mPoints.empty()) return;
@@ -3095,10 +3109,13 @@ public:
                     begins[bucketCount] = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
                     ends[bucketCount++] = mBucketEnds[bucket];
                 }
+        // The buckets' first points, each usually a cache miss, are all requested before
+        // the first is tested.
+        for (int b = 0; b < bucketCount; b++) Prefetch(mPoints.data() + begins[b]);
         for (int b = 0; b < bucketCount; b++)
             for (uint32_t k = begins[b]; k < ends[b]; k++) {
                 const Vec3 d = mPoints[k].mPosition - aQuery;
-                if (glm::dot(d, d) <= mRadiusSqr) aVisit(mPoints[k].mIndex);
+                if (glm::dot(d, d) <= mRadiusSqr) aVisit(mPoints[k].mItem);
             }
     }
 
@@ -3121,11 +3138,20 @@ private:
     float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
     uint32_t mBucketMask = 0;
     std::vector<uint32_t> mBucketEnds;
-    // The points in bucket order, each with its index (16 bytes: a bucket's candidates
-    // share cache lines).
-    struct Point { Vec3 mPosition; uint32_t mIndex; };
+    // The points in bucket order, each with its item (a bucket's candidates share cache
+    // lines, and an accepted point's item is in the line its position was read from).
+    struct Point { Vec3 mPosition; Item mItem; };
     std::vector<Point> mPoints;
     std::vector<uint32_t> mBucketOf, mCursor;  // build scratch, kept to avoid reallocating
+};
+
+// The grid of point indices: aVisit(index) for every point within the radius.
+class HashGrid : public HashGridOf<uint32_t> {
+public:
+    template <class PositionOf>
+    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf) {
+        HashGridOf<uint32_t>::Build(aCount, aRadius, aPositionOf, [](size_t i) { return uint32_t(i); });
+    }
 };
 
 class VertexCM : public AbstractRenderer {
@@ -3226,15 +3252,23 @@ public:
     // them), from which and the incoming direction a connection rebuilds the BSDF bit
     // for bit; a merge needs only the incoming direction. Storing them took 88 bytes, and
     // the vertices are written once but read by every connection and merge, from memory.
-    // What a merge reads comes first, in 40 adjacent bytes, as it visits vertices in no
-    // order.
-    struct LightVertex {
+    // What a merge reads (MergeData, 40 bytes) is copied into the hash grid beside each
+    // position (MergeItem, with the vertex's index for the test hook): a merge visits
+    // vertices in no order, and reading each accepted one from this array was a cache
+    // miss that cost VCM about 9 % of its time at 512x512 (the copy costs 44 bytes per
+    // vertex: peak memory of VCM at 512x512 on scene 4, 64 -> 85 MiB).
+    struct MergeData {
         int mPathLength = 0;
         Vec3 mThroughput{0.f};
         Vec3 mDirFix{0.f};  // the exact direction it arrived from (minus the ray direction)
         SubpathMis mMis;
+    };
+    struct LightVertex : MergeData {
         Vec3 mHitPoint{0.f};
         int mPrimitiveId = -1;  // the primitive hit (see Scene)
+    };
+    struct MergeItem : MergeData {
+        uint32_t mIndex = 0;
     };
 
 private:
@@ -3309,7 +3343,13 @@ private:
     // What lets a merge find the light vertices within r of a camera vertex without
     // visiting the others.
     void BuildRangeSearch(float aRadius) {
-        mGrid.Build(mLightVertices.size(), aRadius, [&](size_t i) { return mLightVertices[i].mHitPoint; });
+        mGrid.Build(mLightVertices.size(), aRadius, [&](size_t i) { return mLightVertices[i].mHitPoint; },
+                    [&](size_t i) {
+                        MergeItem item;
+                        static_cast<MergeData&>(item) = mLightVertices[i];
+                        item.mIndex = uint32_t(i);
+                        return item;
+                    });
     }
 
     // --- stage 3: camera sub-paths ---------------------------------------------------------
@@ -3322,7 +3362,13 @@ private:
         SubpathState cam;
         GenerateCameraSample(raster, cam);
         if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
-        if (mUseVC) ForgetPixelLightBsdfs(aPixel);
+        if (mUseVC) {
+            ForgetPixelLightBsdfs(aPixel);
+            // The pixel's light vertices, which the connections read, were stored long
+            // ago (stage 1): their loads start now and overlap the first ray.
+            const size_t begin = LightSubpathBegin(aPixel), end = LightSubpathEnd(aPixel);
+            for (size_t i = begin; i < end; i++) Prefetch(&mLightVertices[i]);
+        }
         Ray ray{cam.mOrigin, cam.mDirection};
         for (;;) {
             const SurfacePoint hit = mScene.Intersect(ray);
@@ -3481,8 +3527,11 @@ private:
         // Each of the N_L light sub-paths estimates the whole image: divide by N_L.
         const Vec3 unweighted = aLight.mThroughput * toCamera.mValue *
                                 (CameraPdfA(dirToCamera, distance, toCamera.mCosThetaGen) / mMisConstants.mLightPathCount);
-        if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return;
+        // The splat lands on a pixel anywhere in the film, usually not in the cache: its
+        // load starts now and overlaps the shadow ray.
         const int pixel = camera.RasterToIndex(raster);
+        mFilm.PrefetchPixel(pixel);
+        if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return;
         mFilm.AddColor(pixel, unweighted * weight);
         RecordTechnique(kLightTracing, pixel, aLight.mPathLength + 1, aLight.mPathLength + 1, unweighted, weight);
         // END EXERCISE lt_camera/connect
@@ -3638,8 +3687,7 @@ private:
     void MergeWithLightVertices(int aPixel, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
         // BEGIN EXERCISE ppm_merging/merge
         Vec3 sum(0.f);
-        mGrid.Process(aHitPoint, [&](uint32_t i) {
-            const LightVertex& vertex = mLightVertices[i];
+        mGrid.Process(aHitPoint, [&](const MergeItem& vertex) {
             const int pathLength = vertex.mPathLength + aCamera.mPathLength;
             if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
             // The camera's BSDF, evaluated towards where the light vertex came from: f_path,
@@ -3648,7 +3696,7 @@ private:
             if (cameraSide.IsBlack()) return;
             const float weight = mPpm ? 1.f : VcmMis::WeightMerge(mMisConstants, vertex.mMis, aCamera.mMis,
                                                                  cameraSide.mDirPdfW, cameraSide.mRevPdfW);
-            if (mPathRecords) RecordMerge(i, weight);
+            if (mPathRecords) RecordMerge(vertex.mIndex, weight);
             sum += cameraSide.mValue * vertex.mThroughput * weight;
         });
         if (IsBlack(sum)) return;
@@ -3721,7 +3769,7 @@ private:
     std::vector<size_t> mPathEnds;  // mPathEnds[p]: one past the last vertex of light sub-path p
     std::vector<Bsdf> mPixelLightBsdfs;      // PixelLightBsdf's cache, for the current pixel
     std::vector<bool> mPixelLightBsdfBuilt;  // which of its entries are built
-    HashGrid mGrid;
+    HashGridOf<MergeItem> mGrid;
     int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1};
     int mPyramidLayers[kPyramidMaxLength + 1][kPyramidMaxLength + 1][2] = {};
     int mLongerPathsLayer = -1;
