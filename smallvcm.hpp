@@ -75,12 +75,14 @@
 //                             contribution and MIS quantity finite and non-negative);
 //                             a violation aborts with the place and values. Slower;
 //                             `make check` builds with it.
-//    SMALLVCM_BVH_SCALAR      trace with the BVH's portable scalar loops instead of SSE
+//    SMALLVCM_BVH_SCALAR      trace with the BVH's portable scalar loops instead of SSE/AVX
 //                             vector code (same hits bit for bit; [SECTION] Appendix: BVH).
 //    (no macro: -mavx2)       compiled for AVX2 (-mavx2, or -march=native
 //                             -ffp-contract=off), the BVH is 8 wide instead of 4: about
-//                             1.2x the rays per second on large meshes. Compile every
-//                             translation unit with the same flags.
+//                             1.2x the rays per second on large meshes. The Makefile adds
+//                             -mavx2 when the build machine has AVX2 (make BVH_ARCH= for
+//                             the 4-wide SSE build). Compile every translation unit with
+//                             the same flags.
 //
 // =====================================================================================
 //  CONVENTIONS (shared with SmallVCM, so images can be compared)
@@ -4361,7 +4363,8 @@ Image ReadImage(const std::string& aPath);
 // kBvhLanes floats processed together: the width of the tree's nodes and leaf blocks.
 // With GCC or Clang on x86 they are a compiler vector type, each operator one
 // instruction: four lanes of SSE (SSE2: every x86-64) by default, eight lanes of AVX
-// when the compiler may use AVX2 (-mavx2, or -march=native on a machine that has it),
+// when the compiler may use AVX2 (-mavx2, which the Makefile adds on a build machine that
+// has AVX2, or -march=native on such a machine),
 // where one instruction tests eight boxes or eight triangles: the 8-wide tree has half
 // the levels of the 4-wide one, so a ray visits fewer nodes and pushes fewer of them
 // (Embree's BVH8 for single rays). Elsewhere, or when SMALLVCM_BVH_SCALAR is defined,
@@ -4378,6 +4381,15 @@ Image ReadImage(const std::string& aPath);
 #define SMALLVCM_BVH_SSE 1
 #endif
 
+// The traversal's inner steps (the slab test of a node, the choice of the next child) are
+// forced inline: GCC left them out of line, and a call per node visit kept the stack
+// size and the next child in memory instead of registers (8 wide: closest hit +0.05-0.08
+// of Embree's speed on the large meshes, make bench-embree).
+#if defined(__GNUC__)
+#define SMALLVCM_BVH_INLINE inline __attribute__((always_inline))
+#else
+#define SMALLVCM_BVH_INLINE inline
+#endif
 namespace detail {
 #if defined(SMALLVCM_BVH_AVX)
 inline constexpr int kBvhLanes = 8;
@@ -4510,12 +4522,17 @@ class Bvh::Tree {
 public:
     static constexpr int kWidth = detail::kBvhLanes;
     // An inner node (128 bytes, two cache lines; 256 bytes 8 wide): the boxes of its
-    // children, [axis][child], then for each child either an inner node (mCount == 0, mIndex = node
-    // index) or a leaf (mCount blocks from mIndex). An unused slot has an inverted box
+    // children as six planes of kWidth floats (Min(k) and Max(k): the children's minima and
+    // maxima along axis k, one flat array so that a ray can address its near and far
+    // planes by offset), then for each child either an inner node (mCount == 0, mIndex =
+    // node index) or a leaf (mCount blocks from mIndex). An unused slot has an inverted box
     // (min > max), which the slab test never hits.
     struct alignas(64) Node {
-        float mMin[3][kWidth];
-        float mMax[3][kWidth];
+        float mPlanes[6 * kWidth];  // min x, min y, min z, max x, max y, max z
+        float* Min(int aAxis) { return mPlanes + aAxis * kWidth; }
+        float* Max(int aAxis) { return mPlanes + (3 + aAxis) * kWidth; }
+        const float* Min(int aAxis) const { return mPlanes + aAxis * kWidth; }
+        const float* Max(int aAxis) const { return mPlanes + (3 + aAxis) * kWidth; }
         uint32_t mIndex[kWidth];
         uint32_t mCount[kWidth];
     };
@@ -4659,11 +4676,15 @@ private:
 
     // What the tests need of a ray, computed once per ray: for the slab test its origin,
     // 1 / direction (infinite for a zero component) and, per axis, whether it runs
-    // backwards (then the max plane of a slab is the one it enters); for the triangle
-    // test the shear of WatertightRay and the origin, in the sheared axis order.
+    // backwards (then the max plane of a slab is the one it enters) and where in a node's
+    // mPlanes its near and far planes are (an offset instead of a branch per axis and
+    // node, which the predictor missed on random directions: +0.02-0.04 on the large
+    // meshes, 8 wide); for the triangle test the shear of WatertightRay and the origin,
+    // in the sheared axis order.
     struct RayData {
         FloatN mOrigin[3], mInvDir[3];
         bool mNegative[3];
+        int mNearOffset[3], mFarOffset[3];  // into Node::mPlanes
         WatertightRay mShear;
         detail::FloatN mShearX, mShearY, mShearZ;  // the shear's mSx, mSy, mSz
         detail::FloatN mOriginX, mOriginY, mOriginZ;  // the origin along kx, ky, kz
@@ -4673,6 +4694,8 @@ private:
                 const float invDir = 1.f / aRay.mDirection[k];
                 mInvDir[k] = detail::FloatN::Broadcast(invDir);
                 mNegative[k] = std::signbit(invDir);
+                mNearOffset[k] = (mNegative[k] ? 3 + k : k) * kWidth;
+                mFarOffset[k] = (mNegative[k] ? k : 3 + k) * kWidth;
             }
             const float o[3] = {aRay.mOrigin.x, aRay.mOrigin.y, aRay.mOrigin.z};
             mShearX = detail::FloatN::Broadcast(mShear.mSx);
@@ -4690,11 +4713,11 @@ private:
     // box always misses. A ray with a zero direction component that lies in the plane
     // of a face gets (plane - origin) * inf = 0 * inf = NaN there; Max(a, NaN) and
     // Min(a, NaN) return a, so that axis does not narrow the interval: the ray is inside.
-    static int SlabTestChildren(const Node& aNode, const RayData& aRay, float aTMax, FloatN& oTNear) {
+    SMALLVCM_BVH_INLINE static int SlabTestChildren(const Node& aNode, const RayData& aRay, float aTMax, FloatN& oTNear) {
         FloatN tNear = FloatN::Broadcast(0.f), tFar = FloatN::Broadcast(aTMax);
         for (int k = 0; k < 3; k++) {
-            const float* nearPlane = aRay.mNegative[k] ? aNode.mMax[k] : aNode.mMin[k];
-            const float* farPlane = aRay.mNegative[k] ? aNode.mMin[k] : aNode.mMax[k];
+            const float* nearPlane = aNode.mPlanes + aRay.mNearOffset[k];
+            const float* farPlane = aNode.mPlanes + aRay.mFarOffset[k];
             tNear = Max(tNear, (FloatN::Load(nearPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
             tFar = Min(tFar, (FloatN::Load(farPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
         }
@@ -4705,7 +4728,7 @@ private:
     // Visits an inner node: continues (true) into its nearest hit child, given back in
     // ioIndex / ioCount, after pushing the other hit children (farthest first when
     // aSortAll); false when the ray misses them all.
-    static bool Descend(const Node& aNode, const RayData& aRay, float aTMax, bool aSortAll, Pending* ioStack,
+    SMALLVCM_BVH_INLINE static bool Descend(const Node& aNode, const RayData& aRay, float aTMax, bool aSortAll, Pending* ioStack,
                         int& ioStackSize, uint32_t& ioIndex, uint32_t& ioCount) {
         FloatN tNear;
         int hits = SlabTestChildren(aNode, aRay, aTMax, tNear);
@@ -4891,7 +4914,7 @@ private:
         const Node& n = mNodes[aIndex];
         int deepest = 0;
         for (int c = 0; c < kWidth; c++)
-            if (n.mMin[0][c] <= n.mMax[0][c]) deepest = std::max(deepest, DepthOf(n.mIndex[c], n.mCount[c]));
+            if (n.Min(0)[c] <= n.Max(0)[c]) deepest = std::max(deepest, DepthOf(n.mIndex[c], n.mCount[c]));
         return 1 + deepest;
     }
 
@@ -5037,8 +5060,8 @@ private:
             const ChildRef child = c < childCount ? Collapse(aBinary, aOrder, children[c]) : ChildRef{};  // empty: inverted box
             Node& node = mNodes[nodeIndex];  // Collapse may have reallocated mNodes
             for (int k = 0; k < 3; k++) {
-                node.mMin[k][c] = child.mBox.mMin[k];
-                node.mMax[k][c] = child.mBox.mMax[k];
+                node.Min(k)[c] = child.mBox.mMin[k];
+                node.Max(k)[c] = child.mBox.mMax[k];
             }
             node.mIndex[c] = child.mIndex;
             node.mCount[c] = child.mCount;
