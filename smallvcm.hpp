@@ -222,6 +222,13 @@ inline bool IsBlack(const Vec3& aV) { return aV.x <= 0.f && aV.y <= 0.f && aV.z 
 inline bool IsFinite(const Vec3& aV) {
     return std::isfinite(aV.x) && std::isfinite(aV.y) && std::isfinite(aV.z);
 }
+// A function the compiler must not inline: a rarely taken branch's body, which would
+// otherwise make its caller too large to be inlined itself.
+#if defined(__GNUC__) || defined(__clang__)
+#define SMALLVCM_NOINLINE __attribute__((noinline))
+#else
+#define SMALLVCM_NOINLINE
+#endif
 // Asks the processor to start loading the cache line of aAddress, which the caller will
 // read soon: a hint only (no effect on any result; nothing on compilers without it).
 inline void Prefetch(const void* aAddress) {
@@ -3519,6 +3526,10 @@ private:
         dirToCamera /= distance;
         Vec2 raster;
         if (!camera.WorldToRaster(aHitPoint, raster) || !camera.CheckRaster(raster)) return;
+        // The splat lands on a pixel anywhere in the film, usually not in the cache: its
+        // load starts now and overlaps the BSDF and the shadow ray.
+        const int pixel = camera.RasterToIndex(raster);
+        mFilm.PrefetchPixel(pixel);
         const BsdfEval toCamera = aBsdf.EvaluateWithRoulette(dirToCamera);
         if (toCamera.IsBlack()) return;
         // The camera's area pdf of this vertex (for MIS) converts by the geometric cosine;
@@ -3529,10 +3540,6 @@ private:
         // Each of the N_L light sub-paths estimates the whole image: divide by N_L.
         const Vec3 unweighted = aLight.mThroughput * toCamera.mValue *
                                 (CameraPdfA(dirToCamera, distance, toCamera.mCosThetaGen) / mMisConstants.mLightPathCount);
-        // The splat lands on a pixel anywhere in the film, usually not in the cache: its
-        // load starts now and overlaps the shadow ray.
-        const int pixel = camera.RasterToIndex(raster);
-        mFilm.PrefetchPixel(pixel);
         if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return;
         mFilm.AddColor(pixel, unweighted * weight);
         RecordTechnique(kLightTracing, pixel, aLight.mPathLength + 1, aLight.mPathLength + 1, unweighted, weight);
@@ -3710,8 +3717,15 @@ private:
 
     // Writes a contribution into the technique layers, when they were asked for.
     // aLightVertices (s) and aPathLength place it in BPT's pyramid; -1 for merges.
+    // Usually neither layers nor records are on: that test stays inline at every
+    // contribution, and the call (about 25 instructions) is made only when needed.
     void RecordTechnique(Technique aTechnique, int aPixel, int aLightVertices, int aPathLength,
                          const Vec3& aUnweighted, float aWeight) {
+        if (mPathRecords || mOptions.mTechniqueLayers)
+            RecordTechniqueNow(aTechnique, aPixel, aLightVertices, aPathLength, aUnweighted, aWeight);
+    }
+    SMALLVCM_NOINLINE void RecordTechniqueNow(Technique aTechnique, int aPixel, int aLightVertices, int aPathLength,
+                            const Vec3& aUnweighted, float aWeight) {
         if (mPathRecords && aLightVertices >= 0) RecordPath(aTechnique, aPixel, aLightVertices, aWeight);
         if (!mOptions.mTechniqueLayers) return;
         mFilm.AddToLayer(mTechniqueLayers[aTechnique], aPixel, aUnweighted * aWeight);
