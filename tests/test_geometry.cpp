@@ -574,7 +574,9 @@ TEST_CASE("The BVH over a million coincident triangles builds and finds the near
     bvh.Build(primitives.Soup());
     REQUIRE(bvh.PrimitiveCount() == 1000002);
     REQUIRE(bvh.BuildDepth() <= 64);
-    REQUIRE(bvh.LargestLeaf() == 1);
+    // The stack's leaf keeps one copy; the two other triangles may share a leaf (the SAH
+    // isolates the stack first, then finds one block for the two cheaper than a split).
+    REQUIRE(bvh.LargestLeaf() <= 2);
     const Vec3 down(0.f, 0.f, -1.f);
     for (float x : {-0.3f, 0.f, 0.2f}) {
         float t = 100.f;  // from z = 5 straight down: the triangle at z = 2 first
