@@ -3091,17 +3091,23 @@ public:
         }
     }
 
-    // Calls aVisit(item) for every point within the radius of aQuery (distance <= r).
-    template <class Visit>
-    void Process(const Vec3& aQuery, Visit&& aVisit) const {
+    // The buckets a query visits, each once, found before it runs (Prepare), so that a
+    // caller with other work to do first can have their loads started early.
+    struct Query {
+        Vec3 mPoint{0.f};
+        uint32_t mBuckets[27];
+        int mBucketCount = 0;
+    };
+    // Finds the buckets of the cells around aPoint (2 x 2 x 2, as cells are 2r wide; 3 per
+    // axis when rounding puts a bound on a cell border) and requests their ranges' cache
+    // lines: VCM prepares a merge before it connects the same vertex, whose shadow rays
+    // then hide those cache misses.
+    void Prepare(const Vec3& aPoint, Query& oQuery) const {
+        oQuery.mPoint = aPoint;
+        oQuery.mBucketCount = 0;
         if (mPoints.empty()) return;
-        const glm::ivec3 low = CellOf(aQuery - Vec3(mRadius));
-        const glm::ivec3 high = CellOf(aQuery + Vec3(mRadius));
-        // First the buckets of the cells (2 x 2 x 2, as cells are 2r wide; 3 per axis
-        // when rounding puts a bound on a cell border), then their points: the loads of
-        // the bucket ranges do not wait for one another, so their cache misses overlap.
-        uint32_t buckets[27], begins[27], ends[27];
-        int bucketCount = 0;
+        const glm::ivec3 low = CellOf(aPoint - Vec3(mRadius));
+        const glm::ivec3 high = CellOf(aPoint + Vec3(mRadius));
         uint32_t summary = 0;
         for (int z = low.z; z <= high.z; z++)
             for (int y = low.y; y <= high.y; y++)
@@ -3111,21 +3117,42 @@ public:
                     // a 32-bit summary of the buckets so far (one bit per bucket mod 32)
                     // rules it out cheaply, and only a match is checked in full.
                     const uint32_t summaryBit = 1u << (bucket & 31u);
-                    if ((summary & summaryBit) && std::find(buckets, buckets + bucketCount, bucket) != buckets + bucketCount)
+                    uint32_t* const buckets = oQuery.mBuckets;
+                    if ((summary & summaryBit) &&
+                        std::find(buckets, buckets + oQuery.mBucketCount, bucket) != buckets + oQuery.mBucketCount)
                         continue;
                     summary |= summaryBit;
-                    buckets[bucketCount] = bucket;
-                    begins[bucketCount] = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
-                    ends[bucketCount++] = mBucketEnds[bucket];
+                    buckets[oQuery.mBucketCount++] = bucket;
+                    Prefetch(&mBucketEnds[bucket]);
                 }
-        // The buckets' first points, each usually a cache miss, are all requested before
-        // the first is tested.
-        for (int b = 0; b < bucketCount; b++) Prefetch(mPoints.data() + begins[b]);
-        for (int b = 0; b < bucketCount; b++)
+    }
+
+    // Calls aVisit(item) for every point within the radius of the query's point
+    // (distance <= r), bucket by bucket in the order Prepare found them.
+    template <class Visit>
+    void Process(const Query& aQuery, Visit&& aVisit) const {
+        // First the buckets' ranges, then their points: the loads do not wait for one
+        // another, so their cache misses overlap; the buckets' first points are all
+        // requested before the first is tested.
+        uint32_t begins[27], ends[27];
+        for (int b = 0; b < aQuery.mBucketCount; b++) {
+            const uint32_t bucket = aQuery.mBuckets[b];
+            begins[b] = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
+            ends[b] = mBucketEnds[bucket];
+            Prefetch(mPoints.data() + begins[b]);
+        }
+        for (int b = 0; b < aQuery.mBucketCount; b++)
             for (uint32_t k = begins[b]; k < ends[b]; k++) {
-                const Vec3 d = mPoints[k].mPosition - aQuery;
+                const Vec3 d = mPoints[k].mPosition - aQuery.mPoint;
                 if (glm::dot(d, d) <= mRadiusSqr) aVisit(mPoints[k].mItem);
             }
+    }
+    // The same in one step.
+    template <class Visit>
+    void Process(const Vec3& aPoint, Visit&& aVisit) const {
+        Query query;
+        Prepare(aPoint, query);
+        Process(query, aVisit);
     }
 
 private:
@@ -3401,12 +3428,14 @@ private:
             if (cam.mPathLength >= mOptions.mMaxPathLength) return;
 
             if (!bsdf.IsDelta()) {
+                HashGridOf<MergeItem>::Query merge;
+                if (mUseVM) mGrid.Prepare(hitPoint, merge);
                 if (mUseVC) {
                     if (cam.mPathLength + 1 >= mOptions.mMinPathLength)
                         ConnectToLight(aRng, aPixel, cam, hitPoint, bsdf);
                     ConnectToLightVertices(aPixel, cam, hitPoint, bsdf);
                 }
-                if (mUseVM) MergeWithLightVertices(aPixel, cam, hitPoint, bsdf);
+                if (mUseVM) MergeWithLightVertices(aPixel, cam, merge, bsdf);
             }
 
             uint32_t event = kEventNone;
@@ -3693,10 +3722,12 @@ private:
     // Vertex merging: the light vertices within the radius, density-estimated with a
     // constant kernel 1 / (pi r^2) over N_L light sub-paths [tech. rep. (11)], weighted
     // by [tech. rep. (38), (39)].
-    void MergeWithLightVertices(int aPixel, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+    // aQuery: the grid's query at the camera vertex (HashGridOf::Prepare).
+    void MergeWithLightVertices(int aPixel, const SubpathState& aCamera, const HashGridOf<MergeItem>::Query& aQuery,
+                                const Bsdf& aBsdf) {
         // BEGIN EXERCISE ppm_merging/merge
         Vec3 sum(0.f);
-        mGrid.Process(aHitPoint, [&](const MergeItem& vertex) {
+        mGrid.Process(aQuery, [&](const MergeItem& vertex) {
             const int pathLength = vertex.mPathLength + aCamera.mPathLength;
             if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
             // The camera's BSDF, evaluated towards where the light vertex came from: f_path,
