@@ -496,6 +496,44 @@ TEST_CASE("Per length k = 1..4, pt, vcm and BPT's emitter hits agree with BPT wi
     CheckLengthAgreement(MakeCameraInGlassUnderWideLight(setup.size), setup);
 }
 
+// The lights no other room has: a point light, the sun and the sky, over a corner of two
+// walls (diffuse) and a diffuse floor with a Phong ball above it, open to the sky. The
+// camera looks down at the floor from above, so it sees neither the sky nor the edges
+// where the walls meet the floor (a light vertex next to a camera vertex across such an
+// edge gives the connection techniques an unbounded 1 / d^2). Every technique with s >= 1
+// samples every path; s = 0 cannot hit the point light or the sun and is left out
+// (deltaLights), as in the spot room.
+Scene MakeSkyRoom(int aSize) {
+    Scene scene;
+    scene.mName = "corner under a point light, the sun and the sky";
+    const Vec3 inside(0.f, 0.f, 1.f);
+    const int floor = scene.AddMaterial(DiffuseMaterial(0.6f, 0.6f, 0.55f));
+    const int white = scene.AddMaterial(DiffuseMaterial(0.7f, 0.7f, 0.7f));
+    const int red = scene.AddMaterial(DiffuseMaterial(0.7f, 0.25f, 0.2f));
+    AddQuadFacing(scene, Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(1, 1, 0), Vec3(-1, 1, 0), inside, floor);
+    AddQuadFacing(scene, Vec3(-1, 1, 0), Vec3(1, 1, 0), Vec3(1, 1, 1.2f), Vec3(-1, 1, 1.2f), inside, white);
+    AddQuadFacing(scene, Vec3(-1, -1, 0), Vec3(-1, 1, 0), Vec3(-1, 1, 1.2f), Vec3(-1, -1, 1.2f), inside, red);
+    scene.AddSphere(Vec3(-0.3f, 0.4f, 0.8f), 0.2f, scene.AddMaterial(PhongMaterial(0.4f, 0.35f, 25.f)));
+    scene.AddPointLight(Vec3(0.3f, 0.3f, 1.2f), Vec3(1.5f));
+    scene.AddDirectionalLight(Vec3(0.3f, 0.5f, -0.8f), Vec3(2.f, 1.8f, 1.5f));
+    scene.AddBackgroundLight(Vec3(0.4f, 0.5f, 0.7f));
+    scene.mCamera.Setup(Vec3(0.1f, -0.3f, 1.7f), Vec3(0.f, 0.2f, -1.f), Vec3(0.f, 1.f, 0.f), 45.f);
+    scene.mCamera.SetResolution(aSize, aSize);
+    scene.Finalize();
+    return scene;
+}
+
+TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree with BPT in a room lit by a point light, the sun and the sky", "[transport]") {
+    LengthAgreementSetup setup;
+    setup.estimators = {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kVertexConnectionMerging};
+    setup.estimatorIterations = {{64, 256, 128, 64}, {64, 6656, 1472, 224}, {64, 320, 64, 64}};
+    setup.referenceIterations = 512;
+    setup.allTechniques = true;
+    setup.deltaLights = true;
+    setup.seed = 17;
+    CheckLengthAgreement(MakeSkyRoom(setup.size), setup);
+}
+
 TEST_CASE("Merging stops at the maximum path length: ppm, bpm and vcm agree with pt and the analytic value at maximum lengths 2, 3, 4", "[transport]") {
     // The point-light furnace: L = 1 - 0.5^(max-1) for a maximum of max segments. At
     // maximum 2 only the first camera hit may merge (with light vertices of one segment).
