@@ -333,29 +333,30 @@ struct LengthAgreementSetup {
 // a side falls as 1 / iterations, so from one measurement of each side's variance per
 // iteration and of the CPU cost per iteration of each render (at 16 x 16: pt 0.026 ms at
 // k = 1, 0.05-0.10 ms at k = 2..4, lt 0.03-0.08 ms, vcm 0.06-0.26 ms; BPT with layers:
-// see ReferenceGroup), the iterations
-// that reach a difference SE of 0.030 % of the image mean (5 SE = 0.15 %, a margin for
-// the ~13 % spread of an SE measured from 32 renders) at the least CPU were solved for,
-// per room, over every way of grouping the lengths into reference renders (the numbers
-// per test case below, rounded up to multiples of 32). Measured 2026-11-27 (~102 s of
-// CPU for the four rooms): 5 SE resolve 0.2 % in all 61 checks (glossy room 24, spot room
-// 18, specular room 11, camera in glass 8). What it took, where 53 did before (the fifth
-// room, point light, sun and sky, was added after this and has its own note: 18 of 18 at
-// ~34 s):
+// see ReferenceGroup), the iterations that reach a difference SE of 0.030 % of the image
+// mean (5 SE = 0.15 %, a margin for the ~13 % spread of an SE measured from 32 renders)
+// at the least CPU were solved for, per room, over every way of grouping the lengths into
+// reference renders (the numbers per test case below, rounded up to multiples of 32).
+// Measured 2026-11-27 (102-108 s of CPU for the four rooms at load 4-7, where the old
+// setting took 81-83 s): 5 SE resolve 0.2 % in all 61 checks (glossy room 24, spot room
+// 18, specular room 11, camera in glass 8). What it took, where 53 resolved before (the
+// fifth room, point light, sun and sky, was added after this and has its own note: 18
+// of 18 at ~34 s):
 //   * glossy room: s1_t2 at k = 2 (next-event estimation on the Phong floor and ball)
 //     gets a techniquesOnly render of k = 2 alone (4096 iterations); everything else is
-//     rendered as before, with the same seeds.
+//     rendered as before, with the same seeds (see "Unbounded variance" below).
 //   * specular room: lengths 1-2 and 3-4 in two reference renders (2752 and 1088
 //     iterations; s0_t3 at k = 2 needed the first), and the estimators' iterations solved
 //     again for the now more precise references.
 //   * spot room and camera in glass: scene variants (MakeSpotOnWallRoom and
 //     MakeCameraInGlassUnderWideLight above say what changed and why they still cover
-//     the spot light and the camera inside glass), whose checks all resolve at about the
-//     old CPU.
+//     the spot light and the camera inside glass); ~18 and ~15 s of CPU. The old rooms
+//     (~27 and ~10 s) would have needed ~4x for the camera in glass and over 10x for
+//     the spot room (its s2_t2 at k = 3 alone).
 // Unbounded variance: a connection between two surfaces that meet at an edge of the room
 // (or a ball resting on the floor) has a geometry term without bound, so the unweighted
-// techniques with s >= 2 and t >= 2 have infinite variance wherever light sub-paths
-// start near such an edge and the camera sees it: the spread of 32 renders then depends
+// techniques with s >= 2 and t >= 2 have infinite variance where light and camera
+// sub-paths both have vertices near such an edge: the spread of 32 renders then depends
 // on rare samples, and more iterations shrink the typical SE only as N^(-1/3). The spot
 // variant keeps its light off the edges; in the glossy room, whose area lights reach
 // every edge, s2_t2 (k = 3), s2_t3 and s3_t2 (k = 4) resolve with these seeds (SE
@@ -363,10 +364,13 @@ struct LengthAgreementSetup {
 // 0.11 % and 0.31 % (a few pixel samples among 41,000 iterations dominating): their
 // resolution is that of these renders, not a property of the budget. Their bound stays
 // valid (an outlier widens the SE as much as it moves the mean).
-// A pt that sees the emitter 0.4 % too bright (length 1, glossy room) fails here with
-// z = 8.1; with the iterations of 2026-11-25's first setting it passed (z = 2.5).
-// Killed by these checks: a spot light's NEE without the falloff (M81), a sphere light
-// of area pi r^2 (M49), and the other mutants listed in docs/testing.md.
+// Deliberate bugs (2026-11-27): a pt that sees the emitter 0.4 % too bright (length 1,
+// glossy room) fails here with z = 8.1 (with the iterations before 2026-11-25 it passed,
+// z = 2.5); a pt 0.4 % too bright where it sees the panel through the camera's glass
+// (length 2) with z = 9.1 (with the old camera-in-glass room it passed, z = 1.8); a spot
+// light's NEE without the falloff (M81) with |z| up to ~1900.
+// Killed by these checks: M81 above, a sphere light of area pi r^2 (M49), and the other
+// mutants listed in docs/testing.md.
 // Returns the worst |z|.
 double CheckLengthAgreement(const Scene& aScene, const LengthAgreementSetup& aSetup) {
     REQUIRE(aSetup.estimatorIterations.size() == aSetup.estimators.size());
