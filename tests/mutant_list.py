@@ -283,6 +283,13 @@ MUTANTS = [
     dict(id="M84", cls="lights", what="two-sided emitter: light sub-paths' emission pdf without the side probability",
          find="oEmission.mEmissionPdfW = directionPdfW * SideProbability() / mArea;",
          replace="oEmission.mEmissionPdfW = directionPdfW / mArea;"),
+    # --- the sun and the sky (the fifth [transport] room) ---------------------------------------
+    dict(id="M85", cls="lights", what="sun and sky light sub-paths start on a disc of area pi R instead of pi R^2",
+         find="oEmission.mEmissionPdfW = directionPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;",
+         replace="oEmission.mEmissionPdfW = directionPdfW * ConcentricDiscPdfA() * std::sqrt(aSceneSphere.mInvRadiusSqr);"),
+    dict(id="M86", cls="lights", what="sky light sub-paths forget the pdf of their direction",
+         find="oEmission.mEmissionPdfW = directionPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;",
+         replace="oEmission.mEmissionPdfW = ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;"),
 ]
 for _m in MUTANTS:
     _m["class"] = _m.pop("cls")
