@@ -284,9 +284,12 @@ bench-mitsuba: deps $(BUILD)/smallvcm
 # the list in tests/mutant_list.py): each mutant is one edited line of the header, built
 # in a temporary copy of the tree and run against the suite without the golden images,
 # cheap stages first, stopping at the first failing test; prints one line per mutant and
-# the score, and writes them to build/mutants/report.txt (docs/testing.md).
+# the score, and writes them to build/mutants/report.txt (docs/testing.md). The suite's
+# chart tests need python3-matplotlib, installed if missing as by make test (without it the
+# unmutated header fails the last stage and no mutant runs).
 .PHONY: mutants
 mutants: deps $(BUILD)/tests/catch_main.o
+	@$(ENSURE_MATPLOTLIB)
 	/usr/bin/python3 tests/mutants.py $(if $(MUTANTS),--only $(MUTANTS))
 
 # make fuzz [FUZZ_SECONDS=600]: libFuzzer over the glTF loader (installs clang if missing).
