@@ -456,15 +456,19 @@ struct WatertightRay {
         // Components by runtime index read from a plain array: glm's operator[] is a
         // switch (and an assert), a branch the predictor misses on random directions.
         const float d[3] = {aDirection.x, aDirection.y, aDirection.z};
-        const Vec3 absD = glm::abs(aDirection);
+        // std::fabs clears the sign bit (one instruction); glm::abs compares and selects.
+        const float absX = std::fabs(d[0]), absY = std::fabs(d[1]), absZ = std::fabs(d[2]);
         // The largest axis (x over y over z on ties, z for NaN) and the order of the other
         // two, in integer arithmetic on the comparisons rather than in branches: on random
         // directions each branch would be a coin toss the predictor loses half the time.
-        const int xOverY = absD.x > absD.y, xOverZ = absD.x > absD.z, yOverZ = absD.y > absD.z;
+        const int xOverY = absX > absY, xOverZ = absX > absZ, yOverZ = absY > absZ;
         mKz = 2 - 2 * (xOverY & xOverZ) - ((1 - xOverY) & yOverZ);
         const int backwards = d[mKz] < 0.f;  // then x and y swap, to keep the winding
-        mKx = (mKz + 1 + backwards) % 3;
-        mKy = (mKz + 2 - backwards) % 3;
+        // (kz + 1 + backwards) % 3 and (kz + 2 - backwards) % 3, by table: % 3 compiles to
+        // a multiply and shifts, a dozen instructions per ray.
+        static constexpr int kModulo3[5] = {0, 1, 2, 0, 1};
+        mKx = kModulo3[mKz + 1 + backwards];
+        mKy = kModulo3[mKz + 2 - backwards];
         mSx = d[mKx] / d[mKz];
         mSy = d[mKy] / d[mKz];
         mSz = 1.f / d[mKz];
@@ -4429,10 +4433,12 @@ Image ReadImage(const std::string& aPath);
 #define SMALLVCM_BVH_SSE 1
 #endif
 
-// The traversal's inner steps (the slab test of a node, the choice of the next child) are
-// forced inline: GCC left them out of line, and a call per node visit kept the stack
-// size and the next child in memory instead of registers (8 wide: closest hit +0.05-0.08
-// of Embree's speed on the large meshes, make bench-embree).
+// The traversal's inner steps (the slab test of a node, the choice of the next child, the
+// test of a leaf block) are forced inline: GCC left them out of line, and a call per node
+// visit kept the stack size and the next child in memory instead of registers (8 wide:
+// closest hit +0.05-0.08 of Embree's speed on the large meshes, make bench-embree); a
+// call per block cost some 35 instructions of argument passing and saved registers, a
+// fifth of a ray on SmallVCM's Cornell boxes.
 #if defined(__GNUC__)
 #define SMALLVCM_BVH_INLINE inline __attribute__((always_inline))
 #else
@@ -4668,14 +4674,16 @@ public:
         mBuildSoup = nullptr;
     }
 
-    // Nearest hit in (aTMin, ioTMax); returns the primitive index or -1.
+    // Nearest hit in (aTMin, ioTMax); returns the primitive index or -1. The root's box
+    // is not tested on its own: a ray that misses it misses the boxes of the root's
+    // children too, which the first visit finds, so a separate test was only a cost (about
+    // 40 instructions a ray, with branches on the direction's signs).
     int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
         if (mBlocks.empty()) return -1;
         const RayData ray(aRay);
         int hitPrimitive = -1;
         Pending stack[kStackSize];
         int stackSize = 0;
-        if (!HitsRoot(ray, ioTMax)) return -1;
         uint32_t index = mRoot.mIndex, count = mRoot.mCount;
         for (;;) {
             if (count > 0) {  // a leaf: test its blocks
@@ -4699,7 +4707,6 @@ public:
         const RayData ray(aRay);
         Pending stack[kStackSize];
         int stackSize = 0;
-        if (!HitsRoot(ray, aTMax)) return false;
         uint32_t index = mRoot.mIndex, count = mRoot.mCount;
         for (;;) {
             if (count > 0) {
@@ -4758,36 +4765,51 @@ private:
     // is widened by 2 ulp.
     static constexpr float kFarWidening = 1.00000024f;
 
+    // The near and far plane offsets of the 8 sign patterns of a direction (bit k set: the
+    // ray runs backwards along axis k), copied per ray from this table rather than
+    // computed axis by axis (which GCC packed into vectors lane by lane: 40 instructions).
+    struct PlaneOffsets { int mNear[3], mFar[3]; };
+    static constexpr PlaneOffsets PlaneOffsetsFor(int aSigns) {
+        PlaneOffsets offsets{};
+        for (int k = 0; k < 3; k++) {
+            const int backwards = (aSigns >> k) & 1;
+            offsets.mNear[k] = (k + 3 * backwards) * kWidth;
+            offsets.mFar[k] = (3 + k - 3 * backwards) * kWidth;
+        }
+        return offsets;
+    }
     // What the tests need of a ray, computed once per ray: for the slab test its origin,
-    // 1 / direction (infinite for a zero component) and, per axis, whether it runs
-    // backwards (then the max plane of a slab is the one it enters) and where in a node's
-    // mPlanes its near and far planes are (an offset instead of a branch per axis and
-    // node, which the predictor missed on random directions: +0.02-0.04 on the large
-    // meshes, 8 wide); for the triangle test the shear of WatertightRay and the origin,
-    // in the sheared axis order.
+    // 1 / direction (infinite for a zero component) and, per axis, where in a node's
+    // mPlanes its near and far planes are (the max plane is the near one when the ray
+    // runs backwards along the axis; an offset instead of a branch per axis and node,
+    // which the predictor missed on random directions: +0.02-0.04 on the large meshes, 8
+    // wide); for the triangle test the shear of WatertightRay and the origin, in the
+    // sheared axis order.
     struct RayData {
         FloatN mOrigin[3], mInvDir[3];
-        bool mNegative[3];
-        int mNearOffset[3], mFarOffset[3];  // into Node::mPlanes
+        PlaneOffsets mPlanes;  // into Node::mPlanes
         WatertightRay mShear;
-        detail::FloatN mShearX, mShearY, mShearZ;  // the shear's mSx, mSy, mSz
-        detail::FloatN mOriginX, mOriginY, mOriginZ;  // the origin along kx, ky, kz
+        FloatN mShearX, mShearY, mShearZ;     // the shear's mSx, mSy, mSz
+        FloatN mOriginX, mOriginY, mOriginZ;  // the origin along kx, ky, kz
         explicit RayData(const Ray& aRay) : mShear(aRay.mDirection) {
+            static constexpr PlaneOffsets kTable[8] = {PlaneOffsetsFor(0), PlaneOffsetsFor(1), PlaneOffsetsFor(2),
+                                                       PlaneOffsetsFor(3), PlaneOffsetsFor(4), PlaneOffsetsFor(5),
+                                                       PlaneOffsetsFor(6), PlaneOffsetsFor(7)};
+            int signs = 0;
             for (int k = 0; k < 3; k++) {
-                mOrigin[k] = detail::FloatN::Broadcast(aRay.mOrigin[k]);
+                mOrigin[k] = FloatN::Broadcast(aRay.mOrigin[k]);
                 const float invDir = 1.f / aRay.mDirection[k];
-                mInvDir[k] = detail::FloatN::Broadcast(invDir);
-                mNegative[k] = std::signbit(invDir);
-                mNearOffset[k] = (mNegative[k] ? 3 + k : k) * kWidth;
-                mFarOffset[k] = (mNegative[k] ? k : 3 + k) * kWidth;
+                mInvDir[k] = FloatN::Broadcast(invDir);
+                signs |= int(std::signbit(invDir)) << k;
             }
+            mPlanes = kTable[signs];
             const float o[3] = {aRay.mOrigin.x, aRay.mOrigin.y, aRay.mOrigin.z};
-            mShearX = detail::FloatN::Broadcast(mShear.mSx);
-            mShearY = detail::FloatN::Broadcast(mShear.mSy);
-            mShearZ = detail::FloatN::Broadcast(mShear.mSz);
-            mOriginX = detail::FloatN::Broadcast(o[mShear.mKx]);
-            mOriginY = detail::FloatN::Broadcast(o[mShear.mKy]);
-            mOriginZ = detail::FloatN::Broadcast(o[mShear.mKz]);
+            mShearX = FloatN::Broadcast(mShear.mSx);
+            mShearY = FloatN::Broadcast(mShear.mSy);
+            mShearZ = FloatN::Broadcast(mShear.mSz);
+            mOriginX = FloatN::Broadcast(o[mShear.mKx]);
+            mOriginY = FloatN::Broadcast(o[mShear.mKy]);
+            mOriginZ = FloatN::Broadcast(o[mShear.mKz]);
         }
     };
 
@@ -4800,8 +4822,8 @@ private:
     SMALLVCM_BVH_INLINE static int SlabTestChildren(const Node& aNode, const RayData& aRay, float aTMax, FloatN& oTNear) {
         FloatN tNear = FloatN::Broadcast(0.f), tFar = FloatN::Broadcast(aTMax);
         for (int k = 0; k < 3; k++) {
-            const float* nearPlane = aNode.mPlanes + aRay.mNearOffset[k];
-            const float* farPlane = aNode.mPlanes + aRay.mFarOffset[k];
+            const float* nearPlane = aNode.mPlanes + aRay.mPlanes.mNear[k];
+            const float* farPlane = aNode.mPlanes + aRay.mPlanes.mFar[k];
             tNear = Max(tNear, (FloatN::Load(nearPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
             tFar = Min(tFar, (FloatN::Load(farPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
         }
@@ -4884,23 +4906,12 @@ private:
         return true;
     }
 
-    bool HitsRoot(const RayData& aRay, float aTMax) const {
-        float tNear = 0.f, tFar = aTMax;
-        for (int k = 0; k < 3; k++) {
-            const float nearPlane = aRay.mNegative[k] ? mRoot.mBox.mMax[k] : mRoot.mBox.mMin[k];
-            const float farPlane = aRay.mNegative[k] ? mRoot.mBox.mMin[k] : mRoot.mBox.mMax[k];
-            tNear = std::max(tNear, (nearPlane - aRay.mOrigin[k][0]) * aRay.mInvDir[k][0]);
-            tFar = std::min(tFar, (farPlane - aRay.mOrigin[k][0]) * aRay.mInvDir[k][0]);
-        }
-        return tNear <= tFar * kFarWidening;
-    }
-
     // IntersectTriangle on the kWidth triangles of a block at once, operation for operation
     // (same order, same rounding), so each lane's answer is bit for bit the scalar one.
     // Returns the mask of lanes hit in (aTMin, aTMax) with their distances in oT; lanes
     // where an edge function is exactly 0 are left to the scalar test (oFallback).
-    static int IntersectTriangles(const Block& aBlock, const RayData& aRay, float aTMin, float aTMax, FloatN& oT,
-                                  int& oFallback) {
+    SMALLVCM_BVH_INLINE static int IntersectTriangles(const Block& aBlock, const RayData& aRay, float aTMin, float aTMax,
+                                                      FloatN& oT, int& oFallback) {
         const int kx = aRay.mShear.mKx, ky = aRay.mShear.mKy, kz = aRay.mShear.mKz;
         const FloatN az = FloatN::Load(aBlock.mA[kz]) - aRay.mOriginZ;
         const FloatN bz = FloatN::Load(aBlock.mB[kz]) - aRay.mOriginZ;
@@ -4941,8 +4952,8 @@ private:
 
     // The nearest hit of a block below ioTMax updates ioTMax and ioPrimitive; of lanes
     // hit at the same t the first wins, as if they were tested one after the other.
-    static void IntersectBlock(const Block& aBlock, const Ray& aRay, const RayData& aData, float aTMin, float& ioTMax,
-                               int& ioPrimitive) {
+    SMALLVCM_BVH_INLINE static void IntersectBlock(const Block& aBlock, const Ray& aRay, const RayData& aData, float aTMin,
+                                                   float& ioTMax, int& ioPrimitive) {
         if (aBlock.IsSpheres()) {
             // One at a time, each below the nearest hit so far, inlined: a generic lane loop
             // around them cost the Cornell scenes (two spheres) 3 % of the render. Lowering
@@ -4976,7 +4987,8 @@ private:
         }
     }
 
-    static bool OccludedByBlock(const Block& aBlock, const Ray& aRay, const RayData& aData, float aTMin, float aTMax) {
+    SMALLVCM_BVH_INLINE static bool OccludedByBlock(const Block& aBlock, const Ray& aRay, const RayData& aData, float aTMin,
+                                                    float aTMax) {
         if (aBlock.IsSpheres()) {
             for (int lane = 0; lane < kWidth && !aBlock.IsCopy(lane); lane++) {
                 float t;
