@@ -1691,7 +1691,13 @@ public:
         mFrame.SetFromZ(flip ? -aShadingNormal : aShadingNormal);
         mLocalDirFix = mFrame.ToLocal(aWorldDirFix);
         mCosFixGeometric = mShaded ? glm::dot(mGeometricNormal, aWorldDirFix) : mLocalDirFix.z;
+        // What is left of a default Bsdf should Setup stop early: nothing of a previous
+        // setup stays, so a caller may set up one Bsdf again and again.
         mValid = false;
+        mIsDelta = false;
+        mProbabilities = {};
+        mFresnel = 1.f;
+        mContinuationProb = 0.f;
         if (std::abs(mLocalDirFix.z) < kEpsCosine) return;  // grazing: nothing reliable here
         if (mShaded && !SidesAgree(mLocalDirFix.z, mCosFixGeometric)) return;  // a light leak (section notes)
         mFresnel = FresnelDielectric(mLocalDirFix.z, aMaterial.mIor);
@@ -2304,6 +2310,7 @@ private:
     // sampling's share of direct light), next-event estimation (the light sample's
     // share), and the continuation by BSDF sampling with Russian roulette.
     void TraceCameraPath(Rng& aRng, int aPixel, Ray aRay) {
+        Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
         for (PathState path;; path.mPathLength++) {
             const SurfacePoint hit = mScene.Intersect(aRay);
             if (!hit.IsValid()) {
@@ -2314,7 +2321,6 @@ private:
             // The path goes on after a light only if the emitter's material reflects (the
             // Cornell lights are black; the furnace test's walls are not).
             if (hit.mLightId >= 0 && path.mPathLength >= mOptions.mMinPathLength) AddEmitterHit(aPixel, path, aRay, hit);
-            Bsdf bsdf;
             bsdf.Setup(aRay, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid() || path.mPathLength >= mOptions.mMaxPathLength) return;
             ConnectToLight(aRng, aPixel, path, hitPoint, bsdf);
@@ -2659,11 +2665,11 @@ inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLeng
         Vec3 power = emission.mEnergy / (emission.mEmissionPdfW * lightPickProb * float(aPhotonCount));
         Ray ray = aScene.SpawnRay(emission.mPosition, emission.mDirection);
         bool onlySpecular = true;
+        Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
         for (int pathLength = 1; pathLength < aMaxPathLength; pathLength++) {
             const SurfacePoint hit = aScene.Intersect(ray);
             if (!hit.IsValid()) break;
             const Vec3& hitPoint = hit.mPosition;
-            Bsdf bsdf;
             bsdf.Setup(ray, hit, aScene, Transport::kImportance);
             if (!bsdf.IsValid()) break;
             if (!bsdf.IsDelta()) {
@@ -2714,6 +2720,7 @@ private:
     void TraceCameraPath(Rng& aRng, int aPixel, Ray aRay) {
         Vec3 throughput(1.f);
         bool afterSpecular = false;
+        Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
         for (int pathLength = 1; pathLength <= mOptions.mMaxPathLength; pathLength++) {
             const SurfacePoint hit = mScene.Intersect(aRay);
             if (!hit.IsValid()) {
@@ -2727,7 +2734,6 @@ private:
             if (hit.mLightId >= 0 && pathLength >= mOptions.mMinPathLength)
                 Add(aPixel, afterSpecular ? kSpecular : kEmitted,
                     throughput * mScene.GetLight(hit.mLightId).GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.GeometricNormal(), hit.mUv).mRadiance);
-            Bsdf bsdf;
             bsdf.Setup(aRay, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             if (!bsdf.IsDelta()) {
@@ -2802,11 +2808,11 @@ private:
         if (!SampleBsdf(aBsdf, aRng.GetVec3(), scatter) || scatter.IsSpecular()) return;  // the specular part is traced by the caller
         Vec3 gatherThroughput = aThroughput * scatter.mValue * (scatter.mCosThetaOut / scatter.mPdfW);
         Ray ray = mScene.SpawnRay(aHitPoint, scatter.mDirection);
+        Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
         for (int length = aPathLength + 1; length < mOptions.mMaxPathLength; length++) {
             const SurfacePoint hit = mScene.Intersect(ray);
             if (!hit.IsValid()) return;
             const Vec3& hitPoint = hit.mPosition;
-            Bsdf bsdf;
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             if (!bsdf.IsDelta()) {
@@ -3361,12 +3367,12 @@ private:
         GenerateLightSample(aRng, light);
         // Nothing emitted (a black texel of a textured light, a spot's cone edge): no path.
         if (IsBlack(light.mThroughput)) return;
+        Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
         for (;;) {
             const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
             const SurfacePoint hit = mScene.Intersect(ray);
             if (!hit.IsValid()) return;
             const Vec3& hitPoint = hit.mPosition;
-            Bsdf bsdf;
             bsdf.Setup(ray, hit, mScene, Transport::kImportance);
             if (!bsdf.IsValid()) return;
             // The area pdf of this vertex: a change of measure, by the geometric cosine.
@@ -3433,6 +3439,7 @@ private:
             for (size_t i = begin; i < end; i++) Prefetch(&mLightVertices[i]);
         }
         Ray ray{cam.mOrigin, cam.mDirection};
+        Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
         for (;;) {
             const SurfacePoint hit = mScene.Intersect(ray);
             if (!hit.IsValid()) {
@@ -3448,7 +3455,6 @@ private:
             // Continues after a light only if the emitter's material reflects (see PathTracer).
             if (hit.mLightId >= 0 && cam.mPathLength >= mOptions.mMinPathLength)
                 AddCameraHitLight(aPixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.GeometricNormal(), hit.mUv);
-            Bsdf bsdf;
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             // A vertex of length L is useful only for paths of length >= L + 1.
@@ -3730,7 +3736,8 @@ private:
 
     // A stored light vertex's BSDF as its light sub-path saw it, texel included; an
     // untextured material gets no texel, as in Bsdf::Setup from a hit. Set up in place
-    // (a returned Bsdf was copied in 16-byte pieces from smaller stores: stalls).
+    // (a returned Bsdf was copied in 16-byte pieces from smaller stores: stalls); Setup
+    // leaves nothing of the entry's previous vertex.
     void SetupLightVertexBsdf(const LightVertex& aVertex, Bsdf& oBsdf) const {
         SurfacePoint surface;
         surface.mPosition = aVertex.mHitPoint;
@@ -3738,7 +3745,6 @@ private:
         mScene.FillSurfacePoint(surface);
         const Material& material = mScene.GetMaterial(surface.mMaterialId);
         const Vec3 texel = mScene.BaseColorTexel(surface);
-        oBsdf = Bsdf();  // a reused Bsdf: nothing of the previous setup stays
         oBsdf.Setup(aVertex.mDirFix, surface.GeometricNormal(), surface.ShadingNormal(), material, Transport::kImportance,
                     material.mBaseColorTexture >= 0 ? &texel : nullptr);
     }
