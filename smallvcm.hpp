@@ -2370,11 +2370,13 @@ private:
         if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd, sample) || IsBlack(sample.mRadiance)) return;
         const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample.mDirToLight);
         if (bsdf.IsBlack()) return;
+        // The shadow ray first: fewer values live across its call, and none is computed
+        // for a blocked sample.
+        if (mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance)) return;
         const float directPdfW = sample.mDirectPdfW * pick.mProb;
         const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdf.mDirPdfW);
         const Vec3 contribution = aPath.mThroughput * bsdf.mValue * sample.mRadiance * (weight * bsdf.mCosThetaGen / directPdfW);
-        if (!mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance))
-            AddContribution(aPixel, aPath.mPathLength + 1, false, contribution);
+        AddContribution(aPixel, aPath.mPathLength + 1, false, contribution);
         // END EXERCISE pt_nee_mis
     }
 
@@ -3591,6 +3593,7 @@ private:
         const int pixel = camera.RasterToIndex(raster);
         const BsdfEval toCamera = aBsdf.EvaluateWithRoulette(dirToCamera);
         if (toCamera.IsBlack()) return;
+        if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return;  // before the weight: none for a blocked one
         // The camera's area pdf of this vertex (for MIS) converts by the geometric cosine;
         // the contribution takes the shading cosine that goes with the Bsdf's f (for
         // importance, f_s times the adjoint factor; Bsdf notes). Equal on flat surfaces.
@@ -3599,7 +3602,6 @@ private:
         // Each of the N_L light sub-paths estimates the whole image: divide by N_L.
         const Vec3 unweighted = aLight.mThroughput * toCamera.mValue *
                                 (CameraPdfA(dirToCamera, distance, toCamera.mCosThetaGen) / mMisConstants.mLightPathCount);
-        if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return;
         QueueSplat(pixel, unweighted * weight);
         RecordTechnique(kLightTracing, pixel, aLight.mPathLength + 1, aLight.mPathLength + 1, unweighted, weight);
         // END EXERCISE lt_camera/connect
@@ -3663,6 +3665,7 @@ private:
                 : PathVertex{sample.mDirToLight, Vec3(0.f), -1, pick.mId, kEventNone, true};
         const BsdfEval toLight = aBsdf.EvaluateWithRoulette(sample.mDirToLight);
         if (toLight.IsBlack()) return;
+        if (mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance)) return;  // before the weight: none for a blocked one
         const float directPdfW = sample.mDirectPdfW * lightPickProb;
         // The MIS weight converts the emission pdf to area at this vertex: geometric cosine;
         // the contribution's cosine is the shading one that goes with f (Bsdf notes).
@@ -3671,7 +3674,6 @@ private:
                                                      aBsdf.GeometricCos(sample.mDirToLight, toLight.mCosThetaGen),
                                                      sample.mCosAtLight, light.IsDelta());
         const Vec3 unweighted = aCamera.mThroughput * toLight.mValue * sample.mRadiance * (toLight.mCosThetaGen / directPdfW);
-        if (mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance)) return;
         mFilm.AddColor(aPixel, unweighted * weight);
         RecordTechnique(kNextEvent, aPixel, 1, aCamera.mPathLength + 1, unweighted, weight);
     }
@@ -3697,6 +3699,7 @@ private:
             const Bsdf& lightBsdf = PixelLightBsdf(i - begin, vertex);
             const BsdfEval lightSide = lightBsdf.EvaluateWithRoulette(-direction);
             if (lightSide.IsBlack()) continue;
+            if (mScene.Occluded(aHitPoint, direction, distance)) continue;  // before the weight: none for a blocked one
 
             // G takes the shading cosines that go with each side's f (the light side's f
             // carries the adjoint factor, so f cos is f_path |cos_geometric|: Bsdf notes);
@@ -3707,7 +3710,6 @@ private:
                 PdfWtoA(cameraSide.mDirPdfW, distance, lightBsdf.GeometricCos(-direction, lightSide.mCosThetaGen)), cameraSide.mRevPdfW,
                 PdfWtoA(lightSide.mDirPdfW, distance, aBsdf.GeometricCos(direction, cameraSide.mCosThetaGen)), lightSide.mRevPdfW);
             const Vec3 unweighted = aCamera.mThroughput * vertex.mThroughput * cameraSide.mValue * lightSide.mValue * geometryTerm;
-            if (mScene.Occluded(aHitPoint, direction, distance)) continue;
             mFilm.AddColor(aPixel, unweighted * weight);
             RecordTechnique(kConnection, aPixel, vertex.mPathLength + 1, pathLength, unweighted, weight);
         }
