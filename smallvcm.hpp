@@ -4867,18 +4867,18 @@ private:
     // box always misses. A ray with a zero direction component that lies in the plane
     // of a face gets (plane - origin) * inf = 0 * inf = NaN there; Max(a, NaN) and
     // Min(a, NaN) return a, so that axis does not narrow the interval: the ray is inside.
+    SMALLVCM_BVH_INLINE static void SlabAxis(const Node& aNode, const RayData& aRay, int k, FloatN& ioTNear, FloatN& ioTFar) {
+        const float* nearPlane = aNode.mPlanes + aRay.mPlanes.mNear[k];
+        const float* farPlane = aNode.mPlanes + aRay.mPlanes.mFar[k];
+        ioTNear = Max(ioTNear, (FloatN::Load(nearPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+        ioTFar = Min(ioTFar, (FloatN::Load(farPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+    }
     SMALLVCM_BVH_INLINE static int SlabTestChildren(const Node& aNode, const RayData& aRay, float aTMax, FloatN& oTNear) {
         FloatN tNear = FloatN::Broadcast(0.f), tFar = FloatN::Broadcast(aTMax);
         // The three axes written out (GCC kept the loop: a third of a visit's instructions).
-        const auto slab = [&](int k) {
-            const float* nearPlane = aNode.mPlanes + aRay.mPlanes.mNear[k];
-            const float* farPlane = aNode.mPlanes + aRay.mPlanes.mFar[k];
-            tNear = Max(tNear, (FloatN::Load(nearPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
-            tFar = Min(tFar, (FloatN::Load(farPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
-        };
-        slab(0);
-        slab(1);
-        slab(2);
+        SlabAxis(aNode, aRay, 0, tNear, tFar);
+        SlabAxis(aNode, aRay, 1, tNear, tFar);
+        SlabAxis(aNode, aRay, 2, tNear, tFar);
         oTNear = tNear;
         return Bits(LessEqual(tNear, tFar * FloatN::Broadcast(kFarWidening)));
     }
