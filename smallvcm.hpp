@@ -4595,6 +4595,16 @@ inline int FirstLane(int aMask) {
     return lane;
 #endif
 }
+// The number of set bits of a mask.
+inline int LaneCount(int aMask) {
+#if defined(__GNUC__)
+    return __builtin_popcount(unsigned(aMask));
+#else
+    int count = 0;
+    for (; aMask; aMask &= aMask - 1) count++;
+    return count;
+#endif
+}
 // The index of the highest set bit of a non-zero mask.
 inline int LastLane(int aMask) {
 #if defined(__GNUC__)
@@ -4946,21 +4956,18 @@ private:
             ioStackSize += childCount - 1;
             return true;
         }
-        // Three or more: insertion onto the stack by decreasing tNear, then the nearest,
-        // now on top, is taken off again.
-        const auto insert = [&](int aLane) {
-            int slot = childCount++;
-            while (slot > 0 && children[slot - 1].mTNear < tNear[aLane]) {
-                children[slot] = children[slot - 1];
-                slot--;
-            }
-            children[slot] = Pending{aNode.mIndex[aLane], aNode.mCount[aLane], tNear[aLane]};
-        };
-        insert(first);
-        insert(second);
-        while (hits) {
-            insert(detail::FirstLane(hits));
-            hits &= hits - 1;
+        // Three or more: each goes straight to its place on the stack, by decreasing tNear
+        // (of equal tNear, the earlier lane lower: the later is entered first), which is
+        // the number of hit children farther than it, or as far in an earlier lane, counted
+        // with one vector compare; the nearest, then on top, is taken off again. (An
+        // insertion sort had a data-dependent exit per child, which the predictor missed.)
+        const int all = (1 << first) | rest;
+        childCount = detail::LaneCount(all);
+        for (int left = all; left; left &= left - 1) {
+            const int c = detail::FirstLane(left);
+            const FloatN tc = FloatN::Broadcast(tNear[c]);
+            const int before = Bits(Greater(tNear, tc)) | (Bits(Equal(tNear, tc)) & ((1 << c) - 1));
+            children[detail::LaneCount(before & all)] = Pending{aNode.mIndex[c], aNode.mCount[c], tNear[c]};
         }
         ioStackSize += childCount - 1;
         ioIndex = children[childCount - 1].mIndex;
