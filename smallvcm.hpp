@@ -4495,6 +4495,7 @@ struct FloatN {
     static FloatN Broadcast(float x) { return {FloatVector{x, x, x, x}}; }
 #endif
     float operator[](int aLane) const { return mV[aLane]; }
+    void SetLane(int aLane, float aValue) { mV[aLane] = aValue; }
 };
 inline FloatN operator+(FloatN a, FloatN b) { return {a.mV + b.mV}; }
 inline FloatN operator-(FloatN a, FloatN b) { return {a.mV - b.mV}; }
@@ -4546,6 +4547,7 @@ struct FloatN {
         return result;
     }
     float operator[](int aLane) const { return mV[aLane]; }
+    void SetLane(int aLane, float aValue) { mV[aLane] = aValue; }
 };
 template <typename Op>
 inline FloatN Lanewise(FloatN a, FloatN b, Op aOp) {
@@ -5009,13 +5011,13 @@ private:
 
     // The triangles the block test left to the scalar one, in lane order.
     static void ScalarLanes(const Block& aBlock, int aLanes, const Ray& aRay, const RayData& aData, float aTMin,
-                            float aTMax, float oT[kWidth], int& ioHits) {
+                            float aTMax, FloatN& ioT, int& ioHits) {
         for (int lane = 0; lane < kWidth; lane++) {
             if (!(aLanes & (1 << lane))) continue;
             float t;
                 if (IntersectTriangle(aBlock.Vertex(aBlock.mA, lane), aBlock.Vertex(aBlock.mB, lane),
                                   aBlock.Vertex(aBlock.mC, lane), aRay, aData.mShear, aTMin, aTMax, t)) {
-                oT[lane] = t;
+                ioT.SetLane(lane, t);
                 ioHits |= 1 << lane;
             }
         }
@@ -5039,12 +5041,10 @@ private:
             }
             return;
         }
-        float t[kWidth];
-        FloatN tLanes;
+        FloatN t;
         int fallback;
-        int hits = IntersectTriangles(aBlock, aData, aTMin, ioTMax, tLanes, fallback);
+        int hits = IntersectTriangles(aBlock, aData, aTMin, ioTMax, t, fallback);
         if (!(hits | fallback)) return;
-        for (int lane = 0; lane < kWidth; lane++) t[lane] = tLanes[lane];
         if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, ioTMax, t, hits);
         // The hit lanes only, in lane order (a loop over all lanes would be kWidth
         // branches the predictor misses).
@@ -5067,10 +5067,9 @@ private:
             }
             return false;
         }
-        float t[kWidth];
-        FloatN tLanes;
+        FloatN t;
         int fallback;
-        int hits = IntersectTriangles(aBlock, aData, aTMin, aTMax, tLanes, fallback);
+        int hits = IntersectTriangles(aBlock, aData, aTMin, aTMax, t, fallback);
         if (hits) return true;
         if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, aTMax, t, hits);
         return hits != 0;
