@@ -141,6 +141,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -3185,9 +3186,16 @@ inline float WeightMerge(const VcmMisConstants& c, const SubpathMis& aLight, con
 // large as the point count (SmallVCM's scheme). A query visits the cells overlapping the
 // query's bounding box -- at most 2 x 2 x 2 -- skipping buckets already visited (two
 // cells can hash to one bucket; visiting it twice would count its points twice). The
-// grid keeps its own copy of the positions in bucket order, each with an item (by
-// default the point's index), so the distance tests of a query read consecutive memory
-// and a point that passes hands its item over without a look-up elsewhere.
+// grid keeps its own copy of the positions in bucket order, each with the point's index
+// (16 bytes), and beside them, in the same order, an item per point (what a caller's
+// visit reads): the distance tests of a query read a few consecutive lines, and only the
+// points that pass (a fifth of the candidates on a surface) have their items read.
+//
+// A query runs in steps that a caller may spread over other work, since each step's
+// loads are cache misses (the grid of 500 000 points is 30 MiB) that the next step
+// needs: Prepare (the buckets; requests their ranges), Locate (reads the ranges;
+// requests the points), Select (the distance tests; requests the items of those that
+// pass), Process (the visits). Process alone does whatever steps were not done.
 template <class Item>
 class HashGridOf {
 public:
@@ -3202,33 +3210,42 @@ public:
         mBucketMask = uint32_t(buckets - 1);
         mBucketEnds.assign(buckets, 0);
         mPoints.resize(aCount);
+        mItems.resize(aCount);
         mBucketOf.resize(aCount);
         for (size_t i = 0; i < aCount; i++) {
             mBucketOf[i] = BucketOf(CellOf(aPositionOf(i)));
             mBucketEnds[mBucketOf[i]]++;
         }
-        uint32_t sum = 0;  // counting sort: ends of the buckets, then fill from the back
-        for (uint32_t& end : mBucketEnds) { sum += end; end = sum; }
-        mCursor = mBucketEnds;
-        for (size_t i = aCount; i-- > 0;) {
-            const uint32_t slot = --mCursor[mBucketOf[i]];
-            mPoints[slot] = Point{aPositionOf(i), aItemOf(i)};
+        // Counting sort in place: the counts become the buckets' beginnings, and filling
+        // the points in advances each to its bucket's end (no second table to copy).
+        uint32_t sum = 0;
+        for (uint32_t& entry : mBucketEnds) { const uint32_t count = entry; entry = sum; sum += count; }
+        for (size_t i = 0; i < aCount; i++) {
+            const uint32_t slot = mBucketEnds[mBucketOf[i]]++;
+            mPoints[slot] = Point{aPositionOf(i), uint32_t(i)};
+            mItems[slot] = aItemOf(i);
         }
     }
 
-    // The buckets a query visits, each once, found before it runs (Prepare), so that a
-    // caller with other work to do first can have their loads started early.
+    // A query and how far it got.
     struct Query {
+        enum Step { kPrepared, kLocated, kSelected };
+        static constexpr int kMaxSelected = 32;  // more points pass: Process tests them again
         Vec3 mPoint{0.f};
-        uint32_t mBuckets[27];
+        Step mStep = kPrepared;
         int mBucketCount = 0;
+        uint32_t mBuckets[27];
+        uint32_t mBegins[27], mEnds[27];  // the buckets' ranges of points (Locate)
+        int mSelectedCount = 0;           // the points that passed, in visiting order (Select)
+        uint32_t mSelected[kMaxSelected];
     };
+
     // Finds the buckets of the cells around aPoint (2 x 2 x 2, as cells are 2r wide; 3 per
     // axis when rounding puts a bound on a cell border) and requests their ranges' cache
-    // lines: VCM prepares a merge before it connects the same vertex, whose shadow rays
-    // then hide those cache misses.
+    // lines.
     void Prepare(const Vec3& aPoint, Query& oQuery) const {
         oQuery.mPoint = aPoint;
+        oQuery.mStep = Query::kPrepared;
         oQuery.mBucketCount = 0;
         if (mPoints.empty()) return;
         const glm::ivec3 low = CellOf(aPoint - Vec3(mRadius));
@@ -3252,27 +3269,50 @@ public:
                 }
     }
 
-    // Calls aVisit(item) for every point within the radius of the query's point
-    // (distance <= r), bucket by bucket in the order Prepare found them.
-    template <class Visit>
-    void Process(const Query& aQuery, Visit&& aVisit) const {
-        // First the buckets' ranges, then their points: the loads do not wait for one
-        // another, so their cache misses overlap; the buckets' first points are all
-        // requested before the first is tested.
-        uint32_t begins[27], ends[27];
+    // Reads the ranges of a prepared query's buckets and requests the lines of their points.
+    void Locate(Query& aQuery) const {
         for (int b = 0; b < aQuery.mBucketCount; b++) {
             const uint32_t bucket = aQuery.mBuckets[b];
-            begins[b] = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
-            ends[b] = mBucketEnds[bucket];
-            Prefetch(mPoints.data() + begins[b]);
+            aQuery.mBegins[b] = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
+            aQuery.mEnds[b] = mBucketEnds[bucket];
+            if (aQuery.mBegins[b] == aQuery.mEnds[b]) continue;
+            Prefetch(&mPoints[aQuery.mBegins[b]]);
+            Prefetch(&mPoints[aQuery.mEnds[b] - 1]);  // a bucket's points fill one or two lines, seldom more
         }
-        for (int b = 0; b < aQuery.mBucketCount; b++)
-            for (uint32_t k = begins[b]; k < ends[b]; k++) {
-                const Vec3 d = mPoints[k].mPosition - aQuery.mPoint;
-                if (glm::dot(d, d) <= mRadiusSqr) aVisit(mPoints[k].mItem);
-            }
+        aQuery.mStep = Query::kLocated;
     }
-    // The same in one step.
+
+    // The distance tests of a located query: the points within the radius (distance <= r),
+    // in visiting order, their items requested. More than kMaxSelected: left to Process.
+    void Select(Query& aQuery) const {
+        aQuery.mSelectedCount = 0;
+        for (int b = 0; b < aQuery.mBucketCount; b++)
+            for (uint32_t k = aQuery.mBegins[b]; k < aQuery.mEnds[b]; k++) {
+                if (!Passes(aQuery, k)) continue;
+                if (aQuery.mSelectedCount == Query::kMaxSelected) return;
+                Prefetch(&mItems[k]);
+                Prefetch(reinterpret_cast<const char*>(&mItems[k] + 1) - 1);  // an item may straddle two lines
+                aQuery.mSelected[aQuery.mSelectedCount++] = k;
+            }
+        aQuery.mStep = Query::kSelected;
+    }
+
+    // Calls aVisit(item), or aVisit(item, index) if it takes the point's index too, for
+    // every point within the radius of the query's point, bucket by bucket in the order
+    // Prepare found them, doing first the steps not yet done.
+    template <class Visit>
+    void Process(Query& aQuery, Visit&& aVisit) const {
+        if (aQuery.mStep == Query::kPrepared) Locate(aQuery);
+        if (aQuery.mStep == Query::kLocated) Select(aQuery);
+        if (aQuery.mStep == Query::kSelected) {
+            for (int i = 0; i < aQuery.mSelectedCount; i++) VisitPoint(aQuery.mSelected[i], aVisit);
+            return;
+        }
+        for (int b = 0; b < aQuery.mBucketCount; b++)  // too many passed for Select's list
+            for (uint32_t k = aQuery.mBegins[b]; k < aQuery.mEnds[b]; k++)
+                if (Passes(aQuery, k)) VisitPoint(k, aVisit);
+    }
+    // All steps at once.
     template <class Visit>
     void Process(const Vec3& aPoint, Visit&& aVisit) const {
         Query query;
@@ -3281,6 +3321,16 @@ public:
     }
 
 private:
+    bool Passes(const Query& aQuery, uint32_t aSlot) const {
+        const Vec3 d = mPoints[aSlot].mPosition - aQuery.mPoint;
+        return glm::dot(d, d) <= mRadiusSqr;
+    }
+    template <class Visit>
+    void VisitPoint(uint32_t aSlot, Visit& aVisit) const {
+        if constexpr (std::is_invocable_v<Visit&, const Item&, uint32_t>) aVisit(mItems[aSlot], mPoints[aSlot].mIndex);
+        else aVisit(mItems[aSlot]);
+    }
+
     glm::ivec3 CellOf(const Vec3& aPosition) const {
         // floor() by truncation and a correction for negatives: without SSE4.1 std::floor
         // is a library call, and this runs six times per query.
@@ -3299,11 +3349,12 @@ private:
     float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
     uint32_t mBucketMask = 0;
     std::vector<uint32_t> mBucketEnds;
-    // The points in bucket order, each with its item (a bucket's candidates share cache
-    // lines, and an accepted point's item is in the line its position was read from).
-    struct Point { Vec3 mPosition; Item mItem; };
+    // The points in bucket order, 16 bytes each (a bucket's candidates share cache lines),
+    // and their items in the same order (the items of a cell's points that pass share lines).
+    struct Point { Vec3 mPosition; uint32_t mIndex; };
     std::vector<Point> mPoints;
-    std::vector<uint32_t> mBucketOf, mCursor;  // build scratch, kept to avoid reallocating
+    std::vector<Item> mItems;
+    std::vector<uint32_t> mBucketOf;  // build scratch, kept to avoid reallocating
 };
 
 // The grid of point indices: aVisit(index) for every point within the radius.
@@ -3366,6 +3417,7 @@ public:
         if (mUseVM) BuildRangeSearch(radius);
         if (mLightTraceOnly) return;
         for (int pixel = 0; pixel < pathCount; pixel++) TraceCameraSubpath(aRng, pixel);
+        while (mMergesDone < mMergesQueued) ProcessOldestMerge();
     }
 
     // --- what tests and tools may inspect ----------------------------------------------
@@ -3413,11 +3465,11 @@ public:
     // them), from which and the incoming direction a connection rebuilds the BSDF bit
     // for bit; a merge needs only the incoming direction. Storing them took 88 bytes, and
     // the vertices are written once but read by every connection and merge, from memory.
-    // What a merge reads (MergeData, 40 bytes) is copied into the hash grid beside each
-    // position (MergeItem, with the vertex's index for the test hook): a merge visits
-    // vertices in no order, and reading each accepted one from this array was a cache
-    // miss that cost VCM about 9 % of its time at 512x512 (the copy costs 44 bytes per
-    // vertex: peak memory of VCM at 512x512 on scene 4, 64 -> 85 MiB).
+    // What a merge reads (MergeData, 40 bytes) is copied into the hash grid in the
+    // grid's order (MergeItem; the grid keeps the vertex's index beside its position, for
+    // the test hook): a merge visits vertices in no order, and reading each accepted one
+    // from this array was a cache miss that cost VCM about 9 % of its time at 512x512 (the
+    // copy costs 44 bytes per vertex: peak memory of VCM at 512x512 on scene 4, 64 -> 85 MiB).
     struct MergeData {
         int mPathLength = 0;
         Vec3 mThroughput{0.f};
@@ -3428,9 +3480,7 @@ public:
         Vec3 mHitPoint{0.f};
         int mPrimitiveId = -1;  // the primitive hit (see Scene)
     };
-    struct MergeItem : MergeData {
-        uint32_t mIndex = 0;
-    };
+    using MergeItem = MergeData;
 
 private:
     // --- stage 1: light sub-paths ----------------------------------------------------------
@@ -3525,12 +3575,7 @@ private:
     // visiting the others.
     void BuildRangeSearch(float aRadius) {
         mGrid.Build(mLightVertices.size(), aRadius, [&](size_t i) { return mLightVertices[i].mHitPoint; },
-                    [&](size_t i) {
-                        MergeItem item;
-                        static_cast<MergeData&>(item) = mLightVertices[i];
-                        item.mIndex = uint32_t(i);
-                        return item;
-                    });
+                    [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[i]); });
     }
 
     // --- stage 3: camera sub-paths ---------------------------------------------------------
@@ -3573,14 +3618,13 @@ private:
             if (cam.mPathLength >= mOptions.mMaxPathLength) return;
 
             if (!bsdf.IsDelta()) {
-                HashGridOf<MergeItem>::Query merge;
-                if (mUseVM) mGrid.Prepare(hitPoint, merge);
+                if (mUseVM) mGrid.Prepare(hitPoint, NextDeferredMerge().mQuery);
                 if (mUseVC) {
                     if (cam.mPathLength + 1 >= mOptions.mMinPathLength)
                         ConnectToLight(aRng, aPixel, cam, hitPoint, bsdf);
                     ConnectToLightVertices(aPixel, cam, hitPoint, bsdf);
                 }
-                if (mUseVM) MergeWithLightVertices(aPixel, cam, merge, bsdf);
+                if (mUseVM) DeferMerge(aPixel, cam, bsdf);
             }
 
             uint32_t event = kEventNone;
@@ -3756,7 +3800,7 @@ private:
                                                    emissionPdfW * lightPickProb);
         }
         const Vec3 unweighted = aCamera.mThroughput * radiance;
-        mFilm.AddColor(aPixel, unweighted * weight);
+        AddCameraContribution(aPixel, unweighted * weight);
         RecordTechnique(kUnidirectional, aPixel, 0, aCamera.mPathLength, unweighted, weight);
     }
 
@@ -3784,7 +3828,7 @@ private:
                                                      aBsdf.GeometricCos(sample.mDirToLight, toLight.mCosThetaGen),
                                                      sample.mCosAtLight, light.IsDelta());
         const Vec3 unweighted = aCamera.mThroughput * toLight.mValue * sample.mRadiance * (toLight.mCosThetaGen / directPdfW);
-        mFilm.AddColor(aPixel, unweighted * weight);
+        AddCameraContribution(aPixel, unweighted * weight);
         RecordTechnique(kNextEvent, aPixel, 1, aCamera.mPathLength + 1, unweighted, weight);
     }
 
@@ -3820,7 +3864,7 @@ private:
                 PdfWtoA(cameraSide.mDirPdfW, distance, lightBsdf.GeometricCos(-direction, lightSide.mCosThetaGen)), cameraSide.mRevPdfW,
                 PdfWtoA(lightSide.mDirPdfW, distance, aBsdf.GeometricCos(direction, cameraSide.mCosThetaGen)), lightSide.mRevPdfW);
             const Vec3 unweighted = aCamera.mThroughput * vertex.mThroughput * cameraSide.mValue * lightSide.mValue * geometryTerm;
-            mFilm.AddColor(aPixel, unweighted * weight);
+            AddCameraContribution(aPixel, unweighted * weight);
             RecordTechnique(kConnection, aPixel, vertex.mPathLength + 1, pathLength, unweighted, weight);
         }
     }
@@ -3862,11 +3906,11 @@ private:
     // constant kernel 1 / (pi r^2) over N_L light sub-paths [tech. rep. (11)], weighted
     // by [tech. rep. (38), (39)].
     // aQuery: the grid's query at the camera vertex (HashGridOf::Prepare).
-    void MergeWithLightVertices(int aPixel, const SubpathState& aCamera, const HashGridOf<MergeItem>::Query& aQuery,
+    void MergeWithLightVertices(int aPixel, const SubpathState& aCamera, HashGridOf<MergeItem>::Query& aQuery,
                                 const Bsdf& aBsdf) {
         // BEGIN EXERCISE ppm_merging/merge
         Vec3 sum(0.f);
-        mGrid.Process(aQuery, [&](const MergeItem& vertex) {
+        mGrid.Process(aQuery, [&](const MergeItem& vertex, uint32_t aIndex) {
             const int pathLength = vertex.mPathLength + aCamera.mPathLength;
             if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
             // The camera's BSDF, evaluated towards where the light vertex came from: f_path,
@@ -3875,7 +3919,7 @@ private:
             if (cameraSide.IsBlack()) return;
             const float weight = mPpm ? 1.f : VcmMis::WeightMerge(mMisConstants, vertex.mMis, aCamera.mMis,
                                                                  cameraSide.mDirPdfW, cameraSide.mRevPdfW);
-            if (mPathRecords) RecordMerge(vertex.mIndex, weight);
+            if (mPathRecords) RecordMerge(aIndex, weight);
             sum += cameraSide.mValue * vertex.mThroughput * weight;
         });
         if (IsBlack(sum)) return;
@@ -3883,6 +3927,67 @@ private:
         mFilm.AddColor(aPixel, contribution);
         RecordTechnique(kMerging, aPixel, -1, -1, contribution, 1.f);
         // END EXERCISE ppm_merging/merge
+    }
+
+    // A merge runs three merges late, so that its cache misses overlap with other work:
+    // its query is prepared at its camera vertex (HashGridOf::Prepare requests the bucket
+    // ranges' lines, before the vertex's NEE and connections), located at the next merge
+    // (the points' lines requested), selected at the one after (the distance tests; the
+    // items of those that pass requested) and run at the third. Each step's loads were
+    // misses the processor waited for (the grid is 30 MiB at 512x512 on scene 2, a query's
+    // lines random in it); a camera vertex's work is time enough for them to arrive. The
+    // merge's contribution goes to its pixel after those of the techniques before it on
+    // the same path, and the contributions that follow it wait in a queue for it, so every
+    // pixel receives the same sums in the same order (the images are the same bit for bit).
+    // The test hook reads the camera path as it is at the merge: with it, merges run at once.
+    static constexpr uint64_t kMergeLag = 3;
+    struct DeferredMerge {
+        int mPixel = 0;
+        SubpathState mCamera;
+        Bsdf mBsdf;
+        HashGridOf<MergeItem>::Query mQuery;
+    };
+    struct PendingContribution {
+        int mPixel = 0;
+        Vec3 mColor{0.f};
+        bool mIsMerge = false;  // the place of a deferred merge's contribution
+    };
+    DeferredMerge& NextDeferredMerge() { return mDeferredMerges[mMergesQueued % mDeferredMerges.size()]; }
+    void DeferMerge(int aPixel, const SubpathState& aCamera, const Bsdf& aBsdf) {
+        DeferredMerge& merge = NextDeferredMerge();
+        if (mPathRecords) {
+            MergeWithLightVertices(aPixel, aCamera, merge.mQuery, aBsdf);
+            return;
+        }
+        merge.mPixel = aPixel;
+        merge.mCamera = aCamera;
+        merge.mBsdf = aBsdf;
+        mPendingContributions.push_back(PendingContribution{aPixel, Vec3(0.f), true});
+        mMergesQueued++;
+        if (mMergesQueued >= 2) mGrid.Locate(mDeferredMerges[(mMergesQueued - 2) % mDeferredMerges.size()].mQuery);
+        if (mMergesQueued >= 3) mGrid.Select(mDeferredMerges[(mMergesQueued - 3) % mDeferredMerges.size()].mQuery);
+        while (mMergesDone + kMergeLag < mMergesQueued) ProcessOldestMerge();
+    }
+    void ProcessOldestMerge() {
+        DeferredMerge& merge = mDeferredMerges[mMergesDone % mDeferredMerges.size()];
+        mMergesDone++;
+        mPendingFront++;  // this merge's place: everything before it is in the film
+        MergeWithLightVertices(merge.mPixel, merge.mCamera, merge.mQuery, merge.mBsdf);
+        for (; mPendingFront < mPendingContributions.size() && !mPendingContributions[mPendingFront].mIsMerge; mPendingFront++)
+            mFilm.AddColor(mPendingContributions[mPendingFront].mPixel, mPendingContributions[mPendingFront].mColor);
+        // The queue as a vector read from mPendingFront: what was read is dropped now and then.
+        if (mPendingFront == mPendingContributions.size()) {
+            mPendingContributions.clear();
+            mPendingFront = 0;
+        } else if (mPendingFront >= 256) {
+            mPendingContributions.erase(mPendingContributions.begin(), mPendingContributions.begin() + ptrdiff_t(mPendingFront));
+            mPendingFront = 0;
+        }
+    }
+    // What every camera-side technique but merging adds to the film (see DeferMerge).
+    void AddCameraContribution(int aPixel, const Vec3& aColor) {
+        if (mPendingFront == mPendingContributions.size()) mFilm.AddColor(aPixel, aColor);
+        else mPendingContributions.push_back(PendingContribution{aPixel, aColor, false});
     }
 
     // Writes a contribution into the technique layers, when they were asked for.
@@ -3957,6 +4062,10 @@ private:
     std::vector<Bsdf> mPixelLightBsdfs;      // PixelLightBsdf's cache, for the current pixel
     std::vector<bool> mPixelLightBsdfBuilt;  // which of its entries are built
     HashGridOf<MergeItem> mGrid;
+    std::array<DeferredMerge, kMergeLag + 2> mDeferredMerges;  // a ring: the newest, those waiting, the one to run
+    uint64_t mMergesQueued = 0, mMergesDone = 0;
+    std::vector<PendingContribution> mPendingContributions;  // camera-side film additions waiting for a merge,
+    size_t mPendingFront = 0;                                // from this one on
     int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1};
     int mPyramidLayers[kPyramidMaxLength + 1][kPyramidMaxLength + 1][2] = {};
     int mLongerPathsLayer = -1;
