@@ -457,6 +457,7 @@ struct WatertightRay {
     int mKx = 0, mKy = 1, mKz = 2;
     float mSx = 0.f, mSy = 0.f, mSz = 1.f;
 
+    WatertightRay() = default;  // for the BVH, which fills it in its own way
     explicit WatertightRay(const Vec3& aDirection) {
         // Components by runtime index read from a plain array: glm's operator[] is a
         // switch (and an assert), a branch the predictor misses on random directions.
@@ -5088,6 +5089,55 @@ private:
         WatertightRay mShear;
         FloatN mShearX, mShearY, mShearZ;     // the shear's mSx, mSy, mSz
         FloatN mOriginX, mOriginY, mOriginZ;  // the origin along kx, ky, kz
+#if defined(SMALLVCM_BVH_SSE) || defined(SMALLVCM_BVH_AVX)
+        // WatertightRay's values, computed another way with the same result bit for bit.
+        // There, the divisions wait for kz, which waits for a chain of compares, integer
+        // steps and loads by index (some 45 cycles before the first triangle can be
+        // tested). Here the three candidates, one per axis that kz may be, are divided
+        // at once, four lanes per instruction, while kz is found from the compares'
+        // bits in integer registers; kz then picks a lane (the same IEEE division as
+        // d[kx] / d[kz], so the same value).
+        SMALLVCM_BVH_INLINE explicit BlockRay(const Ray& aRay) {
+            typedef float Float4 __attribute__((vector_size(16)));
+            typedef int32_t Int4 __attribute__((vector_size(16)));
+            const Vec3& d = aRay.mDirection;
+            const Vec3& o = aRay.mOrigin;
+            // Lane i: axis i as kz; "next" is axis (i + 1) % 3, "after" (i + 2) % 3.
+            const Int4 toNext = {1, 2, 0, 3}, toAfter = {2, 0, 1, 3};
+            const Float4 dir = {d.x, d.y, d.z, 1.f};
+            const Float4 nextOver = __builtin_shuffle(dir, toNext) / dir, afterOver = __builtin_shuffle(dir, toAfter) / dir;
+            const Float4 inverse = Float4{1.f, 1.f, 1.f, 1.f} / dir;
+            const Float4 absDir = reinterpret_cast<Float4>(reinterpret_cast<Int4>(dir) & Int4{INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX});
+            const int overNext = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > __builtin_shuffle(absDir, toNext)));
+            const int overAfter = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > __builtin_shuffle(absDir, toAfter)));
+            const int xOverY = overNext & 1, yOverZ = (overNext >> 1) & 1, xOverZ = overAfter & 1;
+            const int kz = 2 - 2 * (xOverY & xOverZ) - ((1 - xOverY) & yOverZ);
+            // Lanes whose axis the ray runs backwards along: were it kz, kx and ky would
+            // swap, as in WatertightRay.
+            const Int4 backwards = dir < Float4{};
+            const int back = (__builtin_ia32_movmskps(reinterpret_cast<Float4>(backwards)) >> kz) & 1;
+            const Float4 shearX = backwards ? afterOver : nextOver, shearY = backwards ? nextOver : afterOver;
+            const Float4 originZ = {o.x, o.y, o.z, 0.f};
+            const Float4 originNext = __builtin_shuffle(originZ, toNext), originAfter = __builtin_shuffle(originZ, toAfter);
+            const Float4 originX = backwards ? originAfter : originNext, originY = backwards ? originNext : originAfter;
+            // (kz + 1 + back) % 3 and (kz + 2 - back) % 3: two bits each of 0x124, which
+            // holds 0, 1, 2, 0, 1.
+            mShear.mKz = kz;
+            mShear.mKx = (0x124 >> (2 * (kz + 1 + back))) & 3;
+            mShear.mKy = (0x124 >> (2 * (kz + 2 - back))) & 3;
+            mShear.mSx = shearX[kz];
+            mShear.mSy = shearY[kz];
+            mShear.mSz = inverse[kz];
+            mShearX = FloatN::Broadcast(mShear.mSx);
+            mShearY = FloatN::Broadcast(mShear.mSy);
+            mShearZ = FloatN::Broadcast(mShear.mSz);
+            mOriginX = FloatN::Broadcast(originX[kz]);
+            mOriginY = FloatN::Broadcast(originY[kz]);
+            mOriginZ = FloatN::Broadcast(originZ[kz]);
+            for (int k = 0; k < 3; k++) mInverse[k] = inverse[k];
+        }
+        float mInverse[3];  // 1 / direction, for RayData: divided here with the shear anyway
+#else
         explicit BlockRay(const Ray& aRay) : mShear(aRay.mDirection) {
             const float o[3] = {aRay.mOrigin.x, aRay.mOrigin.y, aRay.mOrigin.z};
             mShearX = FloatN::Broadcast(mShear.mSx);
@@ -5097,6 +5147,7 @@ private:
             mOriginY = FloatN::Broadcast(o[mShear.mKy]);
             mOriginZ = FloatN::Broadcast(o[mShear.mKz]);
         }
+#endif
     };
     struct RayData : BlockRay {
         FloatN mOrigin[3], mInvDir[3];
@@ -5108,7 +5159,11 @@ private:
             int signs = 0;
             for (int k = 0; k < 3; k++) {
                 mOrigin[k] = FloatN::Broadcast(aRay.mOrigin[k]);
+#if defined(SMALLVCM_BVH_SSE) || defined(SMALLVCM_BVH_AVX)
+                const float invDir = mInverse[k];
+#else
                 const float invDir = 1.f / aRay.mDirection[k];
+#endif
                 mInvDir[k] = FloatN::Broadcast(invDir);
                 signs |= int(std::signbit(invDir)) << k;
             }
