@@ -3213,8 +3213,12 @@ public:
         mPoints.resize(aCount);
         mItems.resize(aCount);
         mBucketOf.resize(aCount);
+        for (size_t i = 0; i < aCount; i++) mBucketOf[i] = BucketOf(CellOf(aPositionOf(i)));
+        // The table's counters and the points' slots are random places in megabytes: each
+        // is requested kAhead points before it is updated, so the misses overlap.
+        constexpr size_t kAhead = 16;
         for (size_t i = 0; i < aCount; i++) {
-            mBucketOf[i] = BucketOf(CellOf(aPositionOf(i)));
+            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
             mBucketEnds[mBucketOf[i]]++;
         }
         // Counting sort in place: the counts become the buckets' beginnings, and filling
@@ -3222,6 +3226,12 @@ public:
         uint32_t sum = 0;
         for (uint32_t& entry : mBucketEnds) { const uint32_t count = entry; entry = sum; sum += count; }
         for (size_t i = 0; i < aCount; i++) {
+            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
+            if (i + kAhead / 2 < aCount) {  // where that point will go, unless its bucket gets a point before it
+                const uint32_t slot = mBucketEnds[mBucketOf[i + kAhead / 2]];
+                Prefetch(&mPoints[slot]);
+                Prefetch(&mItems[slot]);
+            }
             const uint32_t slot = mBucketEnds[mBucketOf[i]]++;
             mPoints[slot] = Point{aPositionOf(i), uint32_t(i)};
             mItems[slot] = aItemOf(i);
@@ -3251,23 +3261,31 @@ public:
         if (mPoints.empty()) return;
         const glm::ivec3 low = CellOf(aPoint - Vec3(mRadius));
         const glm::ivec3 high = CellOf(aPoint + Vec3(mRadius));
-        uint32_t summary = 0;
-        for (int z = low.z; z <= high.z; z++)
-            for (int y = low.y; y <= high.y; y++)
+        // BucketOf's hash, its z and y terms summed once per row; the count, mask and table
+        // kept in locals (members are reloaded after every store to the query's buckets).
+        uint32_t* const buckets = oQuery.mBuckets;
+        const uint32_t mask = mBucketMask;
+        const uint32_t* const table = mBucketEnds.data();
+        int count = 0;
+        uint64_t summary = 0;
+        for (int z = low.z; z <= high.z; z++) {
+            const uint32_t zHash = uint32_t(z) * kHashZ;
+            for (int y = low.y; y <= high.y; y++) {
+                const uint32_t yzHash = zHash + uint32_t(y) * kHashY;
                 for (int x = low.x; x <= high.x; x++) {
-                    const uint32_t bucket = BucketOf(glm::ivec3(x, y, z));
+                    const uint32_t bucket = (uint32_t(x) + yzHash) & mask;
                     // Two cells may share a bucket: its points are visited once. Rare, so
-                    // a 32-bit summary of the buckets so far (one bit per bucket mod 32)
+                    // a 64-bit summary of the buckets so far (one bit per bucket mod 64)
                     // rules it out cheaply, and only a match is checked in full.
-                    const uint32_t summaryBit = 1u << (bucket & 31u);
-                    uint32_t* const buckets = oQuery.mBuckets;
-                    if ((summary & summaryBit) &&
-                        std::find(buckets, buckets + oQuery.mBucketCount, bucket) != buckets + oQuery.mBucketCount)
-                        continue;
+                    const uint64_t summaryBit = uint64_t(1) << (bucket & 63u);
+                    if ((summary & summaryBit) && std::find(buckets, buckets + count, bucket) != buckets + count) continue;
                     summary |= summaryBit;
-                    buckets[oQuery.mBucketCount++] = bucket;
-                    Prefetch(&mBucketEnds[bucket]);
+                    buckets[count++] = bucket;
+                    Prefetch(table + bucket);
                 }
+            }
+        }
+        oQuery.mBucketCount = count;
     }
 
     // Reads the ranges of a prepared query's buckets and requests the lines of their points.
@@ -3342,8 +3360,9 @@ private:
     // Neighbours along x get neighbouring buckets (x enters with factor 1), so the two
     // x-cells of a query share cache lines in both arrays; y and z enter with large odd
     // factors, which keeps cells of one surface from colliding in a pattern.
+    static constexpr uint32_t kHashY = 73856093u, kHashZ = 19349663u;
     uint32_t BucketOf(const glm::ivec3& aCell) const {
-        const uint32_t hash = uint32_t(aCell.x) + uint32_t(aCell.y) * 73856093u + uint32_t(aCell.z) * 19349663u;
+        const uint32_t hash = uint32_t(aCell.x) + uint32_t(aCell.y) * kHashY + uint32_t(aCell.z) * kHashZ;
         return hash & mBucketMask;
     }
 
