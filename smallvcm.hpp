@@ -268,7 +268,9 @@ struct Frame {
         mY = Vec3(b, sign + aZ.y * aZ.y * a, -aZ.y);
     }
     Vec3 ToWorld(const Vec3& aLocal) const { return mX * aLocal.x + mY * aLocal.y + mZ * aLocal.z; }
-    Vec3 ToLocal(const Vec3& aWorld) const {
+    // Forced inline: with Bsdf::EvaluateWithRoulette inlined into its callers, g++ -O2
+    // left this one out of line in next-event estimation, a call per evaluation.
+    SMALLVCM_ALWAYS_INLINE Vec3 ToLocal(const Vec3& aWorld) const {
         return Vec3(glm::dot(aWorld, mX), glm::dot(aWorld, mY), glm::dot(aWorld, mZ));
     }
 };
