@@ -5013,8 +5013,10 @@ public:
     bool Occluded(const Ray& aRay, float aTMin, float aTMax) const {
         if (mBlocks.empty()) return false;
         if (mRoot.mCount > 0) {
+            // Last block first: a leaf's spheres come last, and in a small scene (a room
+            // with a few objects in it) the objects are what shadow rays hit.
             const BlockRay ray(aRay);
-            for (uint32_t b = 0; b < mRoot.mCount; b++)
+            for (uint32_t b = mRoot.mCount; b-- > 0;)
                 if (OccludedByBlock(mBlocks[mRoot.mIndex + b], aRay, ray, aTMin, aTMax)) return true;
             return false;
         }
