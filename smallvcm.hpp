@@ -380,6 +380,15 @@ inline Vec2 SampleConcentricDisc(const Vec2& aSamples) {
 }
 inline float ConcentricDiscPdfA() { return kInvPi; }
 
+// aV / aDivisor as one vector division: the same correctly rounded quotients as glm's
+// three scalar divisions, which queue on the divider one after another (next-event
+// estimation's direction to the light, on the way to its shadow ray).
+inline Vec3 DividedBy(const Vec3& aV, float aDivisor) {
+    typedef float Float4 __attribute__((vector_size(16)));
+    const Float4 quotient = Float4{aV.x, aV.y, aV.z, 1.f} / Float4{aDivisor, aDivisor, aDivisor, aDivisor};
+    return Vec3(quotient[0], quotient[1], quotient[2]);
+}
+
 // --- Measure conversions: p_A = p_W |cos| / d^2 ---------------------------------------
 inline float PdfWtoA(float aPdfW, float aDist, float aCosThere) {
     return aPdfW * std::abs(aCosThere) / Sqr(aDist);
@@ -903,7 +912,7 @@ struct Light {
             const float distSqr = glm::dot(toLight, toLight);
             if (!(distSqr > 0.f)) return false;
             oSample.mDistance = std::sqrt(distSqr);
-            oSample.mDirToLight = toLight / oSample.mDistance;
+            oSample.mDirToLight = DividedBy(toLight, oSample.mDistance);
             const float cosNormalDir = EmittingCosine(normal, -oSample.mDirToLight);
             if (cosNormalDir <= kEpsCosine) return false;  // the side facing the receiver does not emit
             oSample.mDirectPdfW = PdfAtoW(1.f / mArea, oSample.mDistance, cosNormalDir);
@@ -918,7 +927,7 @@ struct Light {
             const float distSqr = glm::dot(toLight, toLight);
             if (!(distSqr > 0.f)) return false;
             oSample.mDistance = std::sqrt(distSqr);
-            oSample.mDirToLight = toLight / oSample.mDistance;
+            oSample.mDirToLight = DividedBy(toLight, oSample.mDistance);
             oSample.mDirectPdfW = distSqr;
             oSample.mCosAtLight = 1.f;
             if (mType == LightType::kPoint) {
