@@ -6980,7 +6980,20 @@ private:
             volume += glm::dot(p0, glm::cross(p1, p2)) / 6.0;
         }
         if (edges.empty()) return false;
-        std::sort(edges.begin(), edges.end());
+        // Sorted by the smaller id with one counting pass (the ids are dense, at most id),
+        // then each vertex's few edges by std::sort: the same order as one std::sort over
+        // all of them, which took 1 % of the time of a short render of an 81 920-triangle mesh.
+        std::vector<uint32_t> bucketStart(size_t(id) + 2, 0u);
+        for (const uint64_t edge : edges) bucketStart[size_t(edge >> 32) + 1]++;
+        for (size_t b = 1; b < bucketStart.size(); b++) bucketStart[b] += bucketStart[b - 1];
+        {
+            std::vector<uint64_t> bucketed(edges.size());
+            std::vector<uint32_t> fill(bucketStart.begin(), bucketStart.end() - 1);
+            for (const uint64_t edge : edges) bucketed[fill[size_t(edge >> 32)]++] = edge;
+            edges.swap(bucketed);
+        }
+        for (size_t b = 0; b + 1 < bucketStart.size(); b++)
+            std::sort(edges.begin() + bucketStart[b], edges.begin() + bucketStart[b + 1]);
         for (size_t e = 0; e < edges.size(); e += 2)  // sorted pairs: (a, b, forward), (a, b, backward)
             if ((edges[e] & 1u) || e + 1 >= edges.size() || edges[e + 1] != (edges[e] | 1u))
                 return false;  // an open border, or an edge shared otherwise than by two opposite triangles
