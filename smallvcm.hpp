@@ -726,6 +726,15 @@ struct MaterialConstants {
     Side mFront, mBack;
 };
 inline MaterialConstants ComputeMaterialConstants(const Material& aMaterial);  // with the Bsdf, below
+inline bool SameMaterialConstants(const MaterialConstants& aA, const MaterialConstants& aB) {
+    const auto sameSide = [](const MaterialConstants::Side& aX, const MaterialConstants::Side& aY) {
+        return aX.mProbabilities == aY.mProbabilities && aX.mIsDelta == aY.mIsDelta && aX.mValid == aY.mValid;
+    };
+    return aA.mReflectance.mDiffuse == aB.mReflectance.mDiffuse && aA.mReflectance.mPhong == aB.mReflectance.mPhong &&
+           aA.mReflectance.mMirror == aB.mReflectance.mMirror && aA.mContinuationProb == aB.mContinuationProb &&
+           aA.mFixedProbabilities == aB.mFixedProbabilities && sameSide(aA.mFront, aB.mFront) &&
+           sameSide(aA.mBack, aB.mBack);
+}
 
 struct Triangle {
     Vec3 mP0{0.f}, mP1{0.f}, mP2{0.f};
@@ -1197,7 +1206,8 @@ struct LightPick {
 };
 
 // The scene: geometry, materials, lights and camera. Build it by filling the vectors
-// (or with LoadGltfScene) and call Finalize() once before rendering.
+// (or with LoadGltfScene) and call Finalize() before rendering, and again after changing
+// them (Render refuses a scene whose materials changed since: CheckUnchangedSinceFinalize).
 class Scene {
 public:
     std::string mName;
@@ -1426,6 +1436,25 @@ public:
 
     // --- queries -----------------------------------------------------------------
     bool IsFinalized() const { return mFinalized; }
+    // Finalize keeps per-material constants and per-triangle hit records (the Bsdf and
+    // FillSurfacePoint read them instead of the materials and triangles): a material or a
+    // triangle's material changed after it would render with the old values. Render calls
+    // this, so such a change is an error that says what to do, not a wrong picture.
+    void CheckUnchangedSinceFinalize() const {
+        const auto changed = [](const std::string& aWhat) {
+            return Error("scene: " + aWhat + " changed after Finalize(); call Finalize() again");
+        };
+        if (mMaterialConstants.size() != mMaterials.size()) throw changed("the number of materials");
+        if (mTriangleHitRecords.size() != mTriangles.size()) throw changed("the number of triangles");
+        for (size_t m = 0; m < mMaterials.size(); m++)
+            if (!SameMaterialConstants(ComputeMaterialConstants(mMaterials[m]), mMaterialConstants[m]))
+                throw changed("material " + std::to_string(m) + " '" + mMaterials[m].mName + "'");
+        for (size_t t = 0; t < mTriangles.size(); t++) {
+            const TriangleKind& kind = mTriangleKinds[mTriangleHitRecords[t].mKind];
+            if (kind.mMaterialId != mTriangles[t].mMaterialId || kind.mLightId != mTriangles[t].mLightId)
+                throw changed("the material or light of triangle " + std::to_string(t));
+        }
+    }
     const SceneSphere& GetSceneSphere() const { return mSceneSphere; }
     float RayEpsilon() const { return mRayEpsilon; }
     int LightCount() const { return int(mLights.size()); }
@@ -4557,6 +4586,7 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions, c
     ValidateRenderOptions(aOptions);
     if (!aIntegrator.mCreateRenderer) throw Error("integrator '" + aIntegrator.mName + "': has no mCreateRenderer");
     if (!aScene.IsFinalized()) throw Error("scene: Finalize() was not called");
+    aScene.CheckUnchangedSinceFinalize();
     const auto start = detail::IterationSchedule::Clock::now();
 
     int threadCount = aOptions.mThreads > 0 ? aOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));

@@ -929,3 +929,30 @@ TEST_CASE("The BVH's hits are IntersectTriangle's bit for bit, for directions wi
         REQUIRE(hits == 3 * int(directions.size()));
     }
 }
+
+// Finalize keeps per-material constants and per-triangle hit records that the renderers
+// read instead of the materials and triangles; a change after it must not render with the
+// old values unnoticed.
+TEST_CASE("A material or a triangle's material changed after Finalize is an error until Finalize runs again", "[geometry]") {
+    Scene scene = testutil::LoadCornell(4, 8, 8);
+    RenderOptions options;
+    options.mIterations = 1;
+    options.mThreads = 1;
+    options.mProgress = false;
+    REQUIRE(ParseAlgorithm("pt", options.mAlgorithm));
+    REQUIRE_NOTHROW(Render(scene, options));
+    const auto message = [&]() -> std::string {
+        try { Render(scene, options); } catch (const Error& error) { return error.what(); }
+        return "";
+    };
+    scene.mMaterials[0].mDiffuseReflectance = scene.mMaterials[0].mDiffuseReflectance * 0.5f + Vec3(0.05f);
+    CHECK_THAT(message(), Catch::Contains("material 0") && Catch::Contains("changed after Finalize(); call Finalize() again"));
+    scene.Finalize();
+    CHECK(message().empty());
+    scene.mTriangles[0].mMaterialId = (scene.mTriangles[0].mMaterialId + 1) % int(scene.mMaterials.size());
+    CHECK_THAT(message(), Catch::Contains("triangle 0"));
+    scene.Finalize();
+    CHECK(message().empty());
+    scene.mMaterials.push_back(scene.mMaterials[0]);
+    CHECK_THAT(message(), Catch::Contains("the number of materials"));
+}
