@@ -1451,8 +1451,8 @@ public:
                 throw changed("material " + std::to_string(m) + " '" + mMaterials[m].mName + "'");
         for (size_t t = 0; t < mTriangles.size(); t++) {
             const TriangleKind& kind = mTriangleKinds[mTriangleHitRecords[t].mKind];
-            if (kind.mMaterialId != mTriangles[t].mMaterialId || kind.mLightId != mTriangles[t].mLightId)
-                throw changed("the material or light of triangle " + std::to_string(t));
+            if (!(kind == KindOf(mTriangles[t])))
+                throw changed("the material, light, texture or vertex normals of triangle " + std::to_string(t));
         }
     }
     const SceneSphere& GetSceneSphere() const { return mSceneSphere; }
@@ -1596,6 +1596,10 @@ private:
         int mLightId = -1;
         bool mTextured = false;          // a base-colour or emission texture: needs the uv
         bool mHasVertexNormals = false;  // smooth: needs the interpolated normal
+        bool operator==(const TriangleKind& aOther) const {
+            return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals) ==
+                   std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals);
+        }
         bool operator<(const TriangleKind& aOther) const {
             return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals) <
                    std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals);
@@ -1605,18 +1609,22 @@ private:
         Vec3 mNormal{0.f};
         uint32_t mKind = 0;  // index into mTriangleKinds
     };
+    TriangleKind KindOf(const Triangle& aTriangle) const {
+        TriangleKind kind;
+        kind.mMaterialId = aTriangle.mMaterialId;
+        kind.mLightId = aTriangle.mLightId;
+        kind.mTextured = mMaterials[size_t(aTriangle.mMaterialId)].mBaseColorTexture >= 0 ||
+                         (aTriangle.mLightId >= 0 && mLights[size_t(aTriangle.mLightId)].mEmissionTexture >= 0);
+        kind.mHasVertexNormals = aTriangle.mHasVertexNormals;
+        return kind;
+    }
     void BuildTriangleHitRecords() {
         mTriangleKinds.clear();
         mTriangleHitRecords.clear();
         mTriangleHitRecords.reserve(mTriangles.size());
         std::map<TriangleKind, uint32_t> kindIds;
         for (const Triangle& triangle : mTriangles) {
-            TriangleKind kind;
-            kind.mMaterialId = triangle.mMaterialId;
-            kind.mLightId = triangle.mLightId;
-            kind.mTextured = mMaterials[size_t(triangle.mMaterialId)].mBaseColorTexture >= 0 ||
-                             (triangle.mLightId >= 0 && mLights[size_t(triangle.mLightId)].mEmissionTexture >= 0);
-            kind.mHasVertexNormals = triangle.mHasVertexNormals;
+            const TriangleKind kind = KindOf(triangle);
             const auto inserted = kindIds.emplace(kind, uint32_t(mTriangleKinds.size()));
             if (inserted.second) mTriangleKinds.push_back(kind);
             mTriangleHitRecords.push_back(TriangleHitRecord{triangle.mNormal, inserted.first->second});

@@ -5,6 +5,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -951,6 +952,18 @@ TEST_CASE("A material or a triangle's material changed after Finalize is an erro
     CHECK(message().empty());
     scene.mTriangles[0].mMaterialId = (scene.mTriangles[0].mMaterialId + 1) % int(scene.mMaterials.size());
     CHECK_THAT(message(), Catch::Contains("triangle 0"));
+    scene.Finalize();
+    CHECK(message().empty());
+    // An emission texture given to an area light: only its triangles' records change.
+    const auto lit = std::find_if(scene.mTriangles.begin(), scene.mTriangles.end(),
+                                  [](const Triangle& aTriangle) { return aTriangle.mLightId >= 0; });
+    REQUIRE(lit != scene.mTriangles.end());
+    Texture white;
+    white.mWidth = white.mHeight = 1;
+    white.mTexels = {Vec3(1.f)};
+    scene.mTextures.push_back(white);
+    scene.mLights[size_t(lit->mLightId)].mEmissionTexture = int(scene.mTextures.size()) - 1;
+    CHECK_THAT(message(), Catch::Contains("triangle " + std::to_string(lit - scene.mTriangles.begin())));
     scene.Finalize();
     CHECK(message().empty());
     scene.mMaterials.push_back(scene.mMaterials[0]);

@@ -425,6 +425,7 @@ TEST_CASE("Path tracing, BPT and VCM agree on a box whose diffuse walls carry a 
         triangle.mUv1 = project(triangle.mP1);
         triangle.mUv2 = project(triangle.mP2);
     }
+    scene.Finalize();  // the materials changed (Render refuses otherwise)
     std::vector<int> regionOfPixel(size_t(scene.mCamera.PixelCount()), 0);
     for (int p = 0; p < scene.mCamera.PixelCount(); p++) {
         const Vec2 corner(float(p % scene.mCamera.Width()), float(p / scene.mCamera.Width()));
