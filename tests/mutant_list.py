@@ -27,9 +27,13 @@ MUTANTS = [
     dict(id="M05", cls="merging", what="merged path length counts one segment too many",
          find="const int pathLength = vertex.mPathLength + aCamera.mPathLength;",
          replace="const int pathLength = vertex.mPathLength + aCamera.mPathLength + 1;"),
-    dict(id="M06", cls="merging", what="hash grid cells of size r instead of 2r (queries miss neighbours)",
-         find="mInvCellSize = 1.f / (2.f * aRadius);",
-         replace="mInvCellSize = 1.f / aRadius;"),
+    # M06 seeded "cells of size r instead of 2r" until the range query came to visit every
+    # cell its box overlaps (whatever the cell size): from then on it found the same points,
+    # only in another order, and survived (docs/testing.md). It now seeds what that mutant
+    # meant, a query that misses neighbours.
+    dict(id="M06", cls="merging", what="range query skips the cells above the query point (misses neighbours across cell borders)",
+         find="const glm::ivec3 high = CellOf(aPoint + Vec3(mRadius));",
+         replace="const glm::ivec3 high = CellOf(aPoint);"),
     dict(id="M07", cls="merging", what="radius schedule exponent (alpha - 1) instead of (alpha - 1) / 2",
          find="std::pow(float(aIteration) + 1.f, 0.5f * (mOptions.mRadiusAlpha - 1.f));",
          replace="std::pow(float(aIteration) + 1.f, (mOptions.mRadiusAlpha - 1.f));"),
