@@ -31,6 +31,13 @@
 #             a figure or a file it shows is missing) -- `make figures QUICK=1`, checked.
 set -u
 cd "$(dirname "$0")"
+suite_start=$(date +%s)
+stage_start=$suite_start
+stage_done() {  # the seconds a stage took, on one line of its own (what to trim when the suite grows)
+  local now; now=$(date +%s)
+  echo "stage time: $1 $(( now - stage_start )) s"
+  stage_start=$now
+}
 passed=0
 failed=0
 status=0
@@ -57,6 +64,7 @@ if [ "${1:-}" = "--catch" ]; then
   while [ $# -gt 0 ] && [ "$1" != "--" ]; do args+=("$1"); shift; done
   [ "${1:-}" = "--" ] && shift
   run_catch "$binary" "${args[@]}"
+  stage_done catch2
 fi
 
 if [ "${1:-}" = "--smoke" ]; then
@@ -126,6 +134,7 @@ OPTIONS
   echo "smoke stage with $binary: $((passed)) passed so far, $failed failed so far"
   rm -rf "$out"
   shift 2
+  stage_done smoke
 fi
 
 if [ "${1:-}" = "--bvh-variants" ]; then
@@ -164,6 +173,7 @@ if [ "${1:-}" = "--bvh-variants" ]; then
   grep -qw avx2 /proc/cpuinfo 2>/dev/null || echo "bvh variants: this CPU has no AVX2, so the 8-wide build was not tested"
   echo "bvh variants stage: ${variants[*]##*/}"
   rm -rf "$out"
+  stage_done bvh-variants
 fi
 
 if [ "${1:-}" = "--exercises" ]; then
@@ -178,6 +188,7 @@ if [ "${1:-}" = "--exercises" ]; then
   passed=$((passed + ok)); failed=$((failed + bad))
   [ "$code" != 0 ] && status=1
   rm -f "$log"
+  stage_done exercises
 fi
 
 if [ "${1:-}" = "--figures" ]; then
@@ -198,7 +209,10 @@ if [ "${1:-}" = "--figures" ]; then
   count "make_gallery" /usr/bin/python3 ../docs/make_gallery.py "$out/figures" "$out/figures/figures.md"
   echo "figures stage (quick): $(( $(date +%s) - start )) s"
   rm -rf "$out"
+  stage_done figures
 fi
+
+echo "stage time: all stages $(( $(date +%s) - suite_start )) s"
 
 echo "tests: $passed passed, $failed failed"
 exit $status
