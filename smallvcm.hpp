@@ -4933,6 +4933,14 @@ inline int FirstLane(int aMask) {
     return lane;
 #endif
 }
+// Asks for the cache line at aAddress without waiting for it.
+inline void Prefetch(const void* aAddress) {
+#if defined(__GNUC__)
+    __builtin_prefetch(aAddress);
+#else
+    (void)aAddress;
+#endif
+}
 // The number of set bits of a mask.
 inline int LaneCount(int aMask) {
 #if defined(__GNUC__)
@@ -5326,6 +5334,11 @@ private:
     // aSortAll); false when the ray misses them all.
     SMALLVCM_BVH_INLINE static bool Descend(const Node& aNode, const RayData& aRay, float aTMax, bool aSortAll, Pending* ioStack,
                         int& ioStackSize, uint32_t& ioIndex, uint32_t& ioCount) {
+        // The children's references are the node's last cache line (8 wide), which the
+        // slab test does not read: loaded only once it has chosen a child, they were a
+        // second wait for memory per visit, and requested now they arrive with the
+        // planes (sphere-1e6 closest hit 0.75-0.77 -> 0.86-0.89 of Embree).
+        detail::Prefetch(aNode.mIndex);
         FloatN tNear;
         int hits = SlabTestChildren(aNode, aRay, aTMax, tNear);
         if (hits == 0) return false;
