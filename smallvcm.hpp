@@ -3356,24 +3356,36 @@ public:
         uint32_t* const buckets = oQuery.mBuckets;
         const uint32_t mask = mBucketMask;
         const uint32_t* const table = mBucketEnds.data();
-        int count = 0;
-        uint64_t summary = 0;
-        for (int z = low.z; z <= high.z; z++) {
-            const uint32_t zHash = uint32_t(z) * kHashZ;
-            for (int y = low.y; y <= high.y; y++) {
-                const uint32_t yzHash = zHash + uint32_t(y) * kHashY;
-                for (int x = low.x; x <= high.x; x++) {
-                    const uint32_t bucket = (uint32_t(x) + yzHash) & mask;
-                    // Two cells may share a bucket: its points are visited once. Rare, so
-                    // a 64-bit summary of the buckets so far (one bit per bucket mod 64)
-                    // rules it out cheaply, and only a match is checked in full.
-                    const uint64_t summaryBit = uint64_t(1) << (bucket & 63u);
-                    if ((summary & summaryBit) && std::find(buckets, buckets + count, bucket) != buckets + count) continue;
-                    summary |= summaryBit;
-                    buckets[count++] = bucket;
-                    Prefetch(table + bucket);
+        // The cells' hashes in the loops' order, z outermost: the usual 2 x 2 x 2 cells
+        // written down at once (the loops' set-up and exits cost more than the hashes).
+        uint32_t hashes[27];
+        int cells = 0;
+        if (high - low == glm::ivec3(1)) {
+            const uint32_t base = uint32_t(low.x) + uint32_t(low.y) * kHashY + uint32_t(low.z) * kHashZ;
+            const uint32_t steps[8] = {0u, 1u, kHashY, kHashY + 1u, kHashZ, kHashZ + 1u, kHashZ + kHashY, kHashZ + kHashY + 1u};
+            for (int i = 0; i < 8; i++) hashes[i] = base + steps[i];
+            cells = 8;
+        } else {
+            for (int z = low.z; z <= high.z; z++) {
+                const uint32_t zHash = uint32_t(z) * kHashZ;
+                for (int y = low.y; y <= high.y; y++) {
+                    const uint32_t yzHash = zHash + uint32_t(y) * kHashY;
+                    for (int x = low.x; x <= high.x; x++) hashes[cells++] = uint32_t(x) + yzHash;
                 }
             }
+        }
+        int count = 0;
+        uint64_t summary = 0;
+        for (int c = 0; c < cells; c++) {
+            const uint32_t bucket = hashes[c] & mask;
+            // Two cells may share a bucket: its points are visited once. Rare, so a 64-bit
+            // summary of the buckets so far (one bit per bucket mod 64) rules it out
+            // cheaply, and only a match is checked in full.
+            const uint64_t summaryBit = uint64_t(1) << (bucket & 63u);
+            if ((summary & summaryBit) && std::find(buckets, buckets + count, bucket) != buckets + count) continue;
+            summary |= summaryBit;
+            buckets[count++] = bucket;
+            Prefetch(table + bucket);
         }
         oQuery.mBucketCount = count;
     }
