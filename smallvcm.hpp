@@ -4093,10 +4093,14 @@ private:
     // merge's contribution goes to its pixel after those of the techniques before it on
     // the same path, and the contributions that follow it wait in a queue for it, so every
     // pixel receives the same sums in the same order (the images are the same bit for bit).
+    // A merge's place among them is the number of contributions queued before it: the
+    // queue holds only the others, 16 bytes each (a merge's entry among them was built on
+    // the stack in small stores and copied in 16-byte loads, a store-forwarding stall).
     // The test hook reads the camera path as it is at the merge: with it, merges run at once.
     static constexpr uint64_t kMergeLag = 3;
     struct DeferredMerge {
         int mPixel = 0;
+        uint64_t mContributionsBefore = 0;  // its place: mContributionsQueued when it was deferred
         SubpathState mCamera;
         Bsdf mBsdf;
         HashGridOf<MergeItem>::Query mQuery;
@@ -4104,7 +4108,6 @@ private:
     struct PendingContribution {
         int mPixel = 0;
         Vec3 mColor{0.f};
-        bool mIsMerge = false;  // the place of a deferred merge's contribution
     };
     DeferredMerge& NextDeferredMerge() { return mDeferredMerges[mMergesQueued % mDeferredMerges.size()]; }
     void DeferMerge(int aPixel, const SubpathState& aCamera, const Bsdf& aBsdf) {
@@ -4121,7 +4124,7 @@ private:
         merge.mPixel = aPixel;
         merge.mCamera = aCamera;
         merge.mBsdf = aBsdf;
-        mPendingContributions.push_back(PendingContribution{aPixel, Vec3(0.f), true});
+        merge.mContributionsBefore = mContributionsQueued;
         mMergesQueued++;
         if (mMergesQueued >= 2) {
             HashGridOf<MergeItem>::Query& query = mDeferredMerges[(mMergesQueued - 2) % mDeferredMerges.size()].mQuery;
@@ -4138,11 +4141,14 @@ private:
     }
     void ProcessOldestMerge() {
         DeferredMerge& merge = mDeferredMerges[mMergesDone % mDeferredMerges.size()];
-        mMergesDone++;
-        mPendingFront++;  // this merge's place: everything before it is in the film
+        mMergesDone++;  // everything queued before it is in the film
         MergeWithLightVertices(merge.mPixel, merge.mCamera, merge.mQuery, merge.mBsdf);
         mEmptyMergeQueries += IsEmptySelection(merge.mQuery);
-        for (; mPendingFront < mPendingContributions.size() && !mPendingContributions[mPendingFront].mIsMerge; mPendingFront++)
+        // Then what was queued after it, up to the next waiting merge's place (all if none waits).
+        const uint64_t until = mMergesDone < mMergesQueued
+                                   ? mDeferredMerges[mMergesDone % mDeferredMerges.size()].mContributionsBefore
+                                   : mContributionsQueued;
+        for (; mContributionsAdded < until; mContributionsAdded++, mPendingFront++)
             mFilm.AddColor(mPendingContributions[mPendingFront].mPixel, mPendingContributions[mPendingFront].mColor);
         // The queue as a vector read from mPendingFront: what was read is dropped now and then.
         if (mPendingFront == mPendingContributions.size()) {
@@ -4155,8 +4161,12 @@ private:
     }
     // What every camera-side technique but merging adds to the film (see DeferMerge).
     void AddCameraContribution(int aPixel, const Vec3& aColor) {
-        if (mPendingFront == mPendingContributions.size()) mFilm.AddColor(aPixel, aColor);
-        else mPendingContributions.push_back(PendingContribution{aPixel, aColor, false});
+        if (mMergesDone == mMergesQueued) {  // no merge waits: nothing is queued
+            mFilm.AddColor(aPixel, aColor);
+            return;
+        }
+        mPendingContributions.push_back(PendingContribution{aPixel, aColor});
+        mContributionsQueued++;
     }
 
     // Writes a contribution into the technique layers, when they were asked for.
@@ -4237,6 +4247,7 @@ private:
     uint64_t mMergeQueries = 0, mEmptyMergeQueries = 0;  // this iteration's, and those no light vertex passed
     std::vector<PendingContribution> mPendingContributions;  // camera-side film additions waiting for a merge,
     size_t mPendingFront = 0;                                // from this one on
+    uint64_t mContributionsQueued = 0, mContributionsAdded = 0;  // how many were ever queued, and added from the queue
     int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1};
     int mPyramidLayers[kPyramidMaxLength + 1][kPyramidMaxLength + 1][2] = {};
     int mLongerPathsLayer = -1;
