@@ -3362,7 +3362,7 @@ public:
         if (mPoints.empty()) return;
         const glm::ivec3 low = CellOf(aPoint - Vec3(mRadius));
         const glm::ivec3 high = CellOf(aPoint + Vec3(mRadius));
-        // BucketOf's hash, its z and y terms summed once per row; the count, mask and table
+        // HashOf, its z and y terms summed once per row; the count, mask and table
         // kept in locals (members are reloaded after every store to the query's buckets).
         uint32_t* const buckets = oQuery.mBuckets;
         const uint32_t mask = mBucketMask;
@@ -3513,10 +3513,6 @@ private:
     // were one more miss per query, 3 % slower: they are kept only when asked for.
     static constexpr size_t kOccupiedBitsPerBucket = 8;
     bool IsOccupied(uint32_t aHash) const { return (mOccupied[(aHash & mOccupiedMask) >> 6] >> (aHash & 63u)) & 1u; }
-    uint32_t BucketOf(const glm::ivec3& aCell) const {
-        const uint32_t hash = uint32_t(aCell.x) + uint32_t(aCell.y) * kHashY + uint32_t(aCell.z) * kHashZ;
-        return hash & mBucketMask;
-    }
 
     float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
     uint32_t mBucketMask = 0;
