@@ -4706,9 +4706,9 @@ private:
 
 // The films summed in thread order (so the sum does not depend on timing) and divided by
 // the iterations run: the image and its layers.
-inline void ResolveFilms(const std::vector<std::unique_ptr<AbstractRenderer>>& aRenderers, RenderResult& ioResult) {
-    Film& film = aRenderers[0]->GetFilm();
-    for (size_t t = 1; t < aRenderers.size(); t++) film.Accumulate(aRenderers[t]->GetFilm());
+inline void ResolveFilms(std::vector<Film>& aFilms, RenderResult& ioResult) {
+    Film& film = aFilms[0];
+    for (size_t t = 1; t < aFilms.size(); t++) film.Accumulate(aFilms[t]);
     const double scale = ioResult.mIterations > 0 ? 1.0 / ioResult.mIterations : 0.0;
     ioResult.mImage = film.Resolve(scale);
     for (int l = 0; l < film.LayerCount(); l++) ioResult.mLayers.emplace_back(film.LayerName(l), film.Resolve(scale, l));
@@ -4727,16 +4727,24 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions, c
     int threadCount = aOptions.mThreads > 0 ? aOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));
     if (aOptions.mIterations > 0) threadCount = std::min(threadCount, aOptions.mIterations);
     CheckRenderMemory(aScene.mCamera, aOptions, aIntegrator, threadCount);
-    const std::vector<std::unique_ptr<AbstractRenderer>> renderers =
-        detail::CreateRenderers(aScene, aOptions, aIntegrator, threadCount);
+    std::vector<std::unique_ptr<AbstractRenderer>> renderers = detail::CreateRenderers(aScene, aOptions, aIntegrator, threadCount);
 
+    // Each thread keeps its renderer's film and frees the rest (light vertices, grids: tens
+    // of MB at 512x512) as soon as its share is done: a thread that finishes first does it
+    // while the others still render, not one renderer after another at the end.
+    std::vector<Film> films(static_cast<size_t>(threadCount));
     detail::IterationSchedule schedule(aOptions, threadCount, start);
+    const auto work = [&schedule, &renderers, &films](int aThread) {
+        AbstractRenderer& renderer = *renderers[size_t(aThread)];
+        schedule.Work(aThread, renderer);
+        films[size_t(aThread)] = std::move(renderer.GetFilm());
+        renderers[size_t(aThread)].reset();
+    };
     {
         std::vector<std::thread> threads;
-        for (int t = 1; t < threadCount; t++)
-            threads.emplace_back([&schedule, &renderers, t] { schedule.Work(t, *renderers[size_t(t)]); });
+        for (int t = 1; t < threadCount; t++) threads.emplace_back(work, t);
         const detail::ProgressLine progress(aOptions, aIntegrator.mName, schedule);
-        schedule.Work(0, *renderers[0]);
+        work(0);
         for (std::thread& thread : threads) thread.join();
     }
     schedule.ThrowIfFailed();
@@ -4746,7 +4754,7 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions, c
     result.mSeconds = schedule.Elapsed();
     result.mRays = schedule.Rays();
     result.mStopped = aOptions.mStopRequested && aOptions.mStopRequested->load();
-    detail::ResolveFilms(renderers, result);
+    detail::ResolveFilms(films, result);
     return result;
 }
 
