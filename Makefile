@@ -67,8 +67,15 @@ $(BUILD) $(BUILD)/tests:
 $(IMPL_OBJ): examples/smallvcm_impl.cpp $(HEADER) $(FLAGS_STAMP) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
-# Every examples/NAME.cpp is a program build/NAME linked with the implementation unit.
+# Every examples/NAME.cpp, benchmarks/NAME.cpp and figures/NAME.cpp is a program
+# build/NAME linked with the implementation unit (the three folders share no name). The
+# benchmarks include examples/command_line.hpp, the figure programs figures/figure_kit.hpp
+# (which includes it too).
 $(BUILD)/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) $(FLAGS_STAMP) | $(BUILD)
+	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
+$(BUILD)/%.o: benchmarks/%.cpp $(HEADER) $(wildcard examples/*.hpp) $(FLAGS_STAMP) | $(BUILD)
+	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
+$(BUILD)/%.o: figures/%.cpp $(HEADER) $(wildcard examples/*.hpp figures/*.hpp) $(FLAGS_STAMP) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
 $(BUILD)/%: $(BUILD)/%.o $(IMPL_OBJ)
@@ -159,6 +166,7 @@ SAN_TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/check/tests/%.o,$(TEST_SRC))
 
 $(BUILD)/check/tests:
 	mkdir -p $@
+# Only the command line and the implementation unit (examples/) are built sanitized.
 $(BUILD)/check/%.o: examples/%.cpp $(HEADER) $(wildcard examples/*.hpp) | $(BUILD)/check/tests
 	$(CXX) $(CPPFLAGS) $(SAN_FLAGS) -c $< -o $@
 $(BUILD)/check/smallvcm: $(BUILD)/check/smallvcm.o $(BUILD)/check/smallvcm_impl.o $(call integrator_obj,$(BUILD)/check) $(INTEGRATOR_LIST)
@@ -235,18 +243,18 @@ check: deps
 # count grows from 1e2 to 1e6 (each configuration the fastest of two measurements, to
 # ride out the machine's own drift; about 9 minutes on 2 cores); the report goes to
 # docs/performance/bench.md, its numbers to docs/performance/bench_bvh.csv and
-# bench_render.csv, and docs/plot_bench.py draws them (matplotlib, installed if missing)
+# bench_render.csv, and benchmarks/plot_bench.py draws them (matplotlib, installed if missing)
 # into docs/performance/bvh_scaling.png and speed_per_iteration.png.
 bench: deps $(BUILD)/bench
 	@$(ENSURE_MATPLOTLIB)
 	$(BUILD)/bench --repeat 2 --markdown docs/performance/bench.md --csv docs/performance/bench
-	/usr/bin/python3 docs/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
+	/usr/bin/python3 benchmarks/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
 	$(COMPACT_PNG) docs/performance
 
 # make bench-embree: smallvcm's BVH beside Embree 3 (Debian's libembree-dev, installed if
 # missing; a benchmark-only dependency the header never includes) on generated meshes and
 # the same incoherent rays, one thread: a ratio table of closest-hit and any-hit Mrays/s,
-# build time and bytes per triangle, and how often the two agree (examples/bench_embree.cpp
+# build time and bytes per triangle, and how often the two agree (benchmarks/bench_embree.cpp
 # says what it measures; about half a minute). docs/performance.md keeps the current table.
 ENSURE_EMBREE = dpkg-query -W -f='$${Status}' libembree-dev 2>/dev/null | grep -q "install ok installed" || \
 	  { if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
@@ -255,12 +263,12 @@ bench-embree: deps
 	@$(ENSURE_EMBREE)
 	$(MAKE) --no-print-directory $(BUILD)/bench_embree
 	$(BUILD)/bench_embree $(BENCH_EMBREE_ARGS)
-$(BUILD)/bench_embree: examples/bench_embree.cpp $(HEADER) $(FLAGS_STAMP) | $(BUILD)
+$(BUILD)/bench_embree: benchmarks/bench_embree.cpp $(HEADER) $(FLAGS_STAMP) | $(BUILD)
 	$(CXX) $(CPPFLAGS) $(CXXFLAGS) $< -o $@ $(LDFLAGS) -lembree3
 
 # make bench-mitsuba: smallvcm's path tracer beside Mitsuba 3's (`llvm_ad_rgb` and
 # `scalar_rgb`), one core each, on scene 4 and a generated mesh scene converted by
-# docs/mitsuba_compare.py: first whether the converged images agree, then efficiency
+# benchmarks/mitsuba_compare.py: first whether the converged images agree, then efficiency
 # 1/(CPU seconds x MSE) at several sample budgets (about 15 minutes; results in
 # build/mitsuba/, the current table in docs/performance.md). Benchmark-only: Mitsuba and
 # NumPy are installed with pip into the virtual environment build/mitsuba-venv (python3-venv
@@ -278,7 +286,7 @@ bench-mitsuba: deps $(BUILD)/smallvcm
 	done
 	@$(MITSUBA_VENV)/bin/python -c "import mitsuba, numpy" 2>/dev/null || \
 	  { python3 -m venv $(MITSUBA_VENV) && $(MITSUBA_VENV)/bin/pip install -q mitsuba==3.9.1 numpy; }
-	DRJIT_LIBLLVM_PATH=$(MITSUBA_LLVM) $(MITSUBA_VENV)/bin/python docs/mitsuba_compare.py $(BENCH_MITSUBA_ARGS)
+	DRJIT_LIBLLVM_PATH=$(MITSUBA_LLVM) $(MITSUBA_VENV)/bin/python benchmarks/mitsuba_compare.py $(BENCH_MITSUBA_ARGS)
 
 # make mutants [MUTANTS=M01,M02]: mutation testing of the transport code (tests/mutants.py,
 # the list in tests/mutant_list.py): each mutant is one edited line of the header, built
@@ -316,8 +324,8 @@ figures: deps
 	@start=$$(date +%s); for program in $(FIGURE_PROGRAMS); do \
 	  $(BUILD)/$$program $(if $(QUICK),--quick) --out $(FIGURE_OUT) || exit 1; done; \
 	  echo "figures: the programs took $$(( $$(date +%s) - start )) s"
-	/usr/bin/python3 docs/plot_figures.py $(FIGURE_OUT)
-	/usr/bin/python3 docs/make_gallery.py $(FIGURE_OUT) $(FIGURE_PAGE)
+	/usr/bin/python3 figures/plot_figures.py $(FIGURE_OUT)
+	/usr/bin/python3 figures/make_gallery.py $(FIGURE_OUT) $(FIGURE_PAGE)
 	$(COMPACT_PNG) $(FIGURE_OUT)
 
 # make convergence: the convergence study and its charts (docs/performance.md says how
@@ -326,7 +334,7 @@ convergence: deps $(BUILD)/convergence
 	@$(ENSURE_MATPLOTLIB)
 	$(BUILD)/convergence --make-references --reference-iterations 2048 --max-iterations 4096 \
 	    --max-seconds 10 --clock cpu --out docs/performance/convergence.csv
-	/usr/bin/python3 docs/plot_convergence.py docs/performance/convergence.csv
+	/usr/bin/python3 benchmarks/plot_convergence.py docs/performance/convergence.csv
 	$(COMPACT_PNG) docs/performance
 
 # The coursework kit (docs/exercises/README.md): tests/exercises/kit.py, Python 3 only.

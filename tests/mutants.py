@@ -58,8 +58,9 @@ def machine_flags():
 CXXFLAGS = ["-std=c++17", "-O2", "-w"] + machine_flags() + ["-I."]
 
 # Stages in order of cost: (name, test sources to add, Catch2 test spec, timeout in s,
-# programs examples/NAME.cpp the stage's tests run as ../build/NAME, built from the
-# mutated header). The timeouts are 10-30x what a stage takes unmutated on 2 idle cores
+# programs NAME the stage's tests run as ../build/NAME, built from the NAME.cpp of
+# examples/, benchmarks/ or figures/ (PROGRAM_FOLDERS) with the mutated header). The
+# timeouts are 10-30x what a stage takes unmutated on 2 idle cores
 # (after a baseline run, at least 10x what it took then): a mutant that makes a walk
 # endless is killed by the timeout, as it would be in CI.
 STAGES = [
@@ -160,7 +161,8 @@ def failed_tests(junit_path, output):
 
 
 def prepare_tree(workdir):
-    """A copy of the files the tests need (no build/, no .git, no docs/figures)."""
+    """A copy of the files the tests need (no build/, no .git, no docs/figures). The
+    ignore patterns apply below the top level: the program folder figures/ is copied."""
     tree = os.path.join(workdir, "tree")
     ignore = shutil.ignore_patterns(".git", "build", "figures", "performance", "*.png", "*.pfm", "*.exr")
     os.makedirs(tree)
@@ -203,14 +205,28 @@ def shared_objects(tree, jobs):
     return objdir
 
 
+# The folders whose NAME.cpp is a program build/NAME, as in the Makefile.
+PROGRAM_FOLDERS = ("examples", "benchmarks", "figures")
+
+
+def program_source(tree, name):
+    """The source of program NAME in the tree: the first FOLDER/NAME.cpp that exists."""
+    for folder in PROGRAM_FOLDERS:
+        if os.path.exists(os.path.join(tree, folder, name + ".cpp")):
+            return "%s/%s.cpp" % (folder, name)
+    return "examples/%s.cpp" % name  # the compiler's error names it
+
+
 def build_programs(tree, programs, objdir, impl):
-    """Builds examples/NAME.cpp into the tree's build/NAME for each NAME. None or the error."""
+    """Builds NAME.cpp (examples/, benchmarks/ or figures/) into the tree's build/NAME for
+    each NAME. None or the error."""
     os.makedirs(os.path.join(tree, "build"), exist_ok=True)
     for name in programs:
         obj = os.path.join(objdir, name + ".prog.o")
-        code, out = run([CXX] + CXXFLAGS + ["-c", "examples/%s.cpp" % name, "-o", obj], tree, 600)
+        source = program_source(tree, name)
+        code, out = run([CXX] + CXXFLAGS + ["-c", source, "-o", obj], tree, 600)
         if code != 0:
-            return "examples/%s.cpp does not compile: %s" % (name, out[-500:])
+            return "%s does not compile: %s" % (source, out[-500:])
         code, out = run([CXX, obj, impl, "-o", os.path.join(tree, "build", name), "-pthread"], tree, 300)
         if code != 0:
             return "build/%s does not link: %s" % (name, out[-500:])

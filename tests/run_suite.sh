@@ -26,8 +26,8 @@
 #             header compiles, fails its own grader and passes the others' (each check
 #             one test; 72 tests, 40-57 s of CPU, most of it compiling the graders per cut)
 #   --figures the figure programs (build/fig_*), run with --quick into a temporary folder
-#             (each run one test: exit 0), then docs/plot_figures.py and
-#             docs/make_gallery.py on that folder (one test each: the gallery fails when
+#             (each run one test: exit 0), then figures/plot_figures.py and
+#             figures/make_gallery.py on that folder (one test each: the gallery fails when
 #             a figure or a file it shows is missing) -- `make figures QUICK=1`, checked.
 set -u
 cd "$(dirname "$0")"
@@ -205,8 +205,8 @@ if [ "${1:-}" = "--figures" ]; then
   }
   start=$(date +%s)
   for program in "$@"; do count "$program --quick" "$program" --quick --out "$out/figures"; done
-  count "plot_figures" /usr/bin/python3 ../docs/plot_figures.py "$out/figures"
-  count "make_gallery" /usr/bin/python3 ../docs/make_gallery.py "$out/figures" "$out/figures/figures.md"
+  count "plot_figures" /usr/bin/python3 ../figures/plot_figures.py "$out/figures"
+  count "make_gallery" /usr/bin/python3 ../figures/make_gallery.py "$out/figures" "$out/figures/figures.md"
   echo "figures stage (quick): $(( $(date +%s) - start )) s"
   rm -rf "$out"
   stage_done figures

@@ -1,11 +1,11 @@
-// [bench] The benchmark program build/bench (examples/bench.cpp) and its chart script
-// docs/plot_bench.py, run as child processes on a small configuration: scene 4, pt and pm,
+// [bench] The benchmark program build/bench (benchmarks/bench.cpp) and its chart script
+// benchmarks/plot_bench.py, run as child processes on a small configuration: scene 4, pt and pm,
 // 1 and 2 threads, at --quick's 64x64, the BVH scaling up to 10^4 triangles and the loading of a 10^4-triangle glTF file. About
 // 5-10 s. Benchmarks report and never fail on time, so nothing here checks a speed; what
 // is checked is that the reports are complete and well formed, that the CSVs hold exactly
 // the rows measured, that the charts are drawn from them, and that a bad output path is
 // refused before any measuring, with nothing left behind.
-// Tests run from tests/, so the programs are ../build/bench and ../docs/plot_bench.py.
+// Tests run from tests/, so the programs are ../build/bench and ../benchmarks/plot_bench.py.
 #include "test_util.hpp"
 
 #include <catch2/catch.hpp>
@@ -93,7 +93,7 @@ TEST_CASE("The benchmark writes its report and CSVs, and the chart script draws 
         CHECK(entry.path().extension() != ".partial");
 
     // The charts, drawn from those CSVs (matplotlib: make test installs it).
-    const std::string plot = "/usr/bin/python3 ../docs/plot_bench.py " + Quote(folder / "bench_bvh.csv") + " " +
+    const std::string plot = "/usr/bin/python3 ../benchmarks/plot_bench.py " + Quote(folder / "bench_bvh.csv") + " " +
                              Quote(folder / "bench_render.csv") + " --out-dir " + Quote(folder.mPath.string()) +
                              " > " + Quote(folder / "plot.txt") + " 2>&1";
     REQUIRE(ExitCode(std::system(plot.c_str())) == 0);
@@ -114,7 +114,7 @@ TEST_CASE("The benchmark refuses an output it cannot write before measuring, and
         CHECK_FALSE(fs::exists(folder.mPath / "missing"));
     }
     std::ofstream(folder / "bad.csv") << "triangles,something\n1,2\n";
-    const std::string plot = "/usr/bin/python3 ../docs/plot_bench.py " + Quote(folder / "bad.csv") + " --out-dir " +
+    const std::string plot = "/usr/bin/python3 ../benchmarks/plot_bench.py " + Quote(folder / "bad.csv") + " --out-dir " +
                              Quote(folder.mPath.string()) + " > /dev/null 2> " + Quote(folder / "err.txt");
     CHECK(ExitCode(std::system(plot.c_str())) == 1);
     CHECK(ReadText(folder / "err.txt").find("bad.csv") != std::string::npos);

@@ -1,4 +1,4 @@
-// [convergence] The convergence tool build/convergence (examples/convergence.cpp), run as a
+// [convergence] The convergence tool build/convergence (benchmarks/convergence.cpp), run as a
 // child process in its --quick form: 16x16 pixels, the five Cornell scenes, all eight
 // estimators, checkpoints 1, 2, 4, ..., 128 iterations, references rendered on the fly
 // (BPT, or VCM where BPT cannot converge) into a temporary folder. About 5-10 s.

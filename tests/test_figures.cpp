@@ -1,4 +1,4 @@
-// [figures] The claims of the course figures (docs/figures.md, examples/fig_*.cpp) that can
+// [figures] The claims of the course figures (docs/figures.md, figures/fig_*.cpp) that can
 // be checked quickly at low resolution, one test case per figure (tags [F02], [F04], ...).
 // The figure programs print the same claims at publication settings; these tests check
 // that the claims hold, with tolerances derived from measured standard errors:
@@ -35,7 +35,7 @@
 //
 // MERGING RADIUS. SmallVCM's 0.003 x scene radius is made for 512x512 images; at 32x32 with
 // 1024 light paths per iteration it would catch a photon once per many pixel-iterations. As
-// examples/convergence.cpp --quick does, the radius is scaled by the ratio of pixel sizes:
+// benchmarks/convergence.cpp --quick does, the radius is scaled by the ratio of pixel sizes:
 // 0.003 x 512 / width (0.048 at 32x32, 0.096 at 16x16).
 //
 // Scenes are read from ../scenes/ (the tests run from tests/, as test_util.hpp assumes).
@@ -680,7 +680,7 @@ TEST_CASE("F08, F13: on the SDS scene BPT's error stays where VCM's falls", "[fi
 
 TEST_CASE("F16: VCM's error is within a factor 2 of the better of BPT and PPM on both scenes", "[figures][F16]") {
     // Equal numbers of iterations (the figure's equal-time version, whose outcome depends
-    // on the machine, is examples/fig_vcm.cpp). Per scene, K renders of n iterations of
+    // on the machine, is figures/fig_vcm.cpp). Per scene, K renders of n iterations of
     // each method; the error is the MSE over the pixels that do not see the light directly
     // (see PixelsNotSeeingALight) against a reference: VCM on the SDS scene (BPT cannot
     // converge there), BPT on the diffuse box. The reference's own noise adds the same

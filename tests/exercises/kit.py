@@ -11,7 +11,7 @@
                                          render with the student's copy and the reference,
                                          side by side in build/compare/compare.png
     kit.py figures STUDENT [--quick] [--only PROGRAM,...]
-                                         the course figures (examples/fig_*) built with the
+                                         the course figures (figures/fig_*) built with the
                                          student's copy, measured against the reference's
                                          reference images, with their gallery
     kit.py prove                         the kit's own test (make test runs it)
@@ -563,7 +563,7 @@ FIGURE_PROGRAMS = ["fig_path_tracing", "fig_mis", "fig_bidirectional", "fig_phot
 def command_figures(student, quick, only):
     """The course figures rendered with a student's copy, against the reference's
     reference images, into build/student-figures/<quick|full>/student/, with the gallery
-    (docs/make_gallery.py) saying which course claims hold."""
+    (figures/make_gallery.py) saying which course claims hold."""
     student = resolve_student(student)
     programs = [p for p in FIGURE_PROGRAMS if not only or p in only.split(",")]
     if not programs:
@@ -587,8 +587,9 @@ def command_figures(student, quick, only):
     os.makedirs(include, exist_ok=True)
     shutil.copyfile(student, os.path.join(include, "smallvcm.hpp"))
     flags = RENDER_CXXFLAGS + ["-I" + include, "-I" + ROOT]
-    jobs = [([CXX] + flags + ["-c", f"examples/{p}.cpp", "-o", os.path.join(work, p + ".o")], os.path.join(work, p + ".log"))
-            for p in programs + ["smallvcm_impl"]]
+    sources = [f"figures/{p}.cpp" for p in programs] + ["examples/smallvcm_impl.cpp"]
+    jobs = [([CXX] + flags + ["-c", source, "-o", os.path.join(work, p + ".o")], os.path.join(work, p + ".log"))
+            for source, p in zip(sources, programs + ["smallvcm_impl"])]
     print(f"student-figures: compiling {len(jobs)} units against {rel(student)}")
     failed = run_jobs(jobs, 2)
     if failed:
@@ -599,7 +600,7 @@ def command_figures(student, quick, only):
                                "-o", binary, "-pthread"], cwd=ROOT)
         code = subprocess.call([binary, "--out", student_out] + flag, cwd=ROOT)
         print(f"student-figures: {program} exited with {code}")
-    subprocess.call(["/usr/bin/python3", "docs/make_gallery.py", student_out, os.path.join(student_out, "figures.md")], cwd=ROOT)
+    subprocess.call(["/usr/bin/python3", "figures/make_gallery.py", student_out, os.path.join(student_out, "figures.md")], cwd=ROOT)
     print(f"student-figures: the student's figures and gallery are in {rel(student_out)}"
           + (f", the reference's in {rel(reference_out)}" if quick else ", the reference's in docs/figures/"))
 

@@ -6,7 +6,7 @@
 //                                         meshes up to 10^4 triangles (about 20 s)
 //   build/bench --scenes 4 --algorithms vcm,bpt --threads 1,2 --markdown vcm.md
 //   build/bench --markdown docs/performance/bench.md --csv docs/performance/bench
-//                                         also the numbers as CSV, for docs/plot_bench.py
+//                                         also the numbers as CSV, for benchmarks/plot_bench.py
 //
 // Three measurements, then a one-page markdown report on stdout (and in --markdown FILE):
 //   1. Render speed. For every Cornell scene, estimator and thread count: one warm-up
@@ -40,7 +40,7 @@
 //      triangles) and Scene::Finalize (validation, light data and the BVH build).
 //      `build/bench --no-render --no-bvh` runs this part alone (about 10 s).
 // With --csv PREFIX the numbers behind the charts are also written as data (the charts
-// are drawn by docs/plot_bench.py with matplotlib, not here):
+// are drawn by benchmarks/plot_bench.py with matplotlib, not here):
 //   PREFIX_bvh.csv     one row per mesh of 3.: triangles, build ms, nodes, depth, BVH MiB,
 //                      rays per wall second and per CPU second, hit fractions, peak RSS
 //   PREFIX_render.csv  one row per successful measurement of 1. and 2.: scene, algorithm,
@@ -55,7 +55,7 @@
 // Build: make build/bench. Run with --help for the options.
 
 #include "smallvcm.hpp"
-#include "command_line.hpp"
+#include "examples/command_line.hpp"
 
 #include <charconv>
 #include <cstdarg>
@@ -162,7 +162,7 @@ void PrintHelp() {
         "  --note TEXT            a line for the report (e.g. the commit measured)\n"
         "  --markdown FILE        also write the report to FILE\n"
         "  --csv PREFIX           also write the numbers to PREFIX_bvh.csv (BVH scaling) and\n"
-        "                         PREFIX_render.csv (render speed), for docs/plot_bench.py;\n"
+        "                         PREFIX_render.csv (render speed), for benchmarks/plot_bench.py;\n"
         "                         only the files of the parts that run (see --no-render, --no-bvh)\n"
         "  --help                 this text\n");
 }
@@ -1036,7 +1036,7 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
 }
 
 // ---------------------------------------------------------------------------------------
-// CSV (--csv): the same numbers as data, for docs/plot_bench.py
+// CSV (--csv): the same numbers as data, for benchmarks/plot_bench.py
 // ---------------------------------------------------------------------------------------
 
 std::string BvhCsvPath(const Options& aOptions) { return aOptions.mCsvPrefix + "_bvh.csv"; }

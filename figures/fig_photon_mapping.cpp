@@ -14,7 +14,7 @@
 // one for the scene (BPT).
 //
 //   build/fig_photon_mapping [--quick] [--out DIR] [--threads N] [--only F09,F10,F11,F12]
-// writes F09_*.png ... F12.json and F12.csv (see examples/figure_kit.hpp).
+// writes F09_*.png ... F12.json and F12.csv (see figures/figure_kit.hpp).
 //
 // Budget: at publication settings (256x256) the four figures take about 2.5 minutes on
 // two idle cores, references excluded (setup ~5 s, F09 ~25 s, F10 ~55 s, F11 ~12 s, F12
@@ -770,7 +770,7 @@ void FigureConsistency(const Kit& aKit, const Setup& aSetup) {
     figure.Settings()["photons_axis"] = "photon (light) paths traced in total";
     figure.Settings()["rmse"] = "RMSE on the diffuse pixels (F12.csv and 'rmse'); whole image in 'rmse_full_image'";
 
-    // The curves: into the record, and as CSV for the chart docs/plot_figures.py draws
+    // The curves: into the record, and as CSV for the chart figures/plot_figures.py draws
     // (written through a temporary file, so that a failure leaves no half table).
     const std::string csvName = "F12.csv", csvPath = aKit.mOut + "/" + csvName;
     std::ofstream csv(csvPath + ".partial");

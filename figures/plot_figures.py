@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The charts of the course figures, drawn from the CSVs the figure programs write.
 
-    python3 docs/plot_figures.py docs/figures            # or build/figures-quick
+    python3 figures/plot_figures.py docs/figures            # or build/figures-quick
 
 reads, in that folder,
 
@@ -44,7 +44,7 @@ except ImportError:
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 
-# Fixed colours, as in docs/plot_convergence.py, so an estimator looks the same everywhere.
+# Fixed colours, as in benchmarks/plot_convergence.py, so an estimator looks the same everywhere.
 COLORS = {
     "pt": "#1f77b4", "lt": "#8c564b", "ppm": "#2ca02c", "bpm": "#9467bd",
     "bpt": "#d62728", "vcm": "#ff7f0e", "pm": "#7f7f7f", "pmfg": "#17becf",

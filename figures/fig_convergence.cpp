@@ -6,11 +6,11 @@
 // reference of 8192 iterations stays well ahead of runs of up to 2048).
 //
 //   build/fig_convergence [--quick] [--out DIR] [--threads N]
-//   python3 docs/plot_figures.py DIR        # the chart F18_convergence.png from F18.csv
+//   python3 figures/plot_figures.py DIR        # the chart F18_convergence.png from F18.csv
 // writes F18.csv (algorithm,iterations,seconds,rmse,rmse_own,fitted), F18_<alg>.png (each
-// estimator's image at its last checkpoint) and F18.json (see examples/figure_kit.hpp).
+// estimator's image at its last checkpoint) and F18.json (see figures/figure_kit.hpp).
 //
-// HOW. As examples/convergence.cpp does: for each estimator ONE progressive run, its
+// HOW. As benchmarks/convergence.cpp does: for each estimator ONE progressive run, its
 // renderers (one per thread, made by smallvcm::CreateRenderer) running iterations
 // 0, 1, 2, ... with smallvcm::IterationRng(seed, i) exactly as Render() would; at the
 // checkpoints 1, 2, 4, 8, ... the film is resolved (Resolve(1 / iterations)) and compared
@@ -387,7 +387,7 @@ void FigureConvergence(const Kit& aKit) {
                               "std <= " + Num(largestStd, "%.3f") + " (BPT, PPM, VCM)");
     figure.AddChart("F18_convergence.png");
     figure.Write();
-    std::printf("  chart: python3 docs/plot_figures.py %s\n", aKit.mOut.c_str());
+    std::printf("  chart: python3 figures/plot_figures.py %s\n", aKit.mOut.c_str());
 }
 
 }  // namespace

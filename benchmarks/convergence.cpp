@@ -4,7 +4,7 @@
 //   build/convergence --make-references                  # the full study (see below)
 //   build/convergence --scenes 4 --algorithms pt,bpt,vcm --max-iterations 64
 //   build/convergence --quick --out /tmp/quick.csv       # tiny, for the test
-//   python3 docs/plot_convergence.py convergence.csv     # charts and efficiency table
+//   python3 benchmarks/plot_convergence.py convergence.csv     # charts and efficiency table
 //
 // For every scene and estimator ONE renderer (CreateRenderer) runs iterations 0, 1, 2, ...
 // with IterationRng(seed, i), exactly as Render() would, and at the checkpoints
@@ -66,7 +66,7 @@
 // Build: make build/convergence. Run with --help for the options.
 
 #include "smallvcm.hpp"
-#include "command_line.hpp"
+#include "examples/command_line.hpp"
 
 #include <algorithm>
 #include <charconv>

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Charts from the CSVs of build/bench --csv PREFIX.
 
-    /usr/bin/python3 docs/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
+    /usr/bin/python3 benchmarks/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
 
 Each CSV given is recognised by its header (one of the two, or both, in any order):
 
@@ -19,7 +19,7 @@ PREFIX_bvh.csv (the BVH scaling: bumpy spheres of 10^2 .. 10^6 triangles, one th
 
 PREFIX_render.csv (seconds per iteration of every estimator on every Cornell scene)
     -> speed_per_iteration.png, a dot chart with a log y-axis: one group per Cornell
-       scene, one column per estimator (the colours of docs/plot_convergence.py), one
+       scene, one column per estimator (the colours of benchmarks/plot_convergence.py), one
        marker per thread count (1 thread: filled circle, 2 threads: open diamond, ...)
        joined by a thin line, whose length on the log axis is the speed-up. Wall
        seconds by default; --clock cpu plots CPU seconds per iteration instead (the
@@ -57,7 +57,7 @@ TEXT_COLUMNS = {"scene_name", "algorithm", "resolution"}
 POSITIVE_COLUMNS = {"triangles", "build_ms", "nearest_rays_per_s", "shadow_rays_per_s", "nearest_rays_per_cpu_s",
                     "shadow_rays_per_cpu_s", "threads", "iterations", "s_per_iteration", "cpu_s_per_iteration"}
 
-# The same colours and order as docs/plot_convergence.py, so that an estimator looks the
+# The same colours and order as benchmarks/plot_convergence.py, so that an estimator looks the
 # same on every chart of docs/performance.md.
 COLORS = {
     "pt": "#1f77b4", "lt": "#8c564b", "ppm": "#2ca02c", "bpm": "#9467bd",

@@ -7,7 +7,7 @@
 //
 //   build/fig_report [--quick] [--out DIR] [--threads N]
 // writes F19_s<i>_<alg>.png (scene i, algorithm alg), F19_s<i>_reference.png, F19.json
-// (see examples/figure_kit.hpp) and report.md: a markdown table, a row per scene and a
+// (see figures/figure_kit.hpp) and report.md: a markdown table, a row per scene and a
 // column per algorithm, each cell the image with its iterations, seconds and RMSE.
 //
 // The figure makes no claim: it is the overview. Its verdict names, per scene, the

@@ -11,7 +11,7 @@
 // the pairs in between.
 //
 //   build/fig_mis [--quick] [--out DIR] [--threads N]
-// writes F04_*.png and F04.json (see examples/figure_kit.hpp).
+// writes F04_*.png and F04.json (see figures/figure_kit.hpp).
 
 #include "figure_kit.hpp"
 

@@ -11,7 +11,7 @@
 //        (scenes/sds_glass_sphere.gltf)
 //
 //   build/fig_bidirectional [--quick] [--out DIR] [--threads N] [--only F05,F06,F07,F08]
-// writes F05_*.png ... F08.json (see examples/figure_kit.hpp).
+// writes F05_*.png ... F08.json (see figures/figure_kit.hpp).
 //
 // F07 and F08 measure their claims on pixel masks (which surface the camera sees in a pixel),
 // built here by tracing the primary rays with the scene API; the masks are saved as panels.

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """smallvcm's path tracer beside Mitsuba 3's, on the same scenes, one core each.
 
-    build/mitsuba-venv/bin/python docs/mitsuba_compare.py [--out DIR] [--quick] [--repeats N] [STEP ...]
+    build/mitsuba-venv/bin/python benchmarks/mitsuba_compare.py [--out DIR] [--quick] [--repeats N] [STEP ...]
 
 (`make bench-mitsuba` makes that virtual environment and runs this.) STEP is any of
 `convert`, `agree`, `efficiency` (default: all three, in that order).

@@ -5,7 +5,7 @@
 # -fopenmp) and, as it has no resolution option, a second build with the resolution in
 # config.hxx set to 256x256. Then, from the repository root:
 #
-#   SMALLVCM=/path/to/smallvcm SMALLVCM_256=/path/to/smallvcm_256 docs/compare_smallvcm.sh OUTDIR
+#   SMALLVCM=/path/to/smallvcm SMALLVCM_256=/path/to/smallvcm_256 benchmarks/compare_smallvcm.sh OUTDIR
 #
 # Speed: for each configuration the two programs run interleaved, R times (default 2),
 # and the faster run counts: wall seconds of the whole command / iterations (start-up and
@@ -13,11 +13,11 @@
 # with taskset (SmallVCM always starts a thread per core). Writes OUTDIR/times.csv.
 # Equal error: on scenes 0 and 1, 16 iterations of pt and of vcm by each program, each
 # compared with one 256-iteration smallvcm VCM reference of another seed
-# (docs/smallvcm_equal_error.py). Writes OUTDIR/equal_error.txt. About 15 minutes;
+# (benchmarks/smallvcm_equal_error.py). Writes OUTDIR/equal_error.txt. About 15 minutes;
 # EQUAL_ERROR=0 skips the equal-error part (about 5 minutes then), for a header whose
 # renders are bit-identical to those of the last equal-error run.
 set -euo pipefail
-OUT=${1:?usage: SMALLVCM=... SMALLVCM_256=... docs/compare_smallvcm.sh OUTDIR}
+OUT=${1:?usage: SMALLVCM=... SMALLVCM_256=... benchmarks/compare_smallvcm.sh OUTDIR}
 : "${SMALLVCM:?set SMALLVCM to a SmallVCM binary (512x512)}"
 : "${SMALLVCM_256:?set SMALLVCM_256 to a SmallVCM binary built for 256x256}"
 R=${R:-2}

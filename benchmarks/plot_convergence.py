@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Charts and an efficiency table from the CSV of build/convergence.
 
-    /usr/bin/python3 docs/plot_convergence.py docs/performance/convergence.csv
+    /usr/bin/python3 benchmarks/plot_convergence.py docs/performance/convergence.csv
 
 For every scene in the CSV (columns scene,algorithm,iterations,seconds,rmse,relmse) it
 draws two log-log charts into the output folder (default: docs/performance/):

@@ -6,7 +6,7 @@
 // Scene: scenes/cornell_4_default.gltf (SmallVCM's default Cornell box).
 //
 //   build/fig_path_tracing [--quick] [--out DIR] [--threads N] [--only F01,F02,F03]
-// writes F01_*.png ... F03.json (see examples/figure_kit.hpp).
+// writes F01_*.png ... F03.json (see figures/figure_kit.hpp).
 
 #include "figure_kit.hpp"
 

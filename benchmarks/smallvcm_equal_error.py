@@ -1,13 +1,13 @@
 #!/usr/bin/python3
 """Error of a smallvcm image and of a SmallVCM image against one reference.
 
-    /usr/bin/python3 docs/smallvcm_equal_error.py REFERENCE.pfm OURS.pfm THEIRS.hdr
+    /usr/bin/python3 benchmarks/smallvcm_equal_error.py REFERENCE.pfm OURS.pfm THEIRS.hdr
 
 SmallVCM writes Radiance HDR (RGBE: 8-bit mantissas), so our image is rounded the same
 way before it is compared: both then carry the same quantisation error. SmallVCM's rows
 are tried as written and upside down, and the orientation closer to the reference is
 used (and reported). Prints the mean of each image and its RMSE against the reference.
-Used by docs/compare_smallvcm.sh. Plain Python, no packages.
+Used by benchmarks/compare_smallvcm.sh. Plain Python, no packages.
 """
 
 import array

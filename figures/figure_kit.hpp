@@ -1,4 +1,4 @@
-// figure_kit.hpp — what the figure programs (examples/fig_*.cpp) share.
+// figure_kit.hpp — what the figure programs (figures/fig_*.cpp) share.
 //
 // Each figure program reproduces one or a few of the course figures (../FIGURES list in
 // docs/figures.md) and, per figure, writes into the output folder
@@ -6,7 +6,7 @@
 //   <ID>.json          the record: slide, caption, claim, scene, settings, the reference
 //                      used, per panel its time and error, the numbers that support the
 //                      claim and whether the claim held in this run
-// docs/make_gallery.py turns the records into docs/figures.md.
+// figures/make_gallery.py turns the records into docs/figures.md.
 //
 // Command line of every figure program:
 //   --quick          low settings (small images, short budgets) for CI: a couple of minutes
@@ -25,7 +25,7 @@
 // the figures use, so a figure's noise is never hidden by sharing random numbers.
 #pragma once
 #include "smallvcm.hpp"
-#include "command_line.hpp"
+#include "examples/command_line.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -107,7 +107,7 @@ inline Kit ParseKit(int argc, char** argv, const char* aUsage) {
             std::stringstream list(value());
             for (std::string id; std::getline(list, id, ',');) kit.mOnly.push_back(id);
         } else if (option == "--help" || option == "-h") {
-            std::printf("%s\nOptions: --quick, --out DIR, --threads N, --only ID[,ID...] (see examples/figure_kit.hpp)\n", aUsage);
+            std::printf("%s\nOptions: --quick, --out DIR, --threads N, --only ID[,ID...] (see figures/figure_kit.hpp)\n", aUsage);
             std::exit(0);
         } else throw Error(option + ": unknown option (try --help)");
     }
@@ -444,7 +444,7 @@ public:
 
     Json& Numbers() { return mRecord["numbers"]; }
 
-    // A chart drawn later from this figure's CSV by docs/plot_figures.py (the gallery
+    // A chart drawn later from this figure's CSV by figures/plot_figures.py (the gallery
     // shows it above the panels), and a page of its own the gallery links to (F19).
     void AddChart(const std::string& aFile) { mRecord["charts"].push_back(aFile); }
     void SetPage(const std::string& aFile) { mRecord["page"] = aFile; }

@@ -14,7 +14,7 @@
 //        sds_glass_sphere)
 //
 //   build/fig_vcm [--quick] [--out DIR] [--threads N] [--only F13,F14,F15,F16,F17]
-// writes F13_*.png ... F17.json (see examples/figure_kit.hpp).
+// writes F13_*.png ... F17.json (see figures/figure_kit.hpp).
 //
 // The techniques and the algorithms (smallvcm.hpp, "[SECTION] Integrator: the VertexCM
 // family", and docs/algorithms.md):
@@ -29,7 +29,7 @@
 // run (256x256, N_L = 65,536 light sub-paths per iteration) keeps it. --quick renders
 // 64x64, 16 times fewer light sub-paths: a merge would catch a photon 16 times less
 // often and VM's image would be mostly empty. So --quick scales the factor by the ratio
-// of pixel sizes, as examples/convergence.cpp does for its --quick, here against this
+// of pixel sizes, as benchmarks/convergence.cpp does for its --quick, here against this
 // program's publication resolution: 0.003 x 256 / 64 = 0.012. Then pi r^2 N_L, the
 // weight of merging against connection in VCM's MIS [tech. rep. (20)], and the photons
 // a merge finds per iteration are those of the publication run, so the quick figures
