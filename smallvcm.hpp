@@ -101,10 +101,11 @@
 // =====================================================================================
 //  INDEX (search for "[SECTION] name")
 // =====================================================================================
+//  PART I: what a course teaches, in the order data flows
 //  [SECTION] Configuration and errors
 //  [SECTION] Math
 //  [SECTION] Random numbers and sampling
-//  [SECTION] Geometry: ray, sphere, triangle, BVH
+//  [SECTION] Geometry: ray, sphere, triangle, BVH        (the BVH by its contract)
 //  [SECTION] Scene: materials, lights, camera
 //  [SECTION] BSDF
 //  [SECTION] Film
@@ -113,11 +114,19 @@
 //  [SECTION] Integrator: path tracing
 //  [SECTION] Integrator: photon mapping (classic)
 //  [SECTION] Integrator: the VertexCM family (LT, PPM, BPM, BPT, VCM)
-//  [SECTION] Render loop
-//  [SECTION] Image output and metrics
+//      the MIS quantities (VcmMis), the range search by its contract, and VertexCM's
+//      stages: 1. light sub-paths (TraceLightSubpath; light tracing: ConnectToCamera),
+//      2. the range search over their vertices, 3. camera sub-paths
+//      (TraceCameraSubpath: CameraHitsLight, next-event estimation ConnectToLight,
+//      vertex connection ConnectVertices, merging MergeWithLightVertices)
+//  PART II: appendices a student may skip, each behind an interface Part I states
 //  [SECTION] Appendix: BVH
+//  [SECTION] Appendix: range search
+//  [SECTION] Render loop                 (threads, budgets, progress, Ctrl-C)
+//  [SECTION] Image output and metrics
 //  [SECTION] Scene loading (glTF)
 //  [SECTION] Implementation (SMALLVCM_IMPLEMENTATION)
+//      untrusted files, glTF loading, image writers and readers
 
 #ifndef SMALLVCM_HPP
 #define SMALLVCM_HPP
@@ -139,6 +148,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -205,8 +215,8 @@ inline constexpr float kRayEpsilonPerSceneRadius = 1e-3f / 2.2170596f;
 inline constexpr double kCollinearSine = 1e-12;
 // Limits on a light, so that the estimators' float arithmetic cannot overflow: the power
 // it emits (radiance x pi x area, intensity x 4 pi, ...) and 1 / its area (the area pdf).
-// Measured on the Cornell scenes at 16x16: every algorithm renders finite images with
-// power 1e30 and with a sphere light of area 1e-37; power 1e36 overflows light tracing.
+// Both keep several orders of magnitude between the limit and float overflow in every
+// estimator (tests/test_stability.cpp renders at the limits).
 inline constexpr float kMaxLightPower = 1e30f;
 inline constexpr float kMinLightArea = 1e-30f;
 
@@ -270,8 +280,7 @@ struct Frame {
         mY = Vec3(b, sign + aZ.y * aZ.y * a, -aZ.y);
     }
     Vec3 ToWorld(const Vec3& aLocal) const { return mX * aLocal.x + mY * aLocal.y + mZ * aLocal.z; }
-    // Forced inline: with Bsdf::EvaluateWithRoulette inlined into its callers, g++ -O2
-    // left this one out of line in next-event estimation, a call per evaluation.
+    // Forced inline: it is called for every BSDF evaluation, and a call costs more than it.
     SMALLVCM_ALWAYS_INLINE Vec3 ToLocal(const Vec3& aWorld) const {
         return Vec3(glm::dot(aWorld, mX), glm::dot(aWorld, mY), glm::dot(aWorld, mZ));
     }
@@ -380,15 +389,6 @@ inline Vec2 SampleConcentricDisc(const Vec2& aSamples) {
 }
 inline float ConcentricDiscPdfA() { return kInvPi; }
 
-// aV / aDivisor as one vector division: the same correctly rounded quotients as glm's
-// three scalar divisions, which queue on the divider one after another (next-event
-// estimation's direction to the light, on the way to its shadow ray).
-inline Vec3 DividedBy(const Vec3& aV, float aDivisor) {
-    typedef float Float4 __attribute__((vector_size(16)));
-    const Float4 quotient = Float4{aV.x, aV.y, aV.z, 1.f} / Float4{aDivisor, aDivisor, aDivisor, aDivisor};
-    return Vec3(quotient[0], quotient[1], quotient[2]);
-}
-
 // --- Measure conversions: p_A = p_W |cos| / d^2 ---------------------------------------
 inline float PdfWtoA(float aPdfW, float aDist, float aCosThere) {
     return aPdfW * std::abs(aCosThere) / Sqr(aDist);
@@ -418,7 +418,7 @@ struct Ray {
 // The point where a ray meets the scene, with what shading it needs. It carries the two
 // normals, not frames around them: the Bsdf builds its one frame (around the shading
 // normal, turned to the viewer if two-sided), so no frame is built or copied twice, and
-// the point stays 60 bytes, which every ray writes and every vertex reads. A ray that meets
+// the point stays small: every ray writes one and every vertex reads one. A ray that meets
 // nothing gives an invalid point (IsValid() false, mDist infinite) rather than an empty
 // std::optional: a miss is an ordinary outcome that the integrators test once, right
 // after tracing, and then read the fields many times as hit.mFoo (not hit->mFoo).
@@ -718,8 +718,8 @@ struct MaterialConstants {
         bool mIsDelta = false;
         bool mValid = false;
     };
-    // The material's own: Setup copies them in two moves where gathering them from
-    // Material took 18 instructions.
+    // The material's own, gathered once, so that Setup copies them instead of gathering
+    // them from the Material at every vertex.
     Reflectances mReflectance;
     float mContinuationProb = 0.f;     // Material::ContinuationProbability()
     bool mFixedProbabilities = false;  // no texture, no refraction: the two sides below hold
@@ -907,143 +907,33 @@ struct Light {
     }
     bool IsFinite() const { return mType != LightType::kDirectional && mType != LightType::kBackground; }
 
-    // Samples a point of the light for next-event estimation from aReceiver.
-    // Returns false when the light cannot illuminate aReceiver with this sample.
-    bool Illuminate(const SceneSphere& aSceneSphere, const Vec3& aReceiver, Vec2 aRnd,
-                    LightSample& oSample) const {
+    // Samples a point of the light for next-event estimation from aReceiver. Nothing
+    // when the light cannot illuminate aReceiver with this sample.
+    std::optional<LightSample> Illuminate(const SceneSphere& aSceneSphere, const Vec3& aReceiver, const Vec2& aRnd) const {
         switch (mType) {
         case LightType::kArea:
-        case LightType::kSphere: {
-            Vec3 position, normal;
-            Vec2 uv;
-            SamplePosition(aRnd, position, normal, uv);
-            Vec3 toLight = position - aReceiver;
-            const float distSqr = glm::dot(toLight, toLight);
-            if (!(distSqr > 0.f)) return false;
-            oSample.mDistance = std::sqrt(distSqr);
-            oSample.mDirToLight = DividedBy(toLight, oSample.mDistance);
-            const float cosNormalDir = EmittingCosine(normal, -oSample.mDirToLight);
-            if (cosNormalDir <= kEpsCosine) return false;  // the side facing the receiver does not emit
-            oSample.mDirectPdfW = PdfAtoW(1.f / mArea, oSample.mDistance, cosNormalDir);
-            oSample.mEmissionPdfW = cosNormalDir * kInvPi * SideProbability() / mArea;
-            oSample.mCosAtLight = cosNormalDir;
-            oSample.mRadiance = EmittedRadiance(uv);
-            return true;
-        }
+        case LightType::kSphere: return IlluminateFromSurface(aReceiver, aRnd);
         case LightType::kPoint:
-        case LightType::kSpot: {
-            const Vec3 toLight = mPosition - aReceiver;
-            const float distSqr = glm::dot(toLight, toLight);
-            if (!(distSqr > 0.f)) return false;
-            oSample.mDistance = std::sqrt(distSqr);
-            oSample.mDirToLight = DividedBy(toLight, oSample.mDistance);
-            oSample.mDirectPdfW = distSqr;
-            oSample.mCosAtLight = 1.f;
-            if (mType == LightType::kPoint) {
-                oSample.mEmissionPdfW = UniformSpherePdfW();
-                oSample.mRadiance = mEmission;
-                return true;
-            }
-            // The spot: intensity I s(cos theta) towards the receiver, and the pdf with
-            // which Emit starts a light sub-path in this direction (uniform in the cone).
-            const float falloff = SpotFalloff(glm::dot(mDirection, -oSample.mDirToLight));
-            if (!(falloff > 0.f)) return false;
-            oSample.mEmissionPdfW = UniformConePdfW(mSpotCosOuter);
-            oSample.mRadiance = mEmission * falloff;
-            return true;
-        }
+        case LightType::kSpot: return IlluminateFromPoint(aReceiver);
         case LightType::kDirectional:
-            oSample.mDirToLight = -mDirection;
-            oSample.mDistance = std::numeric_limits<float>::infinity();
-            oSample.mDirectPdfW = 1.f;
-            oSample.mEmissionPdfW = ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
-            oSample.mCosAtLight = 1.f;
-            oSample.mRadiance = mEmission;
-            return true;
-        case LightType::kBackground:
-            // Uniform over the whole sphere of directions, as SmallVCM does.
-            oSample.mDirToLight = SampleUniformSphereW(aRnd, &oSample.mDirectPdfW);
-            oSample.mDistance = std::numeric_limits<float>::infinity();
-            oSample.mEmissionPdfW = oSample.mDirectPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
-            oSample.mCosAtLight = 1.f;
-            oSample.mRadiance = mEmission;
-            return true;
+        case LightType::kBackground: return IlluminateFromInfinity(aSceneSphere, aRnd);
         }
-        return false;
+        return std::nullopt;
     }
 
-    // Samples the start of a light sub-path: a position and a direction.
-    bool Emit(const SceneSphere& aSceneSphere, Vec2 aRndDirection, Vec2 aRndPosition,
-              LightEmission& oEmission) const {
+    // Samples the start of a light sub-path: a position and a direction. Nothing when the
+    // sample carries no light (a black texel, a spot's direction outside its cone).
+    std::optional<LightEmission> Emit(const SceneSphere& aSceneSphere, const Vec2& aRndDirection,
+                                      const Vec2& aRndPosition) const {
         switch (mType) {
         case LightType::kArea:
-        case LightType::kSphere: {
-            Vec3 normal;
-            Vec2 uv;
-            SamplePosition(aRndPosition, oEmission.mPosition, normal, uv);
-            const Vec3 radiance = EmittedRadiance(uv);
-            if (IsBlack(radiance)) return false;  // a black texel: nothing to carry
-            if (mTwoSided) {
-                // The side by the first direction number, whose rest, rescaled to [0, 1),
-                // then picks the direction.
-                const bool back = aRndDirection.x >= 0.5f;
-                aRndDirection.x = std::min(2.f * aRndDirection.x - (back ? 1.f : 0.f), 0.99999994f);
-                if (back) normal = -normal;
-            }
-            float directionPdfW;
-            Vec3 localDirection = SampleCosHemisphereW(aRndDirection, &directionPdfW);
-            // SmallVCM clamps the cosine so that the pdf stays positive at the horizon.
-            localDirection.z = std::max(localDirection.z, kEpsCosine);
-            directionPdfW = localDirection.z * kInvPi;
-            oEmission.mDirection = Frame(normal).ToWorld(localDirection);
-            oEmission.mNormal = normal;  // of the emitting side
-            oEmission.mEmissionPdfW = directionPdfW * SideProbability() / mArea;
-            oEmission.mDirectPdfA = 1.f / mArea;
-            oEmission.mCosAtLight = localDirection.z;
-            oEmission.mRadiance = radiance;
-            oEmission.mEnergy = radiance * localDirection.z;
-            return true;
-        }
+        case LightType::kSphere: return EmitFromSurface(aRndDirection, aRndPosition);
         case LightType::kPoint:
-            oEmission.mPosition = mPosition;
-            oEmission.mDirection = SampleUniformSphereW(aRndDirection, &oEmission.mEmissionPdfW);
-            oEmission.mDirectPdfA = 1.f;
-            oEmission.mCosAtLight = 1.f;
-            oEmission.mEnergy = mEmission;
-            return true;
-        case LightType::kSpot: {
-            // Uniform in the outer cone; outside it the falloff is 0 (see above).
-            const Vec3 local = SampleUniformConeW(aRndDirection, mSpotCosOuter, &oEmission.mEmissionPdfW);
-            const float falloff = SpotFalloff(local.z);
-            if (!(falloff > 0.f)) return false;
-            oEmission.mPosition = mPosition;
-            oEmission.mDirection = Frame(mDirection).ToWorld(local);
-            oEmission.mDirectPdfA = 1.f;
-            oEmission.mCosAtLight = 1.f;
-            oEmission.mEnergy = mEmission * falloff;
-            return true;
-        }
+        case LightType::kSpot: return EmitFromPoint(aRndDirection);
         case LightType::kDirectional:
-        case LightType::kBackground: {
-            // Parallel rays start on a disc of the scene's radius, perpendicular to their
-            // direction, just outside the scene's bounding sphere.
-            float directionPdfW = 1.f;
-            Vec3 direction = mDirection;
-            if (mType == LightType::kBackground)
-                direction = -SampleUniformSphereW(aRndDirection, &directionPdfW);
-            const Vec2 disc = SampleConcentricDisc(aRndPosition);
-            const Frame frame(direction);
-            oEmission.mPosition = aSceneSphere.mCenter +
-                aSceneSphere.mRadius * (-direction + frame.mX * disc.x + frame.mY * disc.y);
-            oEmission.mDirection = direction;
-            oEmission.mEmissionPdfW = directionPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
-            oEmission.mDirectPdfA = directionPdfW;  // NEE picks the direction with this pdf
-            oEmission.mCosAtLight = 1.f;
-            oEmission.mEnergy = mEmission;
-            return true;
+        case LightType::kBackground: return EmitFromInfinity(aSceneSphere, aRndDirection, aRndPosition);
         }
-        }
-        return false;
+        return std::nullopt;
     }
 
     // What a ray receives when it hits the light (area, sphere: at a point with geometric
@@ -1082,14 +972,154 @@ struct Light {
     }
 
 private:
+    // --- next-event estimation, per kind of light ---------------------------------------
+    // Area and sphere lights: a uniform point of the surface (area pdf 1 / A), converted
+    // to solid angle at the receiver.
+    std::optional<LightSample> IlluminateFromSurface(const Vec3& aReceiver, const Vec2& aRnd) const {
+        const SurfaceSample point = SamplePosition(aRnd);
+        const Vec3 toLight = point.mPosition - aReceiver;
+        const float distSqr = glm::dot(toLight, toLight);
+        if (!(distSqr > 0.f)) return std::nullopt;
+        LightSample sample;
+        sample.mDistance = std::sqrt(distSqr);
+        sample.mDirToLight = toLight / sample.mDistance;
+        const float cosNormalDir = EmittingCosine(point.mNormal, -sample.mDirToLight);
+        if (cosNormalDir <= kEpsCosine) return std::nullopt;  // the side facing the receiver does not emit
+        sample.mDirectPdfW = PdfAtoW(1.f / mArea, sample.mDistance, cosNormalDir);
+        sample.mEmissionPdfW = cosNormalDir * kInvPi * SideProbability() / mArea;
+        sample.mCosAtLight = cosNormalDir;
+        sample.mRadiance = EmittedRadiance(point.mUv);
+        return sample;
+    }
+
+    // Point and spot lights: the one position; the "pdf" d^2 turns intensity into the
+    // irradiance-carrying radiance I / d^2 (SmallVCM's convention for delta lights).
+    std::optional<LightSample> IlluminateFromPoint(const Vec3& aReceiver) const {
+        const Vec3 toLight = mPosition - aReceiver;
+        const float distSqr = glm::dot(toLight, toLight);
+        if (!(distSqr > 0.f)) return std::nullopt;
+        LightSample sample;
+        sample.mDistance = std::sqrt(distSqr);
+        sample.mDirToLight = toLight / sample.mDistance;
+        sample.mDirectPdfW = distSqr;
+        sample.mCosAtLight = 1.f;
+        if (mType == LightType::kPoint) {
+            sample.mEmissionPdfW = UniformSpherePdfW();
+            sample.mRadiance = mEmission;
+            return sample;
+        }
+        // The spot: intensity I s(cos theta) towards the receiver, and the pdf with which
+        // Emit starts a light sub-path in this direction (uniform in the cone).
+        const float falloff = SpotFalloff(glm::dot(mDirection, -sample.mDirToLight));
+        if (!(falloff > 0.f)) return std::nullopt;
+        sample.mEmissionPdfW = UniformConePdfW(mSpotCosOuter);
+        sample.mRadiance = mEmission * falloff;
+        return sample;
+    }
+
+    // Directional and background lights: a direction (the background's uniform over the
+    // sphere, as SmallVCM does); emission would have started the ray on the disc of the
+    // scene's radius (pdf 1 / (pi R^2)) across it.
+    std::optional<LightSample> IlluminateFromInfinity(const SceneSphere& aSceneSphere, const Vec2& aRnd) const {
+        LightSample sample;
+        if (mType == LightType::kDirectional) {
+            sample.mDirToLight = -mDirection;
+            sample.mDirectPdfW = 1.f;
+            sample.mEmissionPdfW = ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+        } else {
+            sample.mDirToLight = SampleUniformSphereW(aRnd, &sample.mDirectPdfW);
+            sample.mEmissionPdfW = sample.mDirectPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+        }
+        sample.mDistance = std::numeric_limits<float>::infinity();
+        sample.mCosAtLight = 1.f;
+        sample.mRadiance = mEmission;
+        return sample;
+    }
+
+    // --- emission, per kind of light ----------------------------------------------------
+    // Area and sphere lights: a uniform point, then a cosine-weighted direction on the
+    // emitting side (of a two-sided light, a side picked with probability 1/2).
+    std::optional<LightEmission> EmitFromSurface(Vec2 aRndDirection, const Vec2& aRndPosition) const {
+        const SurfaceSample point = SamplePosition(aRndPosition);
+        const Vec3 radiance = EmittedRadiance(point.mUv);
+        if (IsBlack(radiance)) return std::nullopt;  // a black texel: nothing to carry
+        Vec3 normal = point.mNormal;
+        if (mTwoSided) {
+            // The side by the first direction number, whose rest, rescaled to [0, 1), then
+            // picks the direction.
+            const bool back = aRndDirection.x >= 0.5f;
+            aRndDirection.x = std::min(2.f * aRndDirection.x - (back ? 1.f : 0.f), 0.99999994f);
+            if (back) normal = -normal;
+        }
+        Vec3 localDirection = SampleCosHemisphereW(aRndDirection);
+        // SmallVCM clamps the cosine so that the pdf stays positive at the horizon.
+        localDirection.z = std::max(localDirection.z, kEpsCosine);
+        const float directionPdfW = localDirection.z * kInvPi;
+        LightEmission emission;
+        emission.mPosition = point.mPosition;
+        emission.mDirection = Frame(normal).ToWorld(localDirection);
+        emission.mNormal = normal;  // of the emitting side
+        emission.mEmissionPdfW = directionPdfW * SideProbability() / mArea;
+        emission.mDirectPdfA = 1.f / mArea;
+        emission.mCosAtLight = localDirection.z;
+        emission.mRadiance = radiance;
+        emission.mEnergy = radiance * localDirection.z;
+        return emission;
+    }
+
+    // Point lights emit uniformly over the sphere; spot lights uniformly inside the outer
+    // cone, where the falloff is not 0 (see above).
+    std::optional<LightEmission> EmitFromPoint(const Vec2& aRndDirection) const {
+        LightEmission emission;
+        emission.mPosition = mPosition;
+        emission.mDirectPdfA = 1.f;
+        emission.mCosAtLight = 1.f;
+        if (mType == LightType::kPoint) {
+            emission.mDirection = SampleUniformSphereW(aRndDirection, &emission.mEmissionPdfW);
+            emission.mEnergy = mEmission;
+            return emission;
+        }
+        const Vec3 local = SampleUniformConeW(aRndDirection, mSpotCosOuter, &emission.mEmissionPdfW);
+        const float falloff = SpotFalloff(local.z);
+        if (!(falloff > 0.f)) return std::nullopt;
+        emission.mDirection = Frame(mDirection).ToWorld(local);
+        emission.mEnergy = mEmission * falloff;
+        return emission;
+    }
+
+    // Directional and background lights: parallel rays start on a disc of the scene's
+    // radius, perpendicular to their direction, just outside the scene's bounding sphere
+    // (Georgiev's report, sec. 5.1).
+    std::optional<LightEmission> EmitFromInfinity(const SceneSphere& aSceneSphere, const Vec2& aRndDirection,
+                                                  const Vec2& aRndPosition) const {
+        float directionPdfW = 1.f;
+        Vec3 direction = mDirection;
+        if (mType == LightType::kBackground) direction = -SampleUniformSphereW(aRndDirection, &directionPdfW);
+        const Vec2 disc = SampleConcentricDisc(aRndPosition);
+        const Frame frame(direction);
+        LightEmission emission;
+        emission.mPosition = aSceneSphere.mCenter + aSceneSphere.mRadius * (-direction + frame.mX * disc.x + frame.mY * disc.y);
+        emission.mDirection = direction;
+        emission.mEmissionPdfW = directionPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+        emission.mDirectPdfA = directionPdfW;  // NEE picks the direction with this pdf
+        emission.mCosAtLight = 1.f;
+        emission.mEnergy = mEmission;
+        return emission;
+    }
+
     // Uniform point on the light's surface (area pdf 1 / mArea), its outward normal and
     // its texture coordinates (textured area lights; otherwise 0).
-    void SamplePosition(Vec2 aRnd, Vec3& oPosition, Vec3& oNormal, Vec2& oUv) const {
-        oUv = Vec2(0.f);
+    struct SurfaceSample {
+        Vec3 mPosition{0.f};
+        Vec3 mNormal{0.f};
+        Vec2 mUv{0.f};
+    };
+    SurfaceSample SamplePosition(Vec2 aRnd) const {
+        SurfaceSample point;
         if (mType == LightType::kSphere) {
-            oNormal = SampleUniformSphereW(aRnd);
-            oPosition = mSphereCenter + mSphereRadius * oNormal;
-            return;
+            point.mNormal = SampleUniformSphereW(aRnd);
+            point.mPosition = mSphereCenter + mSphereRadius * point.mNormal;
+            return point;
         }
         // Pick a triangle in proportion to its area with aRnd.x, then reuse what is left
         // of aRnd.x, rescaled to [0, 1), for the position inside it.
@@ -1101,12 +1131,13 @@ private:
             aRnd.x = width > 0.f ? std::min((aRnd.x - lower) / width, 0.99999994f) : 0.f;
         }
         const Vec2 barycentric = SampleUniformTriangle(aRnd);
-        oPosition = mTriangleP0[index] + barycentric.y * mTriangleE1[index] +
-                    (1.f - barycentric.x - barycentric.y) * mTriangleE2[index];
-        oNormal = mTriangleNormal[index];
+        point.mPosition = mTriangleP0[index] + barycentric.y * mTriangleE1[index] +
+                          (1.f - barycentric.x - barycentric.y) * mTriangleE2[index];
+        point.mNormal = mTriangleNormal[index];
         if (!mTriangleUv0.empty())
-            oUv = mTriangleUv0[index] + barycentric.y * mTriangleUvE1[index] +
-                  (1.f - barycentric.x - barycentric.y) * mTriangleUvE2[index];
+            point.mUv = mTriangleUv0[index] + barycentric.y * mTriangleUvE1[index] +
+                        (1.f - barycentric.x - barycentric.y) * mTriangleUvE2[index];
+        return point;
     }
 };
 
@@ -1148,27 +1179,18 @@ public:
 
     // Continuous raster position (x right, y down, in pixels) to a primary ray.
     Ray GenerateRay(const Vec2& aRaster) const {
-        Ray ray;
-        GenerateRay(aRaster, ray);
-        return ray;
-    }
-    // The same into an existing ray, member by member (see Scene::SpawnRay: a returned
-    // Ray passed on by value was reloaded with wider loads than the stores that wrote it).
-    void GenerateRay(const Vec2& aRaster, Ray& oRay) const {
         const Vec3 onPlane = mForward * mImagePlaneDist + mRight * (aRaster.x - 0.5f * float(mWidth)) -
                              mUp * (aRaster.y - 0.5f * float(mHeight));
-        oRay.mOrigin = mPosition;
-        oRay.mDirection = glm::normalize(onPlane);
+        return Ray{mPosition, glm::normalize(onPlane)};
     }
-    // World point to raster position; false when the point is behind the camera.
-    bool WorldToRaster(const Vec3& aWorld, Vec2& oRaster) const {
+    // World point to raster position; nothing when the point is behind the camera.
+    std::optional<Vec2> WorldToRaster(const Vec3& aWorld) const {
         const Vec3 d = aWorld - mPosition;
         const float z = glm::dot(d, mForward);
-        if (!(z > 0.f)) return false;
+        if (!(z > 0.f)) return std::nullopt;
         const float scale = mImagePlaneDist / z;
-        oRaster = Vec2(0.5f * float(mWidth) + glm::dot(d, mRight) * scale,
-                       0.5f * float(mHeight) - glm::dot(d, mUp) * scale);
-        return true;
+        return Vec2(0.5f * float(mWidth) + glm::dot(d, mRight) * scale,
+                    0.5f * float(mHeight) - glm::dot(d, mUp) * scale);
     }
     bool CheckRaster(const Vec2& aRaster) const {
         return aRaster.x >= 0.f && aRaster.y >= 0.f && aRaster.x < float(mWidth) && aRaster.y < float(mHeight);
@@ -1298,139 +1320,10 @@ public:
     // bounding sphere, light sampling data, the BVH. Throws Error naming the problem.
     void Finalize() {
         const std::string where = mName.empty() ? std::string("scene") : mName;
-        if (mTriangles.empty() && mSpheres.empty()) throw Error(where + ": the scene has no geometry");
-        if (mLights.empty()) throw Error(where + ": the scene has no light");
-        int backgrounds = 0;
-        for (const Light& light : mLights) {
-            if (!IsFinite(light.mEmission) || light.mEmission.x < 0.f || light.mEmission.y < 0.f || light.mEmission.z < 0.f)
-                throw Error(where + ": a light has a negative or non-finite emission");
-            if (light.mType == LightType::kBackground) backgrounds++;
-        }
-        if (backgrounds > 1) throw Error(where + ": more than one background light");
-
-        Aabb box;
-        for (size_t t = 0; t < mTriangles.size(); t++) {
-            Triangle& triangle = mTriangles[t];
-            if (!IsFinite(triangle.mP0) || !IsFinite(triangle.mP1) || !IsFinite(triangle.mP2))
-                throw Error(where + ": triangle " + std::to_string(t) + " has a non-finite vertex");
-            if (!TriangleNormal(triangle.mP0, triangle.mP1, triangle.mP2, triangle.mNormal))
-                throw Error(where + ": triangle " + std::to_string(t) +
-                            " is degenerate (zero area: its vertices coincide or lie on a line)");
-            if (triangle.mHasVertexNormals)
-                for (Vec3* normal : {&triangle.mN0, &triangle.mN1, &triangle.mN2}) {
-                    const double length = glm::length(glm::dvec3(*normal));
-                    if (!IsFinite(*normal) || !(length > 0.0) || !std::isfinite(length))
-                        throw Error(where + ": triangle " + std::to_string(t) + " has a vertex normal that is zero or not finite");
-                    *normal = Vec3(glm::dvec3(*normal) / length);
-                }
-            CheckMaterial(where, triangle.mMaterialId);
-            box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2);
-        }
-        for (const Sphere& sphere : mSpheres) {
-            if (!IsFinite(sphere.mCenter) || !std::isfinite(sphere.mRadius) || !(sphere.mRadius > 0.f))
-                throw Error(where + ": a sphere has a non-finite centre or a radius that is not positive");
-            CheckMaterial(where, sphere.mMaterialId);
-            box.Extend(sphere.mCenter - Vec3(sphere.mRadius));
-            box.Extend(sphere.mCenter + Vec3(sphere.mRadius));
-        }
-        mSceneSphere.mCenter = box.Centroid();
-        mSceneSphere.mRadius = 0.5f * glm::length(box.mMax - box.mMin);
-        if (!(mSceneSphere.mRadius > 0.f) || !std::isfinite(mSceneSphere.mRadius))
-            throw Error(where + ": the scene's bounding box is empty or infinite");
-        mSceneSphere.mInvRadiusSqr = 1.f / Sqr(mSceneSphere.mRadius);
-        mRayEpsilon = kRayEpsilonPerSceneRadius * mSceneSphere.mRadius;
-
-        // Light sampling data.
-        mBackgroundLightId = -1;
-        for (size_t id = 0; id < mLights.size(); id++) {
-            Light& light = mLights[id];
-            light.mTriangleP0.clear(); light.mTriangleE1.clear(); light.mTriangleE2.clear();
-            light.mTriangleNormal.clear(); light.mTriangleCdf.clear();
-            light.mTriangleUv0.clear(); light.mTriangleUvE1.clear(); light.mTriangleUvE2.clear();
-            light.mArea = 0.f;
-            light.mEmissionTextureCopy = Texture{};
-            light.mBrightestEmissionTexel = Vec3(1.f);
-            if (light.mType == LightType::kBackground) mBackgroundLightId = int(id);
-            if (light.mEmissionTexture >= 0) {
-                const std::string which = where + ": light " + std::to_string(id) + " (" + LightTypeName(light.mType) + ")";
-                if (light.mType != LightType::kArea) throw Error(which + " has an emission texture; only area lights take one");
-                if (!IsUsableTexture(light.mEmissionTexture))
-                    throw Error(which + " refers to a missing or empty emission texture");
-                light.mEmissionTextureCopy = mTextures[size_t(light.mEmissionTexture)];
-                light.mBrightestEmissionTexel = Vec3(0.f);
-                for (const Vec3& texel : light.mEmissionTextureCopy.mTexels) {
-                    if (!IsFinite(texel) || texel.x < 0.f || texel.y < 0.f || texel.z < 0.f)
-                        throw Error(which + ": its emission texture has a negative or non-finite texel");
-                    light.mBrightestEmissionTexel = glm::max(light.mBrightestEmissionTexel, texel);
-                }
-            }
-            if (light.mType == LightType::kSpot) {
-                const std::string which = where + ": light " + std::to_string(id) + " (spot)";
-                if (const char* problem = SpotConeProblem(light.mSpotInnerConeAngle, light.mSpotOuterConeAngle))
-                    throw Error(which + ": " + problem);
-                if (!IsFinite(light.mPosition) || !IsFinite(light.mDirection) ||
-                    !(std::abs(glm::length(light.mDirection) - 1.f) < 1e-3f))
-                    throw Error(which + " has a non-finite position or an axis that is not a unit vector");
-                const double cosInner = std::cos(double(light.mSpotInnerConeAngle));
-                const double cosOuter = std::cos(double(light.mSpotOuterConeAngle));
-                light.mSpotCosOuter = float(cosOuter);
-                light.mSpotFalloffScale = float(1.0 / std::max(0.001, cosInner - cosOuter));
-            }
-        }
-        for (const Triangle& triangle : mTriangles) {
-            if (triangle.mLightId < 0) continue;
-            if (triangle.mLightId >= int(mLights.size()) || mLights[size_t(triangle.mLightId)].mType != LightType::kArea)
-                throw Error(where + ": a triangle refers to a light that is not an area light");
-            Light& light = mLights[size_t(triangle.mLightId)];
-            light.mTriangleP0.push_back(triangle.mP0);
-            light.mTriangleE1.push_back(triangle.mP1 - triangle.mP0);
-            light.mTriangleE2.push_back(triangle.mP2 - triangle.mP0);
-            light.mTriangleNormal.push_back(triangle.mNormal);
-            light.mArea += triangle.Area();
-            light.mTriangleCdf.push_back(light.mArea);
-            if (light.mEmissionTexture >= 0) {
-                if (!std::isfinite(triangle.mUv0.x) || !std::isfinite(triangle.mUv0.y) || !std::isfinite(triangle.mUv1.x) ||
-                    !std::isfinite(triangle.mUv1.y) || !std::isfinite(triangle.mUv2.x) || !std::isfinite(triangle.mUv2.y))
-                    throw Error(where + ": a triangle of light " + std::to_string(triangle.mLightId) +
-                                " has non-finite texture coordinates (NaN or infinity)");
-                light.mTriangleUv0.push_back(triangle.mUv0);
-                light.mTriangleUvE1.push_back(triangle.mUv1 - triangle.mUv0);
-                light.mTriangleUvE2.push_back(triangle.mUv2 - triangle.mUv0);
-            }
-        }
-        for (size_t s = 0; s < mSpheres.size(); s++) {
-            const Sphere& sphere = mSpheres[s];
-            if (sphere.mLightId < 0) continue;
-            if (sphere.mLightId >= int(mLights.size()) || mLights[size_t(sphere.mLightId)].mType != LightType::kSphere)
-                throw Error(where + ": a sphere refers to a light that is not a sphere light");
-            Light& light = mLights[size_t(sphere.mLightId)];
-            light.mSphereCenter = sphere.mCenter;
-            light.mSphereRadius = sphere.mRadius;
-            light.mArea = 4.f * kPi * Sqr(sphere.mRadius);
-        }
-        for (size_t id = 0; id < mLights.size(); id++) {
-            Light& light = mLights[id];
-            if ((light.mType == LightType::kArea || light.mType == LightType::kSphere) && !(light.mArea > 0.f))
-                throw Error(where + ": an area or sphere light has no surface");
-            CheckLightRange(where, id);
-            for (float& c : light.mTriangleCdf) c /= light.mArea;
-            if (!light.mTriangleCdf.empty()) light.mTriangleCdf.back() = 1.f;
-        }
-
-        PrimitiveSoup soup;
-        for (const Triangle& triangle : mTriangles) {
-            soup.mTriangleP0.push_back(triangle.mP0);
-            soup.mTriangleP1.push_back(triangle.mP1);
-            soup.mTriangleP2.push_back(triangle.mP2);
-        }
-        for (const Sphere& sphere : mSpheres) {
-            soup.mSphereCenter.push_back(sphere.mCenter);
-            soup.mSphereRadius.push_back(sphere.mRadius);
-        }
-        mBvh.Build(soup);
-        BuildTriangleHitRecords();
-        mMaterialConstants.clear();
-        for (const Material& material : mMaterials) mMaterialConstants.push_back(ComputeMaterialConstants(material));
+        ValidateLights(where);
+        FinalizeGeometry(where);
+        FinalizeLights(where);
+        BuildAcceleration();
         mFinalized = true;
     }
 
@@ -1537,16 +1430,7 @@ public:
 
     // Ray leaving a surface point: the origin moves off the surface along the direction.
     Ray SpawnRay(const Vec3& aPoint, const Vec3& aDirection) const {
-        Ray ray;
-        SpawnRay(aPoint, aDirection, ray);
-        return ray;
-    }
-    // The same into an existing ray (a path's next segment), member by member: assigning
-    // a returned Ray made g++ assemble it on the stack and copy it with loads wider than
-    // the stores that wrote it, a store-forwarding stall that cost the path tracer 4 %.
-    void SpawnRay(const Vec3& aPoint, const Vec3& aDirection, Ray& oRay) const {
-        oRay.mOrigin = aPoint + aDirection * mRayEpsilon;
-        oRay.mDirection = aDirection;
+        return Ray{aPoint + aDirection * mRayEpsilon, aDirection};
     }
 
     // The weights of vertices 1 and 2 at aPoint of aTriangle (vertex 0 has 1 - mB1 - mB2):
@@ -1586,11 +1470,164 @@ public:
     }
 
 private:
+    // --- Finalize's steps ------------------------------------------------------------
+    // Something to render and lights that emit a finite, non-negative amount.
+    void ValidateLights(const std::string& aWhere) const {
+        if (mTriangles.empty() && mSpheres.empty()) throw Error(aWhere + ": the scene has no geometry");
+        if (mLights.empty()) throw Error(aWhere + ": the scene has no light");
+        int backgrounds = 0;
+        for (const Light& light : mLights) {
+            if (!IsFinite(light.mEmission) || light.mEmission.x < 0.f || light.mEmission.y < 0.f || light.mEmission.z < 0.f)
+                throw Error(aWhere + ": a light has a negative or non-finite emission");
+            if (light.mType == LightType::kBackground) backgrounds++;
+        }
+        if (backgrounds > 1) throw Error(aWhere + ": more than one background light");
+    }
+
+    // Every triangle's normal from its winding, vertex normals normalised, materials
+    // checked; the bounding sphere and the ray offset that scales with it.
+    void FinalizeGeometry(const std::string& aWhere) {
+        Aabb box;
+        for (size_t t = 0; t < mTriangles.size(); t++) {
+            Triangle& triangle = mTriangles[t];
+            if (!IsFinite(triangle.mP0) || !IsFinite(triangle.mP1) || !IsFinite(triangle.mP2))
+                throw Error(aWhere + ": triangle " + std::to_string(t) + " has a non-finite vertex");
+            if (!TriangleNormal(triangle.mP0, triangle.mP1, triangle.mP2, triangle.mNormal))
+                throw Error(aWhere + ": triangle " + std::to_string(t) +
+                            " is degenerate (zero area: its vertices coincide or lie on a line)");
+            if (triangle.mHasVertexNormals)
+                for (Vec3* normal : {&triangle.mN0, &triangle.mN1, &triangle.mN2}) {
+                    const double length = glm::length(glm::dvec3(*normal));
+                    if (!IsFinite(*normal) || !(length > 0.0) || !std::isfinite(length))
+                        throw Error(aWhere + ": triangle " + std::to_string(t) + " has a vertex normal that is zero or not finite");
+                    *normal = Vec3(glm::dvec3(*normal) / length);
+                }
+            CheckMaterial(aWhere, triangle.mMaterialId);
+            box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2);
+        }
+        for (const Sphere& sphere : mSpheres) {
+            if (!IsFinite(sphere.mCenter) || !std::isfinite(sphere.mRadius) || !(sphere.mRadius > 0.f))
+                throw Error(aWhere + ": a sphere has a non-finite centre or a radius that is not positive");
+            CheckMaterial(aWhere, sphere.mMaterialId);
+            box.Extend(sphere.mCenter - Vec3(sphere.mRadius));
+            box.Extend(sphere.mCenter + Vec3(sphere.mRadius));
+        }
+        mSceneSphere.mCenter = box.Centroid();
+        mSceneSphere.mRadius = 0.5f * glm::length(box.mMax - box.mMin);
+        if (!(mSceneSphere.mRadius > 0.f) || !std::isfinite(mSceneSphere.mRadius))
+            throw Error(aWhere + ": the scene's bounding box is empty or infinite");
+        mSceneSphere.mInvRadiusSqr = 1.f / Sqr(mSceneSphere.mRadius);
+        mRayEpsilon = kRayEpsilonPerSceneRadius * mSceneSphere.mRadius;
+    }
+
+    // What each light samples from: its triangles (by area) or sphere, its emission
+    // texture, its spot cone; then each light's power checked against its range.
+    void FinalizeLights(const std::string& aWhere) {
+        mBackgroundLightId = -1;
+        for (size_t id = 0; id < mLights.size(); id++) {
+            if (mLights[id].mType == LightType::kBackground) mBackgroundLightId = int(id);
+            FinalizeLightParameters(aWhere, id);
+        }
+        for (const Triangle& triangle : mTriangles) {
+            if (triangle.mLightId < 0) continue;
+            if (triangle.mLightId >= int(mLights.size()) || mLights[size_t(triangle.mLightId)].mType != LightType::kArea)
+                throw Error(aWhere + ": a triangle refers to a light that is not an area light");
+            Light& light = mLights[size_t(triangle.mLightId)];
+            light.mTriangleP0.push_back(triangle.mP0);
+            light.mTriangleE1.push_back(triangle.mP1 - triangle.mP0);
+            light.mTriangleE2.push_back(triangle.mP2 - triangle.mP0);
+            light.mTriangleNormal.push_back(triangle.mNormal);
+            light.mArea += triangle.Area();
+            light.mTriangleCdf.push_back(light.mArea);
+            if (light.mEmissionTexture >= 0) {
+                if (!std::isfinite(triangle.mUv0.x) || !std::isfinite(triangle.mUv0.y) || !std::isfinite(triangle.mUv1.x) ||
+                    !std::isfinite(triangle.mUv1.y) || !std::isfinite(triangle.mUv2.x) || !std::isfinite(triangle.mUv2.y))
+                    throw Error(aWhere + ": a triangle of light " + std::to_string(triangle.mLightId) +
+                                " has non-finite texture coordinates (NaN or infinity)");
+                light.mTriangleUv0.push_back(triangle.mUv0);
+                light.mTriangleUvE1.push_back(triangle.mUv1 - triangle.mUv0);
+                light.mTriangleUvE2.push_back(triangle.mUv2 - triangle.mUv0);
+            }
+        }
+        for (size_t s = 0; s < mSpheres.size(); s++) {
+            const Sphere& sphere = mSpheres[s];
+            if (sphere.mLightId < 0) continue;
+            if (sphere.mLightId >= int(mLights.size()) || mLights[size_t(sphere.mLightId)].mType != LightType::kSphere)
+                throw Error(aWhere + ": a sphere refers to a light that is not a sphere light");
+            Light& light = mLights[size_t(sphere.mLightId)];
+            light.mSphereCenter = sphere.mCenter;
+            light.mSphereRadius = sphere.mRadius;
+            light.mArea = 4.f * kPi * Sqr(sphere.mRadius);
+        }
+        for (size_t id = 0; id < mLights.size(); id++) {
+            Light& light = mLights[id];
+            if ((light.mType == LightType::kArea || light.mType == LightType::kSphere) && !(light.mArea > 0.f))
+                throw Error(aWhere + ": an area or sphere light has no surface");
+            CheckLightRange(aWhere, id);
+            for (float& c : light.mTriangleCdf) c /= light.mArea;
+            if (!light.mTriangleCdf.empty()) light.mTriangleCdf.back() = 1.f;
+        }
+    }
+
+    // One light's own data: its emission texture (a copy, and the brightest texel) and
+    // its spot cone; what its surfaces give is cleared for FinalizeLights to gather.
+    void FinalizeLightParameters(const std::string& aWhere, size_t aId) {
+        Light& light = mLights[aId];
+        light.mTriangleP0.clear(); light.mTriangleE1.clear(); light.mTriangleE2.clear();
+        light.mTriangleNormal.clear(); light.mTriangleCdf.clear();
+        light.mTriangleUv0.clear(); light.mTriangleUvE1.clear(); light.mTriangleUvE2.clear();
+        light.mArea = 0.f;
+        light.mEmissionTextureCopy = Texture{};
+        light.mBrightestEmissionTexel = Vec3(1.f);
+        if (light.mEmissionTexture >= 0) {
+            const std::string which = aWhere + ": light " + std::to_string(aId) + " (" + LightTypeName(light.mType) + ")";
+            if (light.mType != LightType::kArea) throw Error(which + " has an emission texture; only area lights take one");
+            if (!IsUsableTexture(light.mEmissionTexture))
+                throw Error(which + " refers to a missing or empty emission texture");
+            light.mEmissionTextureCopy = mTextures[size_t(light.mEmissionTexture)];
+            light.mBrightestEmissionTexel = Vec3(0.f);
+            for (const Vec3& texel : light.mEmissionTextureCopy.mTexels) {
+                if (!IsFinite(texel) || texel.x < 0.f || texel.y < 0.f || texel.z < 0.f)
+                    throw Error(which + ": its emission texture has a negative or non-finite texel");
+                light.mBrightestEmissionTexel = glm::max(light.mBrightestEmissionTexel, texel);
+            }
+        }
+        if (light.mType == LightType::kSpot) {
+            const std::string which = aWhere + ": light " + std::to_string(aId) + " (spot)";
+            if (const char* problem = SpotConeProblem(light.mSpotInnerConeAngle, light.mSpotOuterConeAngle))
+                throw Error(which + ": " + problem);
+            if (!IsFinite(light.mPosition) || !IsFinite(light.mDirection) ||
+                !(std::abs(glm::length(light.mDirection) - 1.f) < 1e-3f))
+                throw Error(which + " has a non-finite position or an axis that is not a unit vector");
+            const double cosInner = std::cos(double(light.mSpotInnerConeAngle));
+            const double cosOuter = std::cos(double(light.mSpotOuterConeAngle));
+            light.mSpotCosOuter = float(cosOuter);
+            light.mSpotFalloffScale = float(1.0 / std::max(0.001, cosInner - cosOuter));
+        }
+    }
+
+    // The BVH over every primitive, the per-triangle hit records and per-material constants.
+    void BuildAcceleration() {
+        PrimitiveSoup soup;
+        for (const Triangle& triangle : mTriangles) {
+            soup.mTriangleP0.push_back(triangle.mP0);
+            soup.mTriangleP1.push_back(triangle.mP1);
+            soup.mTriangleP2.push_back(triangle.mP2);
+        }
+        for (const Sphere& sphere : mSpheres) {
+            soup.mSphereCenter.push_back(sphere.mCenter);
+            soup.mSphereRadius.push_back(sphere.mRadius);
+        }
+        mBvh.Build(soup);
+        BuildTriangleHitRecords();
+        mMaterialConstants.clear();
+        for (const Material& material : mMaterials) mMaterialConstants.push_back(ComputeMaterialConstants(material));
+    }
+
 
     // What FillSurfacePoint needs of a hit triangle, by Finalize: its normal and kind in 16
-    // bytes. It read them from the 120-byte Triangle, a cache miss per hit on a large mesh
-    // (81 920 triangles: 9.8 MB of Triangles, 1.3 MB of these; perf saw 8 % of pt's time
-    // waiting on that load); the few kinds stay in the L1 cache.
+    // bytes, instead of the whole Triangle (which on a large mesh is a cache miss per hit);
+    // the few kinds stay in the cache.
     struct TriangleKind {
         int mMaterialId = 0;
         int mLightId = -1;
@@ -1856,7 +1893,7 @@ public:
         if (mShaded && !SidesAgree(mLocalDirFix.z, mCosFixGeometric)) return;  // a light leak (section notes)
         if (aConstants && aConstants->mFixedProbabilities && !aBaseColorTexel && aMaterial.mIor < 0.f) {
             // What the lines below compute, computed once for the material (mFresnel is
-            // 1 without refraction): an eighth of Setup's instructions (callgrind).
+            // 1 without refraction).
             const MaterialConstants::Side& side = mLocalDirFix.z > 0.f ? aConstants->mFront : aConstants->mBack;
             mProbabilities = side.mProbabilities;
             if (!side.mValid) return;
@@ -1913,8 +1950,8 @@ public:
 
     // f(fix, gen) of the non-specular components (no cosine), |cos theta_gen|, and the
     // pdfs of sampling gen given fix (direct) and fix given gen (reverse), solid angle.
-    // Inlined, with EvaluateNonSpecular, into every connection and merge: out of line the
-    // two calls and their spills cost 3-5 % of bpt's and vcm's instructions.
+    // Inlined, with EvaluateNonSpecular, into every connection and merge, which call it
+    // more often than anything else.
     SMALLVCM_ALWAYS_INLINE Vec3 Evaluate(const Vec3& aWorldDirGen, float& oCosThetaGen, float* oDirectPdfW = nullptr,
                                          float* oReversePdfW = nullptr) const {
         const Vec3 localDirGen = mFrame.ToLocal(aWorldDirGen);
@@ -1949,8 +1986,7 @@ public:
 
     // Evaluate towards aWorldDirGen with both pdfs as the path sees them (WithRoulette):
     // what a connection to another vertex, a light or the camera needs. Inlined too: a
-    // caller that does not read the reverse pdf (the path tracer) then does not compute
-    // it, and the call's spills go (-0.6 % of pt's instructions, -1 % of bpt's and vcm's).
+    // caller that does not read the reverse pdf (the path tracer) then does not compute it.
     SMALLVCM_ALWAYS_INLINE BsdfEval EvaluateWithRoulette(const Vec3& aWorldDirGen) const {
         BsdfEval eval;
         float dirPdfW = 0.f, revPdfW = 0.f;
@@ -2178,26 +2214,31 @@ struct ScatterSample {
     bool IsSpecular() const { return (mEvent & kEventSpecular) != 0; }
 };
 
-// A sample of the Bsdf with aRnd, no Russian roulette. False when it is unusable (black).
-inline bool SampleBsdf(const Bsdf& aBsdf, const Vec3& aRnd, ScatterSample& oSample) {
-    oSample.mValue = aBsdf.Sample(aRnd, oSample.mDirection, oSample.mPdfW, oSample.mCosThetaOut, &oSample.mEvent,
-                                  &oSample.mReversePdfW);
-    if (IsBlack(oSample.mValue)) return false;
-    oSample.mWeight = oSample.mValue * (oSample.mCosThetaOut / oSample.mPdfW);
-    return true;
+// A sample of the Bsdf with aRnd, no Russian roulette. Nothing when it is unusable (black).
+// (Built in place and returned by name, here and below: no copy of the sample is made.)
+inline std::optional<ScatterSample> SampleBsdf(const Bsdf& aBsdf, const Vec3& aRnd) {
+    std::optional<ScatterSample> sample(std::in_place);
+    ScatterSample& s = *sample;
+    s.mValue = aBsdf.Sample(aRnd, s.mDirection, s.mPdfW, s.mCosThetaOut, &s.mEvent, &s.mReversePdfW);
+    if (IsBlack(s.mValue)) sample.reset();
+    else s.mWeight = s.mValue * (s.mCosThetaOut / s.mPdfW);
+    return sample;
 }
 
 // One step of a random walk, shared by every integrator that walks paths: sample the
 // BSDF, then Russian roulette with the material's continuation probability, which is
 // part of how the direction was sampled, so it enters both pdfs (Bsdf::WithRoulette)
-// and the weight. False when the walk ends here (a black sample, or Russian roulette).
-inline bool SampleScatteringWithRoulette(const Bsdf& aBsdf, Rng& aRng, ScatterSample& oSample) {
-    if (!SampleBsdf(aBsdf, aRng.GetVec3(), oSample)) return false;
-    if (aRng.GetFloat() >= aBsdf.ContinuationProb()) return false;
-    oSample.mPdfW = aBsdf.WithRoulette(oSample.mPdfW);
-    oSample.mReversePdfW = aBsdf.WithRoulette(oSample.mReversePdfW);
-    oSample.mWeight = oSample.mValue * (oSample.mCosThetaOut / oSample.mPdfW);
-    return true;
+// and the weight. Nothing when the walk ends here (a black sample, or Russian roulette).
+inline std::optional<ScatterSample> SampleScatteringWithRoulette(const Bsdf& aBsdf, Rng& aRng) {
+    std::optional<ScatterSample> sample = SampleBsdf(aBsdf, aRng.GetVec3());
+    if (sample && aRng.GetFloat() < aBsdf.ContinuationProb()) {
+        sample->mPdfW = aBsdf.WithRoulette(sample->mPdfW);
+        sample->mReversePdfW = aBsdf.WithRoulette(sample->mReversePdfW);
+        sample->mWeight = sample->mValue * (sample->mCosThetaOut / sample->mPdfW);
+    } else {
+        sample.reset();
+    }
+    return sample;
 }
 
 // =====================================================================================
@@ -2226,13 +2267,22 @@ public:
     int Height() const { return mHeight; }
 
     void AddColor(int aPixelIndex, const Vec3& aColor) {
-        SMALLVCM_CHECK(IsFinite(aColor) && aColor.x >= 0.f && aColor.y >= 0.f && aColor.z >= 0.f,
-                       "a film contribution is NaN, infinite or negative");
-        SMALLVCM_CHECK(aPixelIndex >= 0 && size_t(aPixelIndex) < mPixels.size(), "a film write outside the image");
+        CheckContribution(aPixelIndex, aColor);
+        if (!mSplats.empty()) AddSplats();
         mPixels[size_t(aPixelIndex)] += glm::dvec3(aColor);
     }
-    // A pixel AddColor will soon write (see Prefetch).
-    void PrefetchPixel(int aPixelIndex) const { Prefetch(&mPixels[size_t(aPixelIndex)]); }
+    // The same for a contribution that lands anywhere in the image (light tracing's
+    // splats). The film adds these a batch at a time, in the order given, having asked
+    // for each pixel's memory first, so that the cache misses of pixels far apart overlap;
+    // every other use of the film adds the pending ones first.
+    void Splat(int aPixelIndex, const Vec3& aColor) {
+        CheckContribution(aPixelIndex, aColor);
+        Prefetch(&mPixels[size_t(aPixelIndex)]);
+        PendingSplat& splat = mSplats.emplace_back();
+        splat.mPixel = aPixelIndex;
+        splat.mColor = aColor;
+        if (mSplats.size() == kSplatBatch) AddSplats();
+    }
 
     // Layers: created before rendering; AddLayer returns the index to write with.
     int AddLayer(const std::string& aName) {
@@ -2256,6 +2306,8 @@ public:
 
     // Adds another film of the same size and layers (the per-thread films of a render).
     void Accumulate(const Film& aOther) {
+        AddSplats();
+        aOther.AddSplats();
         for (size_t i = 0; i < mPixels.size(); i++) mPixels[i] += aOther.mPixels[i];
         for (size_t l = 0; l < mLayers.size(); l++)
             for (size_t i = 0; i < mPixels.size(); i++) mLayers[l][i] += aOther.mLayers[l][i];
@@ -2263,6 +2315,7 @@ public:
 
     // The image (aLayer = -1) or a layer, each pixel multiplied by aScale (1 / iterations).
     Image Resolve(double aScale, int aLayer = -1) const {
+        AddSplats();
         const std::vector<glm::dvec3>& source = aLayer < 0 ? mPixels : mLayers[size_t(aLayer)];
         Image image(mWidth, mHeight);
         for (size_t i = 0; i < source.size(); i++) image.mPixels[i] = Vec3(source[i] * aScale);
@@ -2270,8 +2323,24 @@ public:
     }
 
 private:
+    void CheckContribution(int aPixelIndex, const Vec3& aColor) const {
+        SMALLVCM_CHECK(IsFinite(aColor) && aColor.x >= 0.f && aColor.y >= 0.f && aColor.z >= 0.f,
+                       "a film contribution is NaN, infinite or negative");
+        SMALLVCM_CHECK(aPixelIndex >= 0 && size_t(aPixelIndex) < mPixels.size(), "a film write outside the image");
+        (void)aPixelIndex;
+        (void)aColor;
+    }
+    // The pending splats, added in order (const: they are part of what the film holds).
+    void AddSplats() const {
+        for (const PendingSplat& splat : mSplats) mPixels[size_t(splat.mPixel)] += glm::dvec3(splat.mColor);
+        mSplats.clear();
+    }
+
+    static constexpr size_t kSplatBatch = 32;
+    struct PendingSplat { int mPixel; Vec3 mColor; };
     int mWidth = 0, mHeight = 0;
-    std::vector<glm::dvec3> mPixels;
+    mutable std::vector<glm::dvec3> mPixels;     // (mutable: AddSplats)
+    mutable std::vector<PendingSplat> mSplats;  // Splat's, not yet in mPixels
     std::vector<std::string> mLayerNames;
     std::vector<std::vector<glm::dvec3>> mLayers;
 };
@@ -2506,91 +2575,75 @@ private:
     // One camera path, the estimator's steps at each vertex: the light it hits (BSDF
     // sampling's share of direct light), next-event estimation (the light sample's
     // share), and the continuation by BSDF sampling with Russian roulette.
-    // aRaster: the pixel's sample position; the first ray is made here, in place (a Ray
-    // passed by value was a store-forwarding stall, 20 % of RunIteration's samples).
     void TraceCameraPath(Rng& aRng, int aPixel, const Vec2& aRaster) {
-        Ray ray;
-        mScene.mCamera.GenerateRay(aRaster, ray);
-        Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
+        Ray ray = mScene.mCamera.GenerateRay(aRaster);
+        Bsdf bsdf;
         for (PathState path;; path.mPathLength++) {
             const SurfacePoint hit = mScene.Intersect(ray);
             if (!hit.IsValid()) {
-                AddBackgroundHit(aPixel, path, ray.mDirection);
+                AddContribution(aPixel, path, BackgroundHit(path, ray.mDirection));
                 return;
             }
-            const Vec3& hitPoint = hit.mPosition;
             // The path goes on after a light only if the emitter's material reflects (the
             // Cornell lights are black; the furnace test's walls are not).
-            if (hit.mLightId >= 0 && path.mPathLength >= mOptions.mMinPathLength) AddEmitterHit(aPixel, path, ray, hit);
+            if (hit.mLightId >= 0 && path.mPathLength >= mOptions.mMinPathLength)
+                AddContribution(aPixel, path, EmitterHit(path, ray, hit));
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid() || path.mPathLength >= mOptions.mMaxPathLength) return;
-            ConnectToLight(aRng, aPixel, path, hitPoint, bsdf);
-            if (!ContinuePath(aRng, bsdf, hitPoint, path, ray)) return;
+            if (!bsdf.IsDelta() && path.mPathLength + 1 >= mOptions.mMinPathLength)
+                AddContribution(aPixel, path, ConnectToLight(aRng, path, hit.mPosition, bsdf), /*aNextEvent=*/true);
+            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aRng);
+            if (!scatter) return;
+            path.mThroughput *= scatter->mWeight;
+            path.mLastPdfW = scatter->mPdfW;
+            path.mLastSpecular = scatter->IsSpecular();
+            if (path.mPathLength == 1) path.mFirstSpecular = path.mLastSpecular;
+            ray = mScene.SpawnRay(hit.mPosition, scatter->mDirection);
         }
     }
 
     // The ray left the scene: the background light, if any, found by BSDF sampling.
-    void AddBackgroundHit(int aPixel, const PathState& aPath, const Vec3& aDirection) {
+    Vec3 BackgroundHit(const PathState& aPath, const Vec3& aDirection) const {
         const Light* background = mScene.GetBackground();
-        if (!background || aPath.mPathLength < mOptions.mMinPathLength) return;
+        if (!background || aPath.mPathLength < mOptions.mMinPathLength) return Vec3(0.f);
         const Light::RadianceAtHit received = background->GetRadiance(mScene.GetSceneSphere(), aDirection, Vec3(0.f), Vec2(0.f));
         const float directPdfW = received.mDirectPdfA;  // a background's "area" pdf is per solid angle
         const float weight = aPath.mLastSpecular ? 1.f : BsdfHitWeight(aPath.mLastPdfW, directPdfW * mScene.LightPickProb());
-        AddContribution(aPixel, aPath.mPathLength, aPath.mFirstSpecular, aPath.mThroughput * received.mRadiance * weight);
+        return aPath.mThroughput * received.mRadiance * weight;
     }
 
     // A light hit by the path, found by BSDF sampling: MIS against next-event
     // estimation, whose area pdf is converted to solid angle at the previous vertex.
-    void AddEmitterHit(int aPixel, const PathState& aPath, const Ray& aRay, const SurfacePoint& aHit) {
+    Vec3 EmitterHit(const PathState& aPath, const Ray& aRay, const SurfacePoint& aHit) const {
         const Light& light = mScene.GetLight(aHit.mLightId);
         const Light::RadianceAtHit received = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, aHit.GeometricNormal(), aHit.mUv);
-        const Vec3& radiance = received.mRadiance;
-        const float directPdfA = received.mDirectPdfA;
-        if (IsBlack(radiance)) return;
+        if (IsBlack(received.mRadiance)) return Vec3(0.f);
         float weight = 1.f;
         if (!aPath.mLastSpecular) {
             const float cosAtLight = glm::dot(aHit.GeometricNormal(), -aRay.mDirection);
             const float distance = aHit.mDist + mScene.RayEpsilon();
-            const float directPdfW = PdfAtoW(directPdfA, distance, cosAtLight) * mScene.LightPickProb();
+            const float directPdfW = PdfAtoW(received.mDirectPdfA, distance, cosAtLight) * mScene.LightPickProb();
             weight = BsdfHitWeight(aPath.mLastPdfW, directPdfW);
         }
-        AddContribution(aPixel, aPath.mPathLength, aPath.mFirstSpecular, aPath.mThroughput * radiance * weight);
+        return aPath.mThroughput * received.mRadiance * weight;
     }
 
     // Next-event estimation: one light picked, one point on it, a shadow ray; its MIS
     // weight against the BSDF sample that could have hit the same point.
-    void ConnectToLight(Rng& aRng, int aPixel, const PathState& aPath, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+    Vec3 ConnectToLight(Rng& aRng, const PathState& aPath, const Vec3& aHitPoint, const Bsdf& aBsdf) const {
         // BEGIN EXERCISE pt_nee_mis
-        if (aBsdf.IsDelta() || aPath.mPathLength + 1 < mOptions.mMinPathLength ||
-            mOptions.mDirectLight == DirectLightSampling::kBsdfOnly)
-            return;
+        if (mOptions.mDirectLight == DirectLightSampling::kBsdfOnly) return Vec3(0.f);
         const LightPick pick = mScene.PickLight(aRng.GetFloat());
         const Light& light = *pick.mLight;
-        LightSample sample;
-        const Vec2 rnd = aRng.GetVec2();
-        if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd, sample) || IsBlack(sample.mRadiance)) return;
-        const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample.mDirToLight);
-        if (bsdf.IsBlack()) return;
-        // The shadow ray first: fewer values live across its call, and none is computed
-        // for a blocked sample.
-        if (mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance)) return;
-        const float directPdfW = sample.mDirectPdfW * pick.mProb;
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2());
+        if (!sample || IsBlack(sample->mRadiance)) return Vec3(0.f);
+        const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample->mDirToLight);
+        if (bsdf.IsBlack()) return Vec3(0.f);
+        if (mScene.Occluded(aHitPoint, sample->mDirToLight, sample->mDistance)) return Vec3(0.f);
+        const float directPdfW = sample->mDirectPdfW * pick.mProb;
         const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdf.mDirPdfW);
-        const Vec3 contribution = aPath.mThroughput * bsdf.mValue * sample.mRadiance * (weight * bsdf.mCosThetaGen / directPdfW);
-        AddContribution(aPixel, aPath.mPathLength + 1, false, contribution);
+        return aPath.mThroughput * bsdf.mValue * sample->mRadiance * (weight * bsdf.mCosThetaGen / directPdfW);
         // END EXERCISE pt_nee_mis
-    }
-
-    // Continues the path by sampling the BSDF, then Russian roulette. False: it ends.
-    bool ContinuePath(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, PathState& ioPath, Ray& oRay) const {
-        ScatterSample scatter;
-        if (!SampleScatteringWithRoulette(aBsdf, aRng, scatter)) return false;
-        ioPath.mThroughput *= scatter.mWeight;
-        ioPath.mLastPdfW = scatter.mPdfW;
-        ioPath.mLastSpecular = scatter.IsSpecular();
-        if (ioPath.mPathLength == 1) ioPath.mFirstSpecular = ioPath.mLastSpecular;
-        mScene.SpawnRay(aHitPoint, scatter.mDirection, oRay);
-        return true;
     }
 
 
@@ -2612,12 +2665,18 @@ private:
         }
     }
 
-    void AddContribution(int aPixel, int aPathLength, bool aFirstSpecular, const Vec3& aContribution) {
+    // Adds a contribution to the pixel, and to its layer when layers are on: a light hit
+    // at the path's current length, or (aNextEvent) a light reached one segment further
+    // by next-event estimation, whose layer counts as non-specular.
+    void AddContribution(int aPixel, const PathState& aPath, const Vec3& aContribution, bool aNextEvent = false) {
+        if (IsBlack(aContribution)) return;
         mFilm.AddColor(aPixel, aContribution);
         if (mLayers.empty()) return;
+        const int pathLength = aPath.mPathLength + (aNextEvent ? 1 : 0);
+        const bool firstSpecular = aNextEvent ? false : aPath.mFirstSpecular;
         int layer = 0;
-        if (aPathLength == 2) layer = aFirstSpecular ? 2 : 1;
-        else if (aPathLength > 2) layer = aFirstSpecular ? 4 : 3;
+        if (pathLength == 2) layer = firstSpecular ? 2 : 1;
+        else if (pathLength > 2) layer = firstSpecular ? 4 : 3;
         mFilm.AddToLayer(mLayers[size_t(layer)], aPixel, aContribution);
     }
 
@@ -2862,11 +2921,10 @@ inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLeng
         const float lightPickProb = pick.mProb;
         const Vec2 rndDirection = aRng.GetVec2();
         const Vec2 rndPosition = aRng.GetVec2();
-        LightEmission emission;
-        if (!light.Emit(aScene.GetSceneSphere(), rndDirection, rndPosition, emission) || !(emission.mEmissionPdfW > 0.f))
-            continue;
-        Vec3 power = emission.mEnergy / (emission.mEmissionPdfW * lightPickProb * float(aPhotonCount));
-        Ray ray = aScene.SpawnRay(emission.mPosition, emission.mDirection);
+        const std::optional<LightEmission> emission = light.Emit(aScene.GetSceneSphere(), rndDirection, rndPosition);
+        if (!emission || !(emission->mEmissionPdfW > 0.f)) continue;
+        Vec3 power = emission->mEnergy / (emission->mEmissionPdfW * lightPickProb * float(aPhotonCount));
+        Ray ray = aScene.SpawnRay(emission->mPosition, emission->mDirection);
         bool onlySpecular = true;
         Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
         for (int pathLength = 1; pathLength < aMaxPathLength; pathLength++) {
@@ -2880,11 +2938,11 @@ inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLeng
                 global.push_back(photon);
                 if (onlySpecular && pathLength > 1) caustic.push_back(photon);
             }
-            ScatterSample scatter;
-            if (!SampleScatteringWithRoulette(bsdf, aRng, scatter)) break;
-            power *= scatter.mWeight;
-            onlySpecular = onlySpecular && scatter.IsSpecular();
-            aScene.SpawnRay(hitPoint, scatter.mDirection, ray);
+            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aRng);
+            if (!scatter) break;
+            power *= scatter->mWeight;
+            onlySpecular = onlySpecular && scatter->IsSpecular();
+            ray = aScene.SpawnRay(hitPoint, scatter->mDirection);
         }
     }
     oGlobal.Build(std::move(global));
@@ -2964,11 +3022,11 @@ private:
     }
 
     // Samples the BSDF; continues (true) only if a specular component was picked.
-    bool ContinueSpecular(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, Vec3& ioThroughput, Ray& ioRay) {
-        ScatterSample scatter;
-        if (!SampleBsdf(aBsdf, aRng.GetVec3(), scatter) || !scatter.IsSpecular()) return false;
-        ioThroughput *= scatter.mWeight;
-        mScene.SpawnRay(aHitPoint, scatter.mDirection, ioRay);
+    bool ContinueSpecular(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, Vec3& aThroughput, Ray& aRay) const {
+        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aRng.GetVec3());
+        if (!scatter || !scatter->IsSpecular()) return false;
+        aThroughput *= scatter->mWeight;
+        aRay = mScene.SpawnRay(aHitPoint, scatter->mDirection);
         return true;
     }
 
@@ -2993,24 +3051,23 @@ private:
             return;
         }
         const Light& light = *mScene.PickLight(aRng.GetFloat()).mLight;
-        LightSample sample;
-        if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2(), sample) || IsBlack(sample.mRadiance))
-            return;
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2());
+        if (!sample || IsBlack(sample->mRadiance)) return;
         float cosToLight;
-        const Vec3 factor = aBsdf.Evaluate(sample.mDirToLight, cosToLight);
-        if (!IsBlack(factor) && !mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance))
-            Add(aPixel, aLayer, aThroughput * factor * sample.mRadiance *
-                                    (cosToLight * float(mScene.LightCount()) / sample.mDirectPdfW));
+        const Vec3 factor = aBsdf.Evaluate(sample->mDirToLight, cosToLight);
+        if (!IsBlack(factor) && !mScene.Occluded(aHitPoint, sample->mDirToLight, sample->mDistance))
+            Add(aPixel, aLayer, aThroughput * factor * sample->mRadiance *
+                                    (cosToLight * float(mScene.LightCount()) / sample->mDirectPdfW));
     }
 
     // Indirect light by final gathering: one sample of x's non-specular part, followed
     // through specular bounces to a non-specular y, where the global map estimates.
     void FinalGather(Rng& aRng, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
                      const Vec3& aThroughput) {
-        ScatterSample scatter;
-        if (!SampleBsdf(aBsdf, aRng.GetVec3(), scatter) || scatter.IsSpecular()) return;  // the specular part is traced by the caller
-        Vec3 gatherThroughput = aThroughput * scatter.mValue * (scatter.mCosThetaOut / scatter.mPdfW);
-        Ray ray = mScene.SpawnRay(aHitPoint, scatter.mDirection);
+        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aRng.GetVec3());
+        if (!scatter || scatter->IsSpecular()) return;  // the specular part is traced by the caller
+        Vec3 gatherThroughput = aThroughput * scatter->mValue * (scatter->mCosThetaOut / scatter->mPdfW);
+        Ray ray = mScene.SpawnRay(aHitPoint, scatter->mDirection);
         Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
         for (int length = aPathLength + 1; length < mOptions.mMaxPathLength; length++) {
             const SurfacePoint hit = mScene.Intersect(ray);
@@ -3272,292 +3329,24 @@ inline float WeightMerge(const VcmMisConstants& c, const SubpathMis& aLight, con
 
 } // namespace VcmMis
 
-// Range search over points: a uniform grid of cells of size 2r hashed into a table as
-// large as the point count (SmallVCM's scheme). A query visits the cells overlapping the
-// query's bounding box -- at most 2 x 2 x 2 -- skipping buckets already visited (two
-// cells can hash to one bucket; visiting it twice would count its points twice). The
-// grid keeps its own copy of the positions in bucket order, each with the point's index
-// (16 bytes), and beside them, in the same order, an item per point (what a caller's
-// visit reads): the distance tests of a query read a few consecutive lines, and only the
-// points that pass (a fifth of the candidates on a surface) have their items read.
-//
-// A query runs in steps that a caller may spread over other work, since each step's
-// loads are cache misses (the grid of 500 000 points is 30 MiB) that the next step
-// needs: Prepare (the buckets; requests their ranges), Locate (reads the ranges;
-// requests the points), Select (the distance tests; requests the items of those that
-// pass), Process (the visits). Process alone does whatever steps were not done.
+// Range search over points, by its contract; how it works is [SECTION] Appendix: range
+// search, and a reader who skips it loses nothing needed to follow the estimators.
+// Build(count, radius, positionOf, itemOf) keeps a copy of itemOf(i) at positionOf(i) for
+// every i < count. Process(point, visit) calls visit(item), or visit(item, i) if visit
+// takes the point's index too, once for every kept point within the radius of point
+// (|p - point| <= r), in an order that depends only on the points and the query. A
+// RangeSearch is used by one thread (each renderer has its own).
 template <class Item>
-class HashGridOf {
+class RangeSearch {
 public:
-    // Whether the next Build is for a sparse grid, where most queries find nothing: it then
-    // marks the cells that have points, so that Prepare ends a query whose cells have none
-    // at once, and gives the table kSparseBucketsPerPoint buckets a point (see Build).
-    void MarkOccupiedCells(bool aMark) { mMarkOccupiedCells = aMark; }
-
-    // aItemOf(i): what Process hands over for point i (copied into the grid).
     template <class PositionOf, class ItemOf>
-    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf) {
-        mRadius = aRadius;
-        mRadiusSqr = Sqr(aRadius);
-        mInvCellSize = 1.f / (2.f * aRadius);
-        // A power of two: the hash is masked, not divided. On a sparse grid nearly every
-        // point has a cell of its own, and a bucket a point puts a second cell into many
-        // buckets, whose points every query of the other cell tests in vain; four buckets a
-        // point make that rare (VCM on scene 0 at 256x256: 3 % fewer instructions, 3-5 %
-        // less time). A dense grid has many points a cell, and there the larger table was
-        // only more cache misses (scene 2 at 512x512: 2 % slower).
-        const size_t wanted = mMarkOccupiedCells ? kSparseBucketsPerPoint * aCount : aCount;
-        size_t buckets = 1;
-        while (buckets < wanted) buckets *= 2;
-        mBucketMask = uint32_t(buckets - 1);
-        mBucketEnds.assign(buckets, 0);
-        ResizeForOverwrite(mPoints, aCount);
-        ResizeForOverwrite(mItems, aCount);
-        ResizeForOverwrite(mBucketOf, aCount);
-        const size_t occupiedBits = mMarkOccupiedCells ? std::max<size_t>(64, kOccupiedBitsPerBucket * buckets) : 0;
-        mOccupiedMask = uint32_t(occupiedBits - 1);
-        mOccupied.assign(occupiedBits / 64, 0);
-        for (size_t i = 0; i < aCount; i++) {
-            const uint32_t hash = HashOf(CellOf(aPositionOf(i)));
-            mBucketOf[i] = hash & mBucketMask;
-            if (mMarkOccupiedCells) mOccupied[(hash & mOccupiedMask) >> 6] |= uint64_t(1) << (hash & 63u);
-        }
-        // The table's counters and the points' slots are random places in megabytes: each
-        // is requested kAhead points before it is updated, so the misses overlap.
-        constexpr size_t kAhead = 16;
-        for (size_t i = 0; i < aCount; i++) {
-            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
-            mBucketEnds[mBucketOf[i]]++;
-        }
-        // Counting sort in place: the counts become the buckets' beginnings, and filling
-        // the points in advances each to its bucket's end (no second table to copy).
-        uint32_t sum = 0;
-        for (uint32_t& entry : mBucketEnds) { const uint32_t count = entry; entry = sum; sum += count; }
-        for (size_t i = 0; i < aCount; i++) {
-            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
-            if (i + kAhead / 2 < aCount) {  // where that point will go, unless its bucket gets a point before it
-                const uint32_t slot = mBucketEnds[mBucketOf[i + kAhead / 2]];
-                Prefetch(&mPoints[slot]);
-                Prefetch(&mItems[slot]);
-            }
-            const uint32_t slot = mBucketEnds[mBucketOf[i]]++;
-            mPoints[slot] = Point{aPositionOf(i), uint32_t(i)};
-            mItems[slot] = aItemOf(i);
-        }
-    }
-
-    // Sizes an array that Build overwrites whole. Growing, it drops its old contents instead
-    // of copying them and reserves a quarter more (pages never written take no memory), as
-    // the light vertices' count differs by a few percent between iterations: resize alone
-    // doubled the arrays, by copying, in the second iteration of scene 2 at 512x512 (7 300
-    // new pages touched) and in the fourth of scene 0 (2 900).
-    template <class T>
-    static void ResizeForOverwrite(std::vector<T>& aArray, size_t aCount) {
-        if (aArray.capacity() < aCount) {
-            std::vector<T>().swap(aArray);
-            aArray.reserve(aCount + aCount / 4);
-        }
-        aArray.resize(aCount);
-    }
-
-    // A query and how far it got.
-    struct Query {
-        enum Step { kPrepared, kLocated, kSelected };
-        static constexpr int kMaxSelected = 32;  // more points pass: Process tests them again
-        Vec3 mPoint{0.f};
-        Step mStep = kPrepared;
-        int mBucketCount = 0;
-        uint32_t mBuckets[27];
-        int mRangeCount = 0;              // the buckets' ranges of points, those that touch
-        uint32_t mBegins[27], mEnds[27];  // joined, the empty left out (Locate)
-        int mSelectedCount = 0;           // the points that passed, in visiting order (Select)
-        uint32_t mSelected[kMaxSelected + 1];  // (the last entry takes the writes past the end)
-    };
-
-    // Finds the buckets of the cells around aPoint (2 x 2 x 2, as cells are 2r wide; 3 per
-    // axis when rounding puts a bound on a cell border) and requests their ranges' cache
-    // lines.
-    void Prepare(const Vec3& aPoint, Query& oQuery) const {
-        oQuery.mPoint = aPoint;
-        oQuery.mStep = Query::kPrepared;
-        oQuery.mBucketCount = 0;
-        if (mPoints.empty()) return;
-        const glm::ivec3 low = CellOf(aPoint - Vec3(mRadius));
-        const glm::ivec3 high = CellOf(aPoint + Vec3(mRadius));
-        // HashOf, its z and y terms summed once per row; the count, mask and table
-        // kept in locals (members are reloaded after every store to the query's buckets).
-        uint32_t* const buckets = oQuery.mBuckets;
-        const uint32_t mask = mBucketMask;
-        const uint32_t* const table = mBucketEnds.data();
-        // The cells' hashes in the loops' order, z outermost: the usual 2 x 2 x 2 cells
-        // written down at once (the loops' set-up and exits cost more than the hashes).
-        uint32_t hashes[27];
-        int cells = 0;
-        if (high - low == glm::ivec3(1)) {
-            const uint32_t base = uint32_t(low.x) + uint32_t(low.y) * kHashY + uint32_t(low.z) * kHashZ;
-            const uint32_t steps[8] = {0u, 1u, kHashY, kHashY + 1u, kHashZ, kHashZ + 1u, kHashZ + kHashY, kHashZ + kHashY + 1u};
-            for (int i = 0; i < 8; i++) hashes[i] = base + steps[i];
-            cells = 8;
-        } else {
-            for (int z = low.z; z <= high.z; z++) {
-                const uint32_t zHash = uint32_t(z) * kHashZ;
-                for (int y = low.y; y <= high.y; y++) {
-                    const uint32_t yzHash = zHash + uint32_t(y) * kHashY;
-                    for (int x = low.x; x <= high.x; x++) hashes[cells++] = uint32_t(x) + yzHash;
-                }
-            }
-        }
-        // No cell with a point (a third of the queries at 256x256 on scene 0): done, nothing passes.
-        // Without a branch per cell: which cells have points is random.
-        bool anyOccupied = mOccupied.empty();
-        if (!anyOccupied)
-            for (int c = 0; c < cells; c++) anyOccupied |= IsOccupied(hashes[c]);
-        if (!anyOccupied) {
-            oQuery.mRangeCount = 0;
-            oQuery.mSelectedCount = 0;
-            oQuery.mStep = Query::kSelected;
-            return;
-        }
-        int count = 0;
-        uint64_t summary = 0;
-        for (int c = 0; c < cells; c++) {
-            const uint32_t bucket = hashes[c] & mask;
-            // Two cells may share a bucket: its points are visited once. Rare, so a 64-bit
-            // summary of the buckets so far (one bit per bucket mod 64) rules it out
-            // cheaply, and only a match is checked in full.
-            const uint64_t summaryBit = uint64_t(1) << (bucket & 63u);
-            if ((summary & summaryBit) && std::find(buckets, buckets + count, bucket) != buckets + count) continue;
-            summary |= summaryBit;
-            buckets[count++] = bucket;
-            Prefetch(table + bucket);
-        }
-        oQuery.mBucketCount = count;
-    }
-
-    // Reads the ranges of a prepared query's buckets and requests the lines of their points.
-    // Two cells side by side along x have neighbouring buckets, whose ranges touch: joined
-    // into one, they are the same points in the same order, with one loop exit fewer.
-    void Locate(Query& aQuery) const {
-        if (aQuery.mStep != Query::kPrepared) return;
-        int ranges = 0;
-        for (int b = 0; b < aQuery.mBucketCount; b++) {
-            const uint32_t bucket = aQuery.mBuckets[b];
-            const uint32_t begin = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
-            const uint32_t end = mBucketEnds[bucket];
-            if (begin == end) continue;
-            if (ranges > 0 && aQuery.mEnds[ranges - 1] == begin) aQuery.mEnds[ranges - 1] = end;
-            else {
-                aQuery.mBegins[ranges] = begin;
-                aQuery.mEnds[ranges] = end;
-                ranges++;
-            }
-            Prefetch(&mPoints[begin]);
-            Prefetch(&mPoints[end - 1]);  // a bucket's points fill one or two lines, seldom more
-        }
-        aQuery.mRangeCount = ranges;
-        aQuery.mStep = Query::kLocated;
-    }
-
-    // The distance tests of a located query: the points within the radius (distance <= r),
-    // in visiting order, their items requested. More than kMaxSelected: left to Process.
-    // Without a branch on the test: which candidates pass is random (a fifth of them),
-    // and a mispredicted branch cost more than writing every candidate down.
-    void Select(Query& aQuery) const {
-        if (aQuery.mStep != Query::kLocated) return;
-        int count = 0;
-        for (int r = 0; r < aQuery.mRangeCount; r++)
-            for (uint32_t k = aQuery.mBegins[r]; k < aQuery.mEnds[r]; k++) {
-                aQuery.mSelected[std::min(count, Query::kMaxSelected)] = k;
-                count += int(Passes(aQuery, k));
-            }
-        if (count > Query::kMaxSelected) return;
-        for (int i = 0; i < count; i++) {
-            const Item* const item = &mItems[aQuery.mSelected[i]];
-            Prefetch(item);
-            Prefetch(reinterpret_cast<const char*>(item + 1) - 1);  // an item may straddle two lines
-        }
-        aQuery.mSelectedCount = count;
-        aQuery.mStep = Query::kSelected;
-    }
-
-    // Calls aVisit(item), or aVisit(item, index) if it takes the point's index too, for
-    // every point within the radius of the query's point, bucket by bucket in the order
-    // Prepare found them, doing first the steps not yet done.
+    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf);
     template <class Visit>
-    void Process(Query& aQuery, Visit&& aVisit) const {
-        if (aQuery.mStep == Query::kPrepared) Locate(aQuery);
-        if (aQuery.mStep == Query::kLocated) Select(aQuery);
-        if (aQuery.mStep == Query::kSelected) {
-            for (int i = 0; i < aQuery.mSelectedCount; i++) VisitPoint(aQuery.mSelected[i], aVisit);
-            return;
-        }
-        for (int r = 0; r < aQuery.mRangeCount; r++)  // too many passed for Select's list
-            for (uint32_t k = aQuery.mBegins[r]; k < aQuery.mEnds[r]; k++)
-                if (Passes(aQuery, k)) VisitPoint(k, aVisit);
-    }
-    // All steps at once.
-    template <class Visit>
-    void Process(const Vec3& aPoint, Visit&& aVisit) const {
-        Query query;
-        Prepare(aPoint, query);
-        Process(query, aVisit);
-    }
+    void Process(const Vec3& aPoint, Visit&& aVisit) const;
 
 private:
-    bool Passes(const Query& aQuery, uint32_t aSlot) const {
-        const Vec3 d = mPoints[aSlot].mPosition - aQuery.mPoint;
-        return glm::dot(d, d) <= mRadiusSqr;
-    }
-    template <class Visit>
-    void VisitPoint(uint32_t aSlot, Visit& aVisit) const {
-        if constexpr (std::is_invocable_v<Visit&, const Item&, uint32_t>) aVisit(mItems[aSlot], mPoints[aSlot].mIndex);
-        else aVisit(mItems[aSlot]);
-    }
-
-    glm::ivec3 CellOf(const Vec3& aPosition) const {
-        // floor() by truncation and a correction for negatives: without SSE4.1 std::floor
-        // is a library call, and this runs six times per query.
-        auto floorToInt = [](float aX) { const int i = int(aX); return i - int(aX < float(i)); };
-        const Vec3 scaled = aPosition * mInvCellSize;
-        return glm::ivec3(floorToInt(scaled.x), floorToInt(scaled.y), floorToInt(scaled.z));
-    }
-    // Neighbours along x get neighbouring buckets (x enters with factor 1), so the two
-    // x-cells of a query share cache lines in both arrays; y and z enter with large odd
-    // factors, which keeps cells of one surface from colliding in a pattern.
-    static constexpr uint32_t kHashY = 73856093u, kHashZ = 19349663u;
-    static uint32_t HashOf(const glm::ivec3& aCell) {
-        return uint32_t(aCell.x) + uint32_t(aCell.y) * kHashY + uint32_t(aCell.z) * kHashZ;
-    }
-    // A bit per hash value modulo eight times the bucket count, set where a point's cell has
-    // that value: a cell whose bit is clear has no point, and most cells around a query on a
-    // sparse grid have none (the bits are 1 byte a bucket, mostly in the cache). On a dense
-    // grid (scene 2 at 512x512: 1 MiB of bits, nearly every query finding points) the bits
-    // were one more miss per query, 3 % slower: they are kept only when asked for.
-    static constexpr size_t kOccupiedBitsPerBucket = 8;
-    static constexpr size_t kSparseBucketsPerPoint = 4;
-    bool IsOccupied(uint32_t aHash) const { return (mOccupied[(aHash & mOccupiedMask) >> 6] >> (aHash & 63u)) & 1u; }
-
-    float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
-    uint32_t mBucketMask = 0;
-    std::vector<uint32_t> mBucketEnds;
-    // The points in bucket order, 16 bytes each (a bucket's candidates share cache lines),
-    // and their items in the same order (the items of a cell's points that pass share lines).
-    struct Point { Vec3 mPosition; uint32_t mIndex; };
-    std::vector<Point> mPoints;
-    std::vector<Item> mItems;
-    std::vector<uint32_t> mBucketOf;  // build scratch, kept to avoid reallocating
-    std::vector<uint64_t> mOccupied;  // IsOccupied's bits (none unless mMarkOccupiedCells)
-    uint32_t mOccupiedMask = 0;
-    bool mMarkOccupiedCells = false;
-};
-
-// The grid of point indices: aVisit(index) for every point within the radius.
-class HashGrid : public HashGridOf<uint32_t> {
-public:
-    template <class PositionOf>
-    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf) {
-        HashGridOf<uint32_t>::Build(aCount, aRadius, aPositionOf, [](size_t i) { return uint32_t(i); });
-    }
+    class Grid;
+    std::shared_ptr<Grid> mGrid;  // null until Build
 };
 
 class VertexCM : public AbstractRenderer {
@@ -3579,18 +3368,7 @@ public:
         default: throw Error("VertexCM: algorithm '" + std::string(AlgorithmShortName(mOptions.mAlgorithm)) + "' is not of the VertexCM family");
         }
         mBaseRadius = mOptions.mRadiusFactor * mScene.GetSceneSphere().mRadius;
-        if (mOptions.mTechniqueLayers) {
-            for (int t = 0; t < kTechniqueCount; t++) mTechniqueLayers[t] = mFilm.AddLayer(kTechniqueLayerNames[t]);
-            if (mOptions.mAlgorithm == Algorithm::kBidirectionalPathTracing) {
-                for (int length = 1; length <= kPyramidMaxLength; length++)
-                    for (int s = 0; s <= length; s++) {
-                        const std::string name = "s" + std::to_string(s) + "_t" + std::to_string(length + 1 - s);
-                        mPyramidLayers[length][s][0] = mFilm.AddLayer(name);
-                        mPyramidLayers[length][s][1] = mFilm.AddLayer(name + "_unweighted");
-                    }
-                mLongerPathsLayer = mFilm.AddLayer("longer_than_5");
-            }
-        }
+        if (mOptions.mTechniqueLayers) AddTechniqueLayers();
     }
 
     // The merging radius of iteration aIteration: r_i = r_0 (i+1)^((alpha-1)/2), the
@@ -3607,19 +3385,18 @@ public:
         const int pathCount = mScene.mCamera.PixelCount();
         const float radius = MergeRadius(aIteration);
         mMisConstants = VcmMisConstants::Make(mOptions.mMisHeuristic, mUseVC, mUseVM, float(pathCount), radius);
-        // Where this iteration's merge queries are selected (see DeferMerge): at their vertex if
-        // more than a third of the last iteration's found nothing.
-        mSelectAtVertex = mUseVC && mUseVM && 3 * mEmptyMergeQueries > mMergeQueries;
-        // And whether the grid marks its occupied cells: if more than two thirds found nothing
-        // (81 % at 256x256 on scene 0, 74 % on scene 3 at 512x512: 2 % less time; at 61 %,
-        // scene 2 at 256x256, the marks cost what they save).
-        mGrid.MarkOccupiedCells(mSelectAtVertex && 3 * mEmptyMergeQueries > 2 * mMergeQueries);
-        mMergeQueries = mEmptyMergeQueries = 0;
+
+        // 1. Light sub-paths: traced, connected to the camera, their vertices stored.
         TraceLightSubpaths(aRng, pathCount);
-        if (mUseVM) BuildRangeSearch(radius);
         if (mLightTraceOnly) return;
+
+        // 2. The range search over the stored vertices, for merging.
+        if (mUseVM)
+            mLightVertexSearch.Build(mLightVertices.size(), radius, [&](size_t i) { return mLightVertices[i].mHitPoint; },
+                                     [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[i]); });
+
+        // 3. Camera sub-paths, one per pixel.
         for (int pixel = 0; pixel < pathCount; pixel++) TraceCameraSubpath(aRng, pixel);
-        while (mMergesDone < mMergesQueued) ProcessOldestMerge();
     }
 
     // --- what tests and tools may inspect ----------------------------------------------
@@ -3628,10 +3405,11 @@ public:
 
     // Test hook: the full path of every weighted contribution, with the MIS weight this
     // renderer gave it, so a test can recompute that weight from the path's vertices
-    // alone (tests/test_vcm_mis.cpp). A merge (one record per light vertex merged) lists
-    // the merged point twice, as the light and as the camera sub-path reached it: the two
-    // differ by up to r. Off (a null pointer, one branch per vertex and contribution)
-    // unless a test sets it; run iterations single-threaded (RunIteration) while it is set.
+    // alone (tests/test_vcm_mis.cpp). It only observes: the renderer runs the same code
+    // with or without it. A merge (one record per light vertex merged) lists the merged
+    // point twice, as the light and as the camera sub-path reached it: the two differ by
+    // up to r. Off (a null pointer) unless a test sets it; run iterations single-threaded
+    // (RunIteration) while it is set.
     struct PathVertex {
         Vec3 mPosition{0.f};  // for a light at infinity: the unit direction towards it
         Vec3 mNormal{0.f};    // geometric normal; 0 at the camera, delta lights, infinity and NEE points
@@ -3648,6 +3426,22 @@ public:
     };
     void SetPathRecords(std::vector<PathRecord>* aRecords) { mPathRecords = aRecords; }
 
+    // A stored light vertex: what a connection or a merge needs. Neither the BSDF nor the
+    // surface is stored: the primitive and the point determine the normals, material and
+    // texture coordinates (Scene::FillSurfacePoint), from which and the incoming
+    // direction a connection rebuilds the BSDF exactly; a merge needs only the incoming
+    // direction. What a merge reads (MergeData) is what the range search keeps a copy of.
+    struct MergeData {
+        int mPathLength = 0;
+        Vec3 mThroughput{0.f};
+        Vec3 mDirFix{0.f};  // the exact direction it arrived from (minus the ray direction)
+        SubpathMis mMis;
+    };
+    struct LightVertex : MergeData {
+        Vec3 mHitPoint{0.f};
+        int mPrimitiveId = -1;  // the primitive hit (see Scene)
+    };
+
 private:
     // The state of a sub-path while it is traced.
     struct SubpathState {
@@ -3660,40 +3454,33 @@ private:
         SubpathMis mMis;
     };
 
-public:
-    // A stored light vertex: what a connection or a merge needs, in 56 bytes. Neither the
-    // BSDF nor the surface is stored: the primitive and the point determine the normals,
-    // material and texture coordinates (Scene::FillSurfacePoint, as Intersect found
-    // them), from which and the incoming direction a connection rebuilds the BSDF bit
-    // for bit; a merge needs only the incoming direction. Storing them took 88 bytes, and
-    // the vertices are written once but read by every connection and merge, from memory.
-    // What a merge reads (MergeData, 40 bytes) is copied into the hash grid in the
-    // grid's order (MergeItem; the grid keeps the vertex's index beside its position, for
-    // the test hook): a merge visits vertices in no order, and reading each accepted one
-    // from this array was a cache miss that cost VCM about 9 % of its time at 512x512 (the
-    // copy costs 44 bytes per vertex: peak memory of VCM at 512x512 on scene 4, 64 -> 85 MiB).
-    struct MergeData {
-        int mPathLength = 0;
-        Vec3 mThroughput{0.f};
-        Vec3 mDirFix{0.f};  // the exact direction it arrived from (minus the ray direction)
-        SubpathMis mMis;
+    // What one technique adds to one pixel: the path's f/p and its MIS weight; the film
+    // takes their product. mLightVertices (s) and mPathLength place it in BPT's pyramid
+    // and the MIS records (-1 for a merge, which sums many paths). Light tracing's lands
+    // on mPixel, the pixel its vertex projects to. A default Contribution is none: the
+    // technique made no path there (blocked, black, outside the image).
+    struct Contribution {
+        bool mMade = false;
+        Technique mTechnique = kUnidirectional;
+        Vec3 mUnweighted{0.f};
+        float mWeight = 0.f;
+        int mLightVertices = -1;
+        int mPathLength = -1;
+        int mPixel = -1;
     };
-    struct LightVertex : MergeData {
-        Vec3 mHitPoint{0.f};
-        int mPrimitiveId = -1;  // the primitive hit (see Scene)
-    };
-    using MergeItem = MergeData;
+    static Contribution Made(Technique aTechnique, const Vec3& aUnweighted, float aWeight, int aLightVertices,
+                             int aPathLength, int aPixel = -1) {
+        return Contribution{true, aTechnique, aUnweighted, aWeight, aLightVertices, aPathLength, aPixel};
+    }
 
-private:
     // --- stage 1: light sub-paths ----------------------------------------------------------
     // The light side of the estimator: N_L light sub-paths, splatted to the camera as
     // they go and stored for stage 3 (light sub-path p ends at mPathEnds[p]).
     void TraceLightSubpaths(Rng& aRng, int aPathCount) {
         mLightVertices.clear();
-        // Room for 4 stored vertices per light path before the first iteration (the
-        // Cornell scenes store 0.5 to 2.2 at the defaults), so the vector does not grow
-        // by copying itself while it is filled: reserved pages that are never written
-        // take no physical memory. Later iterations keep the capacity.
+        // Room for 4 stored vertices per light path before the first iteration, so the
+        // vector does not grow by copying itself while it is filled (reserved pages that
+        // are never written take no memory). Later iterations keep the capacity.
         if (mLightVertices.capacity() == 0 && (mUseVC || mUseVM)) mLightVertices.reserve(4 * size_t(aPathCount));
         mPathEnds.assign(size_t(aPathCount), 0);
         if (mPathRecords) mLightHistories.clear();
@@ -3701,75 +3488,45 @@ private:
             TraceLightSubpath(aRng);
             mPathEnds[size_t(path)] = mLightVertices.size();
         }
-        AddQueuedSplats();  // stage 3 writes to the film only after every splat is in
-    }
-
-    // Light tracing's splats land anywhere in the film (6 MiB of doubles at 512x512), and
-    // adding one was a cache miss the processor waited for, even with the pixel's line
-    // requested before the splat's BSDF and shadow ray. So a splat is queued, its line
-    // requested, and the queue added to the film every kSplatBatch splats: by then the
-    // lines are in the cache, and their misses overlapped. The film receives the same
-    // additions in the same order as before (the queue is first in, first out, and it is
-    // empty before stage 3 writes), so the image is the same bit for bit.
-    static constexpr size_t kSplatBatch = 32;
-    struct QueuedSplat { int mPixel; Vec3 mColor; };
-    void QueueSplat(int aPixel, const Vec3& aColor) {
-        mFilm.PrefetchPixel(aPixel);
-        // Written in place: a QueuedSplat built on the stack was stored in 4- and 8-byte
-        // pieces and copied in one 16-byte load, a store-forwarding stall (a quarter of
-        // ConnectToCamera's time on scene 2).
-        QueuedSplat& splat = mQueuedSplats.emplace_back();
-        splat.mPixel = aPixel;
-        splat.mColor = aColor;
-        if (mQueuedSplats.size() == kSplatBatch) AddQueuedSplats();
-    }
-    void AddQueuedSplats() {
-        for (const QueuedSplat& splat : mQueuedSplats) mFilm.AddColor(splat.mPixel, splat.mColor);
-        mQueuedSplats.clear();
     }
 
     // One light sub-path: each vertex updates the sub-path's MIS quantities
     // [tech. rep. (34)-(36)]; a non-specular one is stored for connections and merging,
     // and connected to the camera (light tracing, t = 1).
     void TraceLightSubpath(Rng& aRng) {
-        SubpathState light;
-        GenerateLightSample(aRng, light);
-        // Nothing emitted (a black texel of a textured light, a spot's cone edge): no path.
-        if (IsBlack(light.mThroughput)) return;
-        Bsdf& bsdf = mVertexBsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
+        std::optional<SubpathState> start = GenerateLightSample(aRng);
+        if (!start) return;  // nothing emitted (a black texel of a textured light, a spot's cone edge)
+        SubpathState& light = *start;
+        Bsdf bsdf;
         for (;;) {
             const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
             const SurfacePoint hit = mScene.Intersect(ray);
             if (!hit.IsValid()) return;
-            const Vec3& hitPoint = hit.mPosition;
             bsdf.Setup(ray, hit, mScene, Transport::kImportance);
             if (!bsdf.IsValid()) return;
             // The area pdf of this vertex: a change of measure, by the geometric cosine.
             VcmMis::AfterSegment(mMisConstants, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
                                  light.mPathLength > 1 || light.mIsFiniteLight);
-            if (mPathRecords) mLightHistories.back().push_back(PathVertex{hitPoint, hit.GeometricNormal(), hit.mMaterialId});
+            if (mPathRecords) mLightHistories.back().push_back(PathVertex{hit.mPosition, hit.GeometricNormal(), hit.mMaterialId});
 
             if (!bsdf.IsDelta()) {
-                if (mUseVC || mUseVM) StoreLightVertex(light, ray, hit, hitPoint);
+                if (mUseVC || mUseVM) StoreLightVertex(light, ray, hit);
                 // Light tracing: connect to the camera (t = 1); the path has mPathLength + 1 segments, within both limits.
                 if ((mUseVC || mLightTraceOnly) && light.mPathLength + 1 >= mOptions.mMinPathLength &&
                     light.mPathLength + 1 <= mOptions.mMaxPathLength)
-                    ConnectToCamera(light, hitPoint, bsdf);
+                    AddSplat(ConnectToCamera(light, hit.mPosition, bsdf));
             }
             // A vertex of length L is useful only if a path of length L + 1 may follow.
             if (light.mPathLength + 2 > mOptions.mMaxPathLength) return;
-            uint32_t lightEvent = kEventNone;
-            if (!SampleScattering(aRng, bsdf, hitPoint, light, &lightEvent)) return;
-            if (mPathRecords && (lightEvent & kEventSpecular)) mLightHistories.back().back().mEvent = lightEvent;
+            const std::optional<ScatterSample> scatter = SampleScattering(aRng, bsdf, hit.mPosition, light);
+            if (!scatter) return;
+            if (mPathRecords && scatter->IsSpecular()) mLightHistories.back().back().mEvent = scatter->mEvent;
         }
     }
 
-    // Stores a light vertex for connections and merging. It is written in place: one
-    // assembled on the stack and copied in was read back in 16-byte pieces from smaller
-    // stores, three store-forwarding stalls per vertex.
-    void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const SurfacePoint& aHit, const Vec3& aHitPoint) {
+    void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const SurfacePoint& aHit) {
         LightVertex& vertex = mLightVertices.emplace_back();
-        vertex.mHitPoint = aHitPoint;
+        vertex.mHitPoint = aHit.mPosition;
         vertex.mPathLength = aLight.mPathLength;
         vertex.mThroughput = aLight.mThroughput;
         vertex.mPrimitiveId = aHit.mPrimitiveId;
@@ -3777,158 +3534,130 @@ private:
         vertex.mMis = aLight.mMis;
     }
 
-    // --- stage 2: the range-search structure over the light vertices (merging) ---------
-    // What lets a merge find the light vertices within r of a camera vertex without
-    // visiting the others.
-    void BuildRangeSearch(float aRadius) {
-        mGrid.Build(mLightVertices.size(), aRadius, [&](size_t i) { return mLightVertices[i].mHitPoint; },
-                    [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[i]); });
-    }
-
     // --- stage 3: camera sub-paths ---------------------------------------------------------
     // One camera sub-path through aPixel; at each vertex the techniques that complete a
-    // path there: a light it hits (s = 0), and at a non-specular vertex next-event
-    // estimation (s = 1), connections to the light vertices (VC) and merging (VM).
+    // path there, each adding its contribution: a light it hits (s = 0), and at a
+    // non-specular vertex next-event estimation (s = 1), connections to the vertices of
+    // this pixel's light sub-path (VC) and merging with the light vertices within r (VM).
     void TraceCameraSubpath(Rng& aRng, int aPixel) {
         const Camera& camera = mScene.mCamera;
         const Vec2 raster = Vec2(float(aPixel % camera.Width()), float(aPixel / camera.Width())) + aRng.GetVec2();
-        SubpathState cam;
-        GenerateCameraSample(raster, cam);
+        SubpathState cam = GenerateCameraSample(raster);
         if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
-        if (mUseVC) {
-            ForgetPixelLightBsdfs(aPixel);
-            // The pixel's light vertices, which the connections read, were stored long
-            // ago (stage 1): their loads start now and overlap the first ray.
-            const size_t begin = LightSubpathBegin(aPixel), end = LightSubpathEnd(aPixel);
-            for (size_t i = begin; i < end; i++) Prefetch(&mLightVertices[i]);
-        }
+        if (mUseVC) ForgetPixelLightBsdfs(aPixel);
         Ray ray{cam.mOrigin, cam.mDirection};
-        Bsdf& bsdf = mVertexBsdf;  // set up anew at every vertex (see TraceLightSubpath)
+        Bsdf bsdf;
         for (;;) {
             const SurfacePoint hit = mScene.Intersect(ray);
             if (!hit.IsValid()) {
-                AddBackgroundHit(aPixel, cam, ray.mDirection);
+                AddToFilm(aPixel, BackgroundHit(cam, ray.mDirection));
                 return;
             }
-            const Vec3& hitPoint = hit.mPosition;
             const float cosAtHit = glm::dot(hit.GeometricNormal(), -ray.mDirection);
             const float distance = hit.mDist + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
             VcmMis::AfterSegment(mMisConstants, cam.mMis, distance, cosAtHit, true);
-            if (mPathRecords) mCameraHistory.push_back(PathVertex{hitPoint, hit.GeometricNormal(), hit.mMaterialId, hit.mLightId});
+            if (mPathRecords) mCameraHistory.push_back(PathVertex{hit.mPosition, hit.GeometricNormal(), hit.mMaterialId, hit.mLightId});
 
             // Continues after a light only if the emitter's material reflects (see PathTracer).
             if (hit.mLightId >= 0 && cam.mPathLength >= mOptions.mMinPathLength)
-                AddCameraHitLight(aPixel, cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.GeometricNormal(), hit.mUv);
+                AddToFilm(aPixel, CameraHitsLight(cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.GeometricNormal(), hit.mUv));
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             // A vertex of length L is useful only for paths of length >= L + 1.
             if (cam.mPathLength >= mOptions.mMaxPathLength) return;
 
             if (!bsdf.IsDelta()) {
-                // The merge's query takes its steps around this vertex's connections, which
-                // give each step's loads time to arrive (see DeferMerge).
-                HashGridOf<MergeItem>::Query& query = NextDeferredMerge().mQuery;
-                if (mUseVM) mGrid.Prepare(hitPoint, query);
                 if (mUseVC) {
-                    if (cam.mPathLength + 1 >= mOptions.mMinPathLength)
-                        ConnectToLight(aRng, aPixel, cam, hitPoint, bsdf);
-                    if (mSelectAtVertex) mGrid.Locate(query);
-                    ConnectToLightVertices(aPixel, cam, hitPoint, bsdf);
-                    if (mSelectAtVertex) mGrid.Select(query);
+                    if (cam.mPathLength + 1 >= mOptions.mMinPathLength) AddToFilm(aPixel, ConnectToLight(aRng, cam, hit.mPosition, bsdf));
+                    const size_t begin = LightSubpathBegin(aPixel), end = LightSubpathEnd(aPixel);
+                    for (size_t i = begin; i < end; i++) {
+                        const LightVertex& vertex = mLightVertices[i];
+                        const int pathLength = vertex.mPathLength + cam.mPathLength + 1;
+                        if (pathLength > mOptions.mMaxPathLength) break;  // the sub-path's vertices only get longer
+                        if (pathLength < mOptions.mMinPathLength) continue;
+                        AddToFilm(aPixel, ConnectVertices(cam, hit.mPosition, bsdf, vertex, PixelLightBsdf(i - begin, vertex)));
+                    }
                 }
-                if (mUseVM) DeferMerge(aPixel, cam, bsdf);
+                if (mUseVM) AddToFilm(aPixel, MergeWithLightVertices(cam, hit.mPosition, bsdf));
             }
 
-            uint32_t event = kEventNone;
-            if (!SampleScattering(aRng, bsdf, hitPoint, cam, &event)) return;
-            if (mPathRecords && (event & kEventSpecular)) mCameraHistory.back().mEvent = event;
+            const std::optional<ScatterSample> scatter = SampleScattering(aRng, bsdf, hit.mPosition, cam);
+            if (!scatter) return;
+            if (mPathRecords && scatter->IsSpecular()) mCameraHistory.back().mEvent = scatter->mEvent;
             // PPM's camera path ends where it merged; only a specular component (of a
             // mixed material) carries it on, to find the next non-specular vertex.
-            if (mPpm && !bsdf.IsDelta() && !(event & kEventSpecular)) return;
-            mScene.SpawnRay(cam.mOrigin, cam.mDirection, ray);
+            if (mPpm && !bsdf.IsDelta() && !scatter->IsSpecular()) return;
+            ray = mScene.SpawnRay(cam.mOrigin, cam.mDirection);
         }
-    }
-
-    // The camera sub-path left the scene: the background light, if any, is hit (s = 0).
-    void AddBackgroundHit(int aPixel, const SubpathState& aCamera, const Vec3& aDirection) {
-        const Light* background = mScene.GetBackground();
-        if (mPathRecords && background)
-            mCameraHistory.push_back(PathVertex{aDirection, Vec3(0.f), -1, int(background - &mScene.GetLight(0)),
-                                                kEventNone, true});
-        if (background && aCamera.mPathLength >= mOptions.mMinPathLength)
-            AddCameraHitLight(aPixel, aCamera, *background, aDirection, Vec3(0.f), Vec2(0.f));
     }
 
     // --- sub-path starts and steps -----------------------------------------------------------
 
     // A light sub-path's first vertex: a light picked, a point and direction emitted, and
-    // its MIS quantities [tech. rep. (31)-(33)].
-    void GenerateLightSample(Rng& aRng, SubpathState& oState) {
+    // its MIS quantities [tech. rep. (31)-(33)]. Nothing when the light emits nothing there.
+    std::optional<SubpathState> GenerateLightSample(Rng& aRng) {
         const LightPick pick = mScene.PickLight(aRng.GetFloat());
         const Light& light = *pick.mLight;
-        const float lightPickProb = pick.mProb;
         const Vec2 rndDirection = aRng.GetVec2();
         const Vec2 rndPosition = aRng.GetVec2();
-        LightEmission emission;
         if (mPathRecords) mLightHistories.emplace_back();
-        oState.mPathLength = 1;
-        oState.mThroughput = Vec3(0.f);
-        if (!light.Emit(mScene.GetSceneSphere(), rndDirection, rndPosition, emission) || !(emission.mEmissionPdfW > 0.f))
-            return;
-        emission.mEmissionPdfW *= lightPickProb;
-        emission.mDirectPdfA *= lightPickProb;
-        oState.mOrigin = emission.mPosition;
-        oState.mDirection = emission.mDirection;
-        oState.mThroughput = emission.mEnergy / emission.mEmissionPdfW;
-        oState.mIsFiniteLight = light.IsFinite();
-        oState.mMis = VcmMis::AtLightEmission(mMisConstants, emission.mDirectPdfA, emission.mEmissionPdfW, emission.mCosAtLight,
-                                              light.IsDelta(), light.IsFinite());
+        std::optional<LightEmission> emission = light.Emit(mScene.GetSceneSphere(), rndDirection, rndPosition);
+        if (!emission || !(emission->mEmissionPdfW > 0.f)) return std::nullopt;
+        emission->mEmissionPdfW *= pick.mProb;
+        emission->mDirectPdfA *= pick.mProb;
+        SubpathState state;
+        state.mOrigin = emission->mPosition;
+        state.mDirection = emission->mDirection;
+        state.mThroughput = emission->mEnergy / emission->mEmissionPdfW;
+        state.mIsFiniteLight = light.IsFinite();
+        state.mMis = VcmMis::AtLightEmission(mMisConstants, emission->mDirectPdfA, emission->mEmissionPdfW,
+                                             emission->mCosAtLight, light.IsDelta(), light.IsFinite());
         if (mPathRecords)
             mLightHistories.back().push_back(light.IsFinite()
-                ? PathVertex{emission.mPosition, light.IsDelta() ? Vec3(0.f) : emission.mNormal, -1, pick.mId}
-                : PathVertex{-emission.mDirection, Vec3(0.f), -1, pick.mId, kEventNone, true});
+                ? PathVertex{emission->mPosition, light.IsDelta() ? Vec3(0.f) : emission->mNormal, -1, pick.mId}
+                : PathVertex{-emission->mDirection, Vec3(0.f), -1, pick.mId, kEventNone, true});
         // Light tracing alone splats the emitting point itself (see the section's notes).
         if (mLightTraceOnly && !light.IsDelta() && light.IsFinite() && mOptions.mMinPathLength <= 1)
-            SplatEmitterPoint(light, emission, lightPickProb);
+            AddSplat(SplatEmitterPoint(light, *emission, pick.mProb));
+        if (IsBlack(state.mThroughput)) return std::nullopt;
+        return state;
     }
 
     // A camera sub-path's first ray through aRaster and its MIS quantities [tech. rep.
     // (31)-(33), camera side].
-    void GenerateCameraSample(const Vec2& aRaster, SubpathState& oState) const {
+    SubpathState GenerateCameraSample(const Vec2& aRaster) const {
         const Camera& camera = mScene.mCamera;
         const Ray ray = camera.GenerateRay(aRaster);
         // The pdf of this direction per unit image area: d_plane^2 / cos^3.
         const float cosAtCamera = glm::dot(camera.Forward(), ray.mDirection);
         const float imagePointToCameraDist = camera.ImagePlaneDist() / cosAtCamera;
         const float cameraPdfW = Sqr(imagePointToCameraDist) / cosAtCamera;
-        oState.mOrigin = ray.mOrigin;
-        oState.mDirection = ray.mDirection;
-        oState.mThroughput = Vec3(1.f);
-        oState.mPathLength = 1;
-        oState.mSpecularPath = true;
-        oState.mMis = VcmMis::AtCameraStart(mMisConstants, cameraPdfW);
+        SubpathState state;
+        state.mOrigin = ray.mOrigin;
+        state.mDirection = ray.mDirection;
+        state.mMis = VcmMis::AtCameraStart(mMisConstants, cameraPdfW);
+        return state;
     }
 
     // Samples the continuation of a sub-path at a vertex, with Russian roulette, and
     // updates its throughput and MIS quantities [tech. rep. (34)-(36); specular
-    // (53)-(55)]. False when the sub-path ends.
-    bool SampleScattering(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, SubpathState& ioState,
-                          uint32_t* oEvent) const {
-        ScatterSample scatter;
-        if (!SampleScatteringWithRoulette(aBsdf, aRng, scatter)) return false;
-        const bool specular = scatter.IsSpecular();
+    // (53)-(55)]. Nothing when the sub-path ends.
+    std::optional<ScatterSample> SampleScattering(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint,
+                                                  SubpathState& aState) const {
+        std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(aBsdf, aRng);
+        if (!scatter) return scatter;
+        const bool specular = scatter->IsSpecular();
         // For a specular event both pdfs are the component's selection probability (the
         // Fresnel term is the same for both directions of a reflection or refraction).
         // The cosine converts the reverse pdf at this vertex to area: the geometric one.
-        VcmMis::AfterScatter(mMisConstants, ioState.mMis, aBsdf.GeometricCos(scatter.mDirection, scatter.mCosThetaOut),
-                             scatter.mPdfW, scatter.mReversePdfW, specular);
-        ioState.mOrigin = aHitPoint;
-        ioState.mDirection = scatter.mDirection;
-        ioState.mThroughput *= scatter.mWeight;
-        ioState.mSpecularPath = ioState.mSpecularPath && specular;
-        ioState.mPathLength++;
-        if (oEvent) *oEvent = scatter.mEvent;
-        return true;
+        VcmMis::AfterScatter(mMisConstants, aState.mMis, aBsdf.GeometricCos(scatter->mDirection, scatter->mCosThetaOut),
+                             scatter->mPdfW, scatter->mReversePdfW, specular);
+        aState.mOrigin = aHitPoint;
+        aState.mDirection = scatter->mDirection;
+        aState.mThroughput *= scatter->mWeight;
+        aState.mSpecularPath = aState.mSpecularPath && specular;
+        aState.mPathLength++;
+        return scatter;
     }
 
     // --- light tracing -------------------------------------------------------------------
@@ -3947,19 +3676,18 @@ private:
 
     // Light tracing (t = 1): a light vertex connected to the pinhole and splatted to the
     // pixel it projects to, weighted by [tech. rep. (46), (47)].
-    void ConnectToCamera(const SubpathState& aLight, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+    SMALLVCM_ALWAYS_INLINE Contribution ConnectToCamera(const SubpathState& aLight, const Vec3& aHitPoint, const Bsdf& aBsdf) const {
         // BEGIN EXERCISE lt_camera/connect
         const Camera& camera = mScene.mCamera;
         Vec3 dirToCamera = camera.Position() - aHitPoint;
-        if (glm::dot(camera.Forward(), -dirToCamera) <= 0.f) return;  // behind the camera
+        if (glm::dot(camera.Forward(), -dirToCamera) <= 0.f) return {};  // behind the camera
         const float distance = glm::length(dirToCamera);
         dirToCamera /= distance;
-        Vec2 raster;
-        if (!camera.WorldToRaster(aHitPoint, raster) || !camera.CheckRaster(raster)) return;
-        const int pixel = camera.RasterToIndex(raster);
+        const std::optional<Vec2> raster = camera.WorldToRaster(aHitPoint);
+        if (!raster || !camera.CheckRaster(*raster)) return {};
         const BsdfEval toCamera = aBsdf.EvaluateWithRoulette(dirToCamera);
-        if (toCamera.IsBlack()) return;
-        if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return;  // before the weight: none for a blocked one
+        if (toCamera.IsBlack()) return {};
+        if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return {};
         // The camera's area pdf of this vertex (for MIS) converts by the geometric cosine;
         // the contribution takes the shading cosine that goes with the Bsdf's f (for
         // importance, f_s times the adjoint factor; Bsdf notes). Equal on flat surfaces.
@@ -3968,167 +3696,118 @@ private:
         // Each of the N_L light sub-paths estimates the whole image: divide by N_L.
         const Vec3 unweighted = aLight.mThroughput * toCamera.mValue *
                                 (CameraPdfA(dirToCamera, distance, toCamera.mCosThetaGen) / mMisConstants.mLightPathCount);
-        QueueSplat(pixel, unweighted * weight);
-        RecordTechnique(kLightTracing, pixel, aLight.mPathLength + 1, aLight.mPathLength + 1, unweighted, weight);
+        return Made(kLightTracing, unweighted, weight, aLight.mPathLength + 1, aLight.mPathLength + 1, camera.RasterToIndex(*raster));
         // END EXERCISE lt_camera/connect
     }
 
     // Light tracing alone (t = 1, s = 1): the emitting point itself, seen by the camera.
-    void SplatEmitterPoint(const Light& aLight, const LightEmission& aEmission, float aLightPickProb) {
+    SMALLVCM_ALWAYS_INLINE Contribution SplatEmitterPoint(const Light& aLight, const LightEmission& aEmission, float aLightPickProb) const {
         const Camera& camera = mScene.mCamera;
         Vec3 dirToCamera = camera.Position() - aEmission.mPosition;
-        if (glm::dot(camera.Forward(), -dirToCamera) <= 0.f) return;
+        if (glm::dot(camera.Forward(), -dirToCamera) <= 0.f) return {};
         const float distance = glm::length(dirToCamera);
         dirToCamera /= distance;
-        Vec2 raster;
-        if (!camera.WorldToRaster(aEmission.mPosition, raster) || !camera.CheckRaster(raster)) return;
+        const std::optional<Vec2> raster = camera.WorldToRaster(aEmission.mPosition);
+        if (!raster || !camera.CheckRaster(*raster)) return {};
         const float cosAtLight = aLight.EmittingCosine(aEmission.mNormal, dirToCamera);
-        if (cosAtLight <= kEpsCosine) return;  // the side facing the camera does not emit
+        if (cosAtLight <= kEpsCosine) return {};  // the side facing the camera does not emit
         // L_e G W_e / p_A(x0) / N_L, with G W_e the camera's area pdf of the point.
         const float positionPdfA = aLightPickProb / aLight.mArea;
         const Vec3 contribution = aEmission.mRadiance * (CameraPdfA(dirToCamera, distance, cosAtLight) /
                                                       (positionPdfA * mMisConstants.mLightPathCount));
-        if (mScene.Occluded(aEmission.mPosition, dirToCamera, distance)) return;
-        const int pixel = camera.RasterToIndex(raster);
-        QueueSplat(pixel, contribution);
-        RecordTechnique(kLightTracing, pixel, 1, 1, contribution, 1.f);
+        if (mScene.Occluded(aEmission.mPosition, dirToCamera, distance)) return {};
+        return Made(kLightTracing, contribution, 1.f, 1, 1, camera.RasterToIndex(*raster));
     }
 
     // --- camera sub-path techniques ------------------------------------------------------
     // The camera sub-path hit a light (or left the scene with a background light): s = 0,
     // weighted by [tech. rep. (42), (43)].
-    void AddCameraHitLight(int aPixel, const SubpathState& aCamera, const Light& aLight,
-                           const Vec3& aRayDirection, const Vec3& aHitNormal, const Vec2& aHitUv) {
+    SMALLVCM_ALWAYS_INLINE Contribution CameraHitsLight(const SubpathState& aCamera, const Light& aLight, const Vec3& aRayDirection,
+                                                const Vec3& aHitNormal, const Vec2& aHitUv) const {
         const Light::RadianceAtHit received = aLight.GetRadiance(mScene.GetSceneSphere(), aRayDirection, aHitNormal, aHitUv);
-        const Vec3& radiance = received.mRadiance;
-        const float directPdfA = received.mDirectPdfA, emissionPdfW = received.mEmissionPdfW;
-        if (IsBlack(radiance)) return;
+        if (IsBlack(received.mRadiance)) return {};
         // Length 1 has no other technique here; PPM's camera paths reach lights only
         // through specular vertices, which no merge can replace.
         float weight = 1.f;
         if (aCamera.mPathLength > 1 && !mPpm) {
             const float lightPickProb = mScene.LightPickProb();
-            weight = VcmMis::WeightCameraHitsLight(mMisConstants, aCamera.mMis, directPdfA * lightPickProb,
-                                                   emissionPdfW * lightPickProb);
+            weight = VcmMis::WeightCameraHitsLight(mMisConstants, aCamera.mMis, received.mDirectPdfA * lightPickProb,
+                                                   received.mEmissionPdfW * lightPickProb);
         }
-        const Vec3 unweighted = aCamera.mThroughput * radiance;
-        AddCameraContribution(aPixel, unweighted * weight);
-        RecordTechnique(kUnidirectional, aPixel, 0, aCamera.mPathLength, unweighted, weight);
+        return Made(kUnidirectional, aCamera.mThroughput * received.mRadiance, weight, 0, aCamera.mPathLength);
+    }
+
+    // The camera sub-path left the scene: the background light, if any, is hit (s = 0).
+    Contribution BackgroundHit(const SubpathState& aCamera, const Vec3& aDirection) {
+        const Light* background = mScene.GetBackground();
+        if (mPathRecords && background)
+            mCameraHistory.push_back(PathVertex{aDirection, Vec3(0.f), -1, int(background - &mScene.GetLight(0)),
+                                                kEventNone, true});
+        if (!background || aCamera.mPathLength < mOptions.mMinPathLength) return {};
+        return CameraHitsLight(aCamera, *background, aDirection, Vec3(0.f), Vec2(0.f));
     }
 
     // Next-event estimation (s = 1): a point sampled on a light, connected by a shadow ray,
     // weighted by [tech. rep. (44), (45)].
-    void ConnectToLight(Rng& aRng, int aPixel, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+    SMALLVCM_ALWAYS_INLINE Contribution ConnectToLight(Rng& aRng, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
         const LightPick pick = mScene.PickLight(aRng.GetFloat());
         const Light& light = *pick.mLight;
-        const float lightPickProb = pick.mProb;
         const Vec2 rnd = aRng.GetVec2();
-        LightSample sample;
-        if (!light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd, sample) || IsBlack(sample.mRadiance)) return;
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd);
+        if (!sample || IsBlack(sample->mRadiance)) return {};
         if (mPathRecords)
             mNextEventVertex = light.IsFinite()
-                ? PathVertex{aHitPoint + sample.mDirToLight * sample.mDistance, Vec3(0.f), -1, pick.mId}
-                : PathVertex{sample.mDirToLight, Vec3(0.f), -1, pick.mId, kEventNone, true};
-        const BsdfEval toLight = aBsdf.EvaluateWithRoulette(sample.mDirToLight);
-        if (toLight.IsBlack()) return;
-        if (mScene.Occluded(aHitPoint, sample.mDirToLight, sample.mDistance)) return;  // before the weight: none for a blocked one
-        const float directPdfW = sample.mDirectPdfW * lightPickProb;
+                ? PathVertex{aHitPoint + sample->mDirToLight * sample->mDistance, Vec3(0.f), -1, pick.mId}
+                : PathVertex{sample->mDirToLight, Vec3(0.f), -1, pick.mId, kEventNone, true};
+        const BsdfEval toLight = aBsdf.EvaluateWithRoulette(sample->mDirToLight);
+        if (toLight.IsBlack()) return {};
+        if (mScene.Occluded(aHitPoint, sample->mDirToLight, sample->mDistance)) return {};
+        const float directPdfW = sample->mDirectPdfW * pick.mProb;
         // The MIS weight converts the emission pdf to area at this vertex: geometric cosine;
         // the contribution's cosine is the shading one that goes with f (Bsdf notes).
         const float weight = VcmMis::WeightNextEvent(mMisConstants, aCamera.mMis, toLight.mDirPdfW, toLight.mRevPdfW,
-                                                     directPdfW, sample.mEmissionPdfW * lightPickProb,
-                                                     aBsdf.GeometricCos(sample.mDirToLight, toLight.mCosThetaGen),
-                                                     sample.mCosAtLight, light.IsDelta());
-        const Vec3 unweighted = aCamera.mThroughput * toLight.mValue * sample.mRadiance * (toLight.mCosThetaGen / directPdfW);
-        AddCameraContribution(aPixel, unweighted * weight);
-        RecordTechnique(kNextEvent, aPixel, 1, aCamera.mPathLength + 1, unweighted, weight);
+                                                     directPdfW, sample->mEmissionPdfW * pick.mProb,
+                                                     aBsdf.GeometricCos(sample->mDirToLight, toLight.mCosThetaGen),
+                                                     sample->mCosAtLight, light.IsDelta());
+        const Vec3 unweighted = aCamera.mThroughput * toLight.mValue * sample->mRadiance * (toLight.mCosThetaGen / directPdfW);
+        return Made(kNextEvent, unweighted, weight, 1, aCamera.mPathLength + 1);
     }
 
-    // Vertex connection (s, t >= 2) with every vertex of this pixel's own light sub-path,
-    // weighted by [tech. rep. (40), (41)].
-    void ConnectToLightVertices(int aPixel, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
-        const size_t begin = LightSubpathBegin(aPixel), end = LightSubpathEnd(aPixel);
-        for (size_t i = begin; i < end; i++) {
-            const LightVertex& vertex = mLightVertices[i];
-            const int pathLength = vertex.mPathLength + aCamera.mPathLength + 1;
-            if (pathLength > mOptions.mMaxPathLength) break;  // the sub-path's vertices only get longer
-            if (pathLength < mOptions.mMinPathLength) continue;
+    // Vertex connection (s, t >= 2) of the camera vertex with one vertex of this pixel's
+    // own light sub-path, weighted by [tech. rep. (40), (41)].
+    SMALLVCM_ALWAYS_INLINE Contribution ConnectVertices(const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf,
+                                                const LightVertex& aVertex, const Bsdf& aLightBsdf) const {
+        Vec3 direction = aVertex.mHitPoint - aHitPoint;
+        const float distanceSqr = glm::dot(direction, direction);
+        if (!(distanceSqr > 0.f)) return {};
+        const float distance = std::sqrt(distanceSqr);
+        direction /= distance;
 
-            Vec3 direction = vertex.mHitPoint - aHitPoint;
-            const float distanceSqr = glm::dot(direction, direction);
-            if (!(distanceSqr > 0.f)) continue;
-            const float distance = std::sqrt(distanceSqr);
-            direction /= distance;
+        const BsdfEval cameraSide = aBsdf.EvaluateWithRoulette(direction);
+        if (cameraSide.IsBlack()) return {};
+        const BsdfEval lightSide = aLightBsdf.EvaluateWithRoulette(-direction);
+        if (lightSide.IsBlack()) return {};
+        if (mScene.Occluded(aHitPoint, direction, distance)) return {};
 
-            const BsdfEval cameraSide = aBsdf.EvaluateWithRoulette(direction);
-            if (cameraSide.IsBlack()) continue;
-            const Bsdf& lightBsdf = PixelLightBsdf(i - begin, vertex);
-            const BsdfEval lightSide = lightBsdf.EvaluateWithRoulette(-direction);
-            if (lightSide.IsBlack()) continue;
-            if (mScene.Occluded(aHitPoint, direction, distance)) continue;  // before the weight: none for a blocked one
-
-            // G takes the shading cosines that go with each side's f (the light side's f
-            // carries the adjoint factor, so f cos is f_path |cos_geometric|: Bsdf notes);
-            // the pdfs change measure at the other vertex by its geometric cosine.
-            const float geometryTerm = cameraSide.mCosThetaGen * lightSide.mCosThetaGen / distanceSqr;
-            const float weight = VcmMis::WeightConnection(
-                mMisConstants, vertex.mMis, aCamera.mMis,
-                PdfWtoA(cameraSide.mDirPdfW, distance, lightBsdf.GeometricCos(-direction, lightSide.mCosThetaGen)), cameraSide.mRevPdfW,
-                PdfWtoA(lightSide.mDirPdfW, distance, aBsdf.GeometricCos(direction, cameraSide.mCosThetaGen)), lightSide.mRevPdfW);
-            const Vec3 unweighted = aCamera.mThroughput * vertex.mThroughput * cameraSide.mValue * lightSide.mValue * geometryTerm;
-            AddCameraContribution(aPixel, unweighted * weight);
-            RecordTechnique(kConnection, aPixel, vertex.mPathLength + 1, pathLength, unweighted, weight);
-        }
-    }
-
-    // The stored light vertices of the light sub-path traced for aPixel: [begin, end).
-    size_t LightSubpathBegin(int aPixel) const { return aPixel == 0 ? 0 : mPathEnds[size_t(aPixel) - 1]; }
-    size_t LightSubpathEnd(int aPixel) const { return mPathEnds[size_t(aPixel)]; }
-
-    // The BSDF of the aSlot-th light vertex of this pixel's light sub-path, built at its
-    // first connection and kept for the pixel's later camera vertices: each connects to
-    // it again, and building a BSDF (surface, then Bsdf::Setup) costs more than evaluating one.
-    const Bsdf& PixelLightBsdf(size_t aSlot, const LightVertex& aVertex) {
-        if (mPixelLightBsdfPath[aSlot] != mCameraPathNumber) {
-            SetupLightVertexBsdf(aVertex, mPixelLightBsdfs[aSlot]);
-            mPixelLightBsdfPath[aSlot] = mCameraPathNumber;
-        }
-        return mPixelLightBsdfs[aSlot];
-    }
-    // A new camera sub-path (of aPixel): none of its light vertices' BSDFs is built yet.
-    void ForgetPixelLightBsdfs(int aPixel) {
-        const size_t count = LightSubpathEnd(aPixel) - LightSubpathBegin(aPixel);
-    // An entry is built for the camera sub-path whose number it holds, so forgetting them
-    // all is one increment (clearing a vector<bool> for every camera sub-path cost about
-    // 85 instructions, 0.6 % of vcm's at 256x256).
-        if (mPixelLightBsdfs.size() < count) {
-            mPixelLightBsdfs.resize(count);
-            mPixelLightBsdfPath.resize(count, 0);
-        }
-        mCameraPathNumber++;
-    }
-
-    // A stored light vertex's BSDF as its light sub-path saw it, texel included; an
-    // untextured material gets no texel, as in Bsdf::Setup from a hit. Set up in place
-    // (a returned Bsdf was copied in 16-byte pieces from smaller stores: stalls); Setup
-    // leaves nothing of the entry's previous vertex.
-    void SetupLightVertexBsdf(const LightVertex& aVertex, Bsdf& oBsdf) const {
-        SurfacePoint surface;
-        surface.mPosition = aVertex.mHitPoint;
-        surface.mPrimitiveId = aVertex.mPrimitiveId;
-        mScene.FillSurfacePoint(surface);
-        oBsdf.Setup(aVertex.mDirFix, surface, mScene, Transport::kImportance);
+        // G takes the shading cosines that go with each side's f (the light side's f
+        // carries the adjoint factor, so f cos is f_path |cos_geometric|: Bsdf notes);
+        // the pdfs change measure at the other vertex by its geometric cosine.
+        const float geometryTerm = cameraSide.mCosThetaGen * lightSide.mCosThetaGen / distanceSqr;
+        const float weight = VcmMis::WeightConnection(
+            mMisConstants, aVertex.mMis, aCamera.mMis,
+            PdfWtoA(cameraSide.mDirPdfW, distance, aLightBsdf.GeometricCos(-direction, lightSide.mCosThetaGen)), cameraSide.mRevPdfW,
+            PdfWtoA(lightSide.mDirPdfW, distance, aBsdf.GeometricCos(direction, cameraSide.mCosThetaGen)), lightSide.mRevPdfW);
+        const Vec3 unweighted = aCamera.mThroughput * aVertex.mThroughput * cameraSide.mValue * lightSide.mValue * geometryTerm;
+        return Made(kConnection, unweighted, weight, aVertex.mPathLength + 1, aVertex.mPathLength + aCamera.mPathLength + 1);
     }
 
     // Vertex merging: the light vertices within the radius, density-estimated with a
     // constant kernel 1 / (pi r^2) over N_L light sub-paths [tech. rep. (11)], weighted
     // by [tech. rep. (38), (39)].
-    // aQuery: the grid's query at the camera vertex (HashGridOf::Prepare).
-    void MergeWithLightVertices(int aPixel, const SubpathState& aCamera, HashGridOf<MergeItem>::Query& aQuery,
-                                const Bsdf& aBsdf) {
+    Contribution MergeWithLightVertices(const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
         // BEGIN EXERCISE ppm_merging/merge
         Vec3 sum(0.f);
-        mGrid.Process(aQuery, [&](const MergeItem& vertex, uint32_t aIndex) {
+        mLightVertexSearch.Process(aHitPoint, [&](const MergeData& vertex, uint32_t aIndex) {
             const int pathLength = vertex.mPathLength + aCamera.mPathLength;
             if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
             // The camera's BSDF, evaluated towards where the light vertex came from: f_path,
@@ -4140,131 +3819,80 @@ private:
             if (mPathRecords) RecordMerge(aIndex, weight);
             sum += cameraSide.mValue * vertex.mThroughput * weight;
         });
-        if (IsBlack(sum)) return;
-        const Vec3 contribution = aCamera.mThroughput * sum * mMisConstants.mVmNormalization;
-        mFilm.AddColor(aPixel, contribution);
-        RecordTechnique(kMerging, aPixel, -1, -1, contribution, 1.f);
+        if (IsBlack(sum)) return {};
+        return Made(kMerging, aCamera.mThroughput * sum * mMisConstants.mVmNormalization, 1.f, -1, -1);
         // END EXERCISE ppm_merging/merge
     }
 
-    // A merge runs three merges late, so that its cache misses overlap with other work:
-    // its query is prepared at its camera vertex (HashGridOf::Prepare requests the bucket
-    // ranges' lines, before the vertex's NEE and connections), located at the next merge
-    // (the points' lines requested), selected at the one after (the distance tests; the
-    // items of those that pass requested) and run at the third. Each step's loads were
-    // misses the processor waited for (the grid is 30 MiB at 512x512 on scene 2, a query's
-    // lines random in it); a camera vertex's work is time enough for them to arrive.
-    // Where most queries find nothing (81 % of them at 256x256 on scene 0, 74 % on scene 3,
-    // 49 % on scene 0 at 512x512, but 16 % on scene 2), copying the camera's state and Bsdf
-    // and queueing the merge's place is mostly for nothing. There, with connections to do
-    // (mSelectAtVertex), the query is located after the vertex's NEE and selected after
-    // its connections, each step a shadow ray after the one before, and a query that no
-    // light vertex passes is not deferred at all (4 % less time at 256x256 on scene 0; on
-    // scene 2 the points' loads would make Select wait, about 1-4 % slower). The
-    // merge's contribution goes to its pixel after those of the techniques before it on
-    // the same path, and the contributions that follow it wait in a queue for it, so every
-    // pixel receives the same sums in the same order (the images are the same bit for bit).
-    // A merge's place among them is the number of contributions queued before it: the
-    // queue holds only the others, 16 bytes each (a merge's entry among them was built on
-    // the stack in small stores and copied in 16-byte loads, a store-forwarding stall).
-    // The test hook reads the camera path as it is at the merge: with it, merges run at once.
-    static constexpr uint64_t kMergeLag = 3;
-    struct DeferredMerge {
-        int mPixel = 0;
-        uint64_t mContributionsBefore = 0;  // its place: mContributionsQueued when it was deferred
-        SubpathState mCamera;
-        Bsdf mBsdf;
-        HashGridOf<MergeItem>::Query mQuery;
-    };
-    struct PendingContribution {
-        int mPixel = 0;
-        Vec3 mColor{0.f};
-    };
-    DeferredMerge& NextDeferredMerge() { return mDeferredMerges[mMergesQueued % mDeferredMerges.size()]; }
-    void DeferMerge(int aPixel, const SubpathState& aCamera, const Bsdf& aBsdf) {
-        DeferredMerge& merge = NextDeferredMerge();
-        if (mPathRecords) {
-            MergeWithLightVertices(aPixel, aCamera, merge.mQuery, aBsdf);
-            return;
+    // The stored light vertices of the light sub-path traced for aPixel: [begin, end).
+    size_t LightSubpathBegin(int aPixel) const { return aPixel == 0 ? 0 : mPathEnds[size_t(aPixel) - 1]; }
+    size_t LightSubpathEnd(int aPixel) const { return mPathEnds[size_t(aPixel)]; }
+
+    // The BSDF of the aSlot-th light vertex of this pixel's light sub-path, built at its
+    // first connection and kept for the pixel's later camera vertices, which connect to it
+    // again (building a BSDF costs more than evaluating one).
+    const Bsdf& PixelLightBsdf(size_t aSlot, const LightVertex& aVertex) {
+        if (mPixelLightBsdfPath[aSlot] != mCameraPathNumber) {
+            SurfacePoint surface;
+            surface.mPosition = aVertex.mHitPoint;
+            surface.mPrimitiveId = aVertex.mPrimitiveId;
+            mScene.FillSurfacePoint(surface);
+            mPixelLightBsdfs[aSlot].Setup(aVertex.mDirFix, surface, mScene, Transport::kImportance);
+            mPixelLightBsdfPath[aSlot] = mCameraPathNumber;
         }
-        mMergeQueries++;
-        if (IsEmptySelection(merge.mQuery)) {
-            mEmptyMergeQueries++;
-            return;
-        }
-        merge.mPixel = aPixel;
-        merge.mCamera = aCamera;
-        merge.mBsdf = aBsdf;
-        merge.mContributionsBefore = mContributionsQueued;
-        mMergesQueued++;
-        if (mMergesQueued >= 2) {
-            HashGridOf<MergeItem>::Query& query = mDeferredMerges[(mMergesQueued - 2) % mDeferredMerges.size()].mQuery;
-            if (query.mStep == HashGridOf<MergeItem>::Query::kPrepared) mGrid.Locate(query);
-        }
-        if (mMergesQueued >= 3) {
-            HashGridOf<MergeItem>::Query& query = mDeferredMerges[(mMergesQueued - 3) % mDeferredMerges.size()].mQuery;
-            if (query.mStep == HashGridOf<MergeItem>::Query::kLocated) mGrid.Select(query);
-        }
-        while (mMergesDone + kMergeLag < mMergesQueued) ProcessOldestMerge();
+        return mPixelLightBsdfs[aSlot];
     }
-    static bool IsEmptySelection(const HashGridOf<MergeItem>::Query& aQuery) {
-        return aQuery.mStep == HashGridOf<MergeItem>::Query::kSelected && aQuery.mSelectedCount == 0;
-    }
-    void ProcessOldestMerge() {
-        DeferredMerge& merge = mDeferredMerges[mMergesDone % mDeferredMerges.size()];
-        mMergesDone++;  // everything queued before it is in the film
-        MergeWithLightVertices(merge.mPixel, merge.mCamera, merge.mQuery, merge.mBsdf);
-        mEmptyMergeQueries += IsEmptySelection(merge.mQuery);
-        // Then what was queued after it, up to the next waiting merge's place (all if none waits).
-        const uint64_t until = mMergesDone < mMergesQueued
-                                   ? mDeferredMerges[mMergesDone % mDeferredMerges.size()].mContributionsBefore
-                                   : mContributionsQueued;
-        for (; mContributionsAdded < until; mContributionsAdded++, mPendingFront++)
-            mFilm.AddColor(mPendingContributions[mPendingFront].mPixel, mPendingContributions[mPendingFront].mColor);
-        // The queue as a vector read from mPendingFront: what was read is dropped now and then.
-        if (mPendingFront == mPendingContributions.size()) {
-            mPendingContributions.clear();
-            mPendingFront = 0;
-        } else if (mPendingFront >= 256) {
-            mPendingContributions.erase(mPendingContributions.begin(), mPendingContributions.begin() + ptrdiff_t(mPendingFront));
-            mPendingFront = 0;
+    // A new camera sub-path (of aPixel): none of its light vertices' BSDFs is built yet.
+    // Each entry holds the number of the camera sub-path it was built for.
+    void ForgetPixelLightBsdfs(int aPixel) {
+        const size_t count = LightSubpathEnd(aPixel) - LightSubpathBegin(aPixel);
+        if (mPixelLightBsdfs.size() < count) {
+            mPixelLightBsdfs.resize(count);
+            mPixelLightBsdfPath.resize(count, 0);
         }
-    }
-    // What every camera-side technique but merging adds to the film (see DeferMerge).
-    void AddCameraContribution(int aPixel, const Vec3& aColor) {
-        if (mMergesDone == mMergesQueued) {  // no merge waits: nothing is queued
-            mFilm.AddColor(aPixel, aColor);
-            return;
-        }
-        // Written in place, as QueueSplat's entries are: one built on the stack and copied
-        // in was a store-forwarding stall (15 % of ConnectToLightVertices' time on scene 2).
-        PendingContribution& pending = mPendingContributions.emplace_back();
-        pending.mPixel = aPixel;
-        pending.mColor = aColor;
-        mContributionsQueued++;
+        mCameraPathNumber++;
     }
 
-    // Writes a contribution into the technique layers, when they were asked for.
-    // aLightVertices (s) and aPathLength place it in BPT's pyramid; -1 for merges.
-    // Usually neither layers nor records are on: that test stays inline at every
-    // contribution, and the call (about 25 instructions) is made only when needed.
-    void RecordTechnique(Technique aTechnique, int aPixel, int aLightVertices, int aPathLength,
-                         const Vec3& aUnweighted, float aWeight) {
-        if (mPathRecords || mOptions.mTechniqueLayers)
-            RecordTechniqueNow(aTechnique, aPixel, aLightVertices, aPathLength, aUnweighted, aWeight);
+    // --- the film, the technique layers and the test hook ----------------------------------
+    void AddToFilm(int aPixel, const Contribution& aContribution) {
+        if (!aContribution.mMade) return;
+        mFilm.AddColor(aPixel, aContribution.mUnweighted * aContribution.mWeight);
+        if (mPathRecords || mOptions.mTechniqueLayers) Record(aPixel, aContribution);
     }
-    SMALLVCM_NOINLINE void RecordTechniqueNow(Technique aTechnique, int aPixel, int aLightVertices, int aPathLength,
-                            const Vec3& aUnweighted, float aWeight) {
-        if (mPathRecords && aLightVertices >= 0) RecordPath(aTechnique, aPixel, aLightVertices, aWeight);
+    // Light tracing's contributions, to the pixels they land on.
+    void AddSplat(const Contribution& aContribution) {
+        if (!aContribution.mMade) return;
+        mFilm.Splat(aContribution.mPixel, aContribution.mUnweighted * aContribution.mWeight);
+        if (mPathRecords || mOptions.mTechniqueLayers) Record(aContribution.mPixel, aContribution);
+    }
+
+    void AddTechniqueLayers() {
+        for (int t = 0; t < kTechniqueCount; t++) mTechniqueLayers[t] = mFilm.AddLayer(kTechniqueLayerNames[t]);
+        if (mOptions.mAlgorithm != Algorithm::kBidirectionalPathTracing) return;
+        for (int length = 1; length <= kPyramidMaxLength; length++)
+            for (int s = 0; s <= length; s++) {
+                const std::string name = "s" + std::to_string(s) + "_t" + std::to_string(length + 1 - s);
+                mPyramidLayers[length][s][0] = mFilm.AddLayer(name);
+                mPyramidLayers[length][s][1] = mFilm.AddLayer(name + "_unweighted");
+            }
+        mLongerPathsLayer = mFilm.AddLayer("longer_than_5");
+    }
+
+    // Writes a contribution into the technique layers and the path records, when asked for.
+    SMALLVCM_NOINLINE void Record(int aPixel, const Contribution& aContribution) {
+        const Technique technique = aContribution.mTechnique;
+        const int s = aContribution.mLightVertices, length = aContribution.mPathLength;
+        const Vec3 weighted = aContribution.mUnweighted * aContribution.mWeight;
+        if (mPathRecords && s >= 0) RecordPath(technique, aPixel, s, aContribution.mWeight);
         if (!mOptions.mTechniqueLayers) return;
-        mFilm.AddToLayer(mTechniqueLayers[aTechnique], aPixel, aUnweighted * aWeight);
-        if (mLongerPathsLayer < 0 || aLightVertices < 0) return;
-        if (aPathLength > kPyramidMaxLength) {
-            mFilm.AddToLayer(mLongerPathsLayer, aPixel, aUnweighted * aWeight);
+        mFilm.AddToLayer(mTechniqueLayers[technique], aPixel, weighted);
+        if (mLongerPathsLayer < 0 || s < 0) return;
+        if (length > kPyramidMaxLength) {
+            mFilm.AddToLayer(mLongerPathsLayer, aPixel, weighted);
             return;
         }
-        mFilm.AddToLayer(mPyramidLayers[aPathLength][aLightVertices][0], aPixel, aUnweighted * aWeight);
-        mFilm.AddToLayer(mPyramidLayers[aPathLength][aLightVertices][1], aPixel, aUnweighted);
+        mFilm.AddToLayer(mPyramidLayers[length][s][0], aPixel, weighted);
+        mFilm.AddToLayer(mPyramidLayers[length][s][1], aPixel, aContribution.mUnweighted);
     }
 
     // The test hook (SetPathRecords): x_0 .. x_s of a contribution with s light vertices
@@ -4312,27 +3940,1315 @@ private:
     VcmMisConstants mMisConstants;
     std::vector<LightVertex> mLightVertices;
     std::vector<size_t> mPathEnds;  // mPathEnds[p]: one past the last vertex of light sub-path p
-    std::vector<QueuedSplat> mQueuedSplats;  // light tracing's splats not yet in the film
-    // The Bsdf of the sub-path vertex being traced, light or camera (Setup leaves nothing
-    // of the last vertex's): a local one was zeroed for every sub-path, a 152-byte rep stos
-    // on which a fifth of TraceLightSubpath's time sat at 256x256 on scene 0.
-    Bsdf mVertexBsdf;
-    std::vector<Bsdf> mPixelLightBsdfs;      // PixelLightBsdf's cache, for the current pixel
+    RangeSearch<MergeData> mLightVertexSearch;
+    std::vector<Bsdf> mPixelLightBsdfs;         // PixelLightBsdf's cache, for the current pixel
     std::vector<uint64_t> mPixelLightBsdfPath;  // the camera sub-path each entry was built for
     uint64_t mCameraPathNumber = 0;             // of the current camera sub-path, from 1
-    HashGridOf<MergeItem> mGrid;
-    std::array<DeferredMerge, kMergeLag + 2> mDeferredMerges;  // a ring: the newest, those waiting, the one to run
-    uint64_t mMergesQueued = 0, mMergesDone = 0;
-    bool mSelectAtVertex = false;                        // queries located and selected at their vertex
-    uint64_t mMergeQueries = 0, mEmptyMergeQueries = 0;  // this iteration's, and those no light vertex passed
-    std::vector<PendingContribution> mPendingContributions;  // camera-side film additions waiting for a merge,
-    size_t mPendingFront = 0;                                // from this one on
-    uint64_t mContributionsQueued = 0, mContributionsAdded = 0;  // how many were ever queued, and added from the queue
     int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1};
     int mPyramidLayers[kPyramidMaxLength + 1][kPyramidMaxLength + 1][2] = {};
     int mLongerPathsLayer = -1;
 };
 
+
+// =====================================================================================
+//  PART II: APPENDICES
+// =====================================================================================
+// What a student may skip: each appendix implements an interface that Part I states
+// (the BVH's and the range search's contracts, Render, WriteImage, LoadGltfScene) and
+// relies on nothing in Part I beyond it. The integrators read the same without them.
+
+// =====================================================================================
+// [SECTION] Appendix: BVH
+// =====================================================================================
+// Provides: how Bvh meets the contract stated above its declaration in [SECTION]
+// Geometry (a reader who skips this appendix loses nothing the renderer depends on).
+// Relies on IntersectTriangle, IntersectSphere, Aabb and PrimitiveSoup from that section.
+// Invariant: the tree is immutable once built (Bvh holds it through a shared pointer to
+// const), which is what makes concurrent queries safe.
+//
+// kBvhLanes floats processed together: the width of the tree's nodes and leaf blocks.
+// With GCC or Clang on x86 they are a compiler vector type, each operator one
+// instruction: four lanes of SSE (SSE2: every x86-64) by default, eight lanes of AVX
+// when the compiler may use AVX2 (-mavx2, which the Makefile adds on a build machine that
+// has AVX2, or -march=native on such a machine),
+// where one instruction tests eight boxes or eight triangles: the 8-wide tree has half
+// the levels of the 4-wide one, so a ray visits fewer nodes and pushes fewer of them
+// (Embree's BVH8 for single rays). Elsewhere, or when SMALLVCM_BVH_SCALAR is defined,
+// plain loops over four floats. Each lane is the same IEEE single-precision operation
+// every way, so every way gives the same hits bit for bit (given the same contraction
+// of multiply-adds: none under the Makefile's flags and with -mavx2, which has no FMA;
+// -march=native brings FMA, add -ffp-contract=off to keep the multiplies separate);
+// only which of two primitives hit at exactly the same t is returned may depend on the
+// width, as the contract allows. Every translation unit must see the same width (the
+// Makefile compiles all with one CXXFLAGS): the tree's layout depends on it.
+#if defined(__GNUC__) && defined(__AVX2__) && !defined(SMALLVCM_BVH_SCALAR)
+#define SMALLVCM_BVH_AVX 1
+#elif defined(__GNUC__) && defined(__SSE2__) && !defined(SMALLVCM_BVH_SCALAR)
+#define SMALLVCM_BVH_SSE 1
+#endif
+
+// The traversal's inner steps (the slab test of a node, the choice of the next child, the
+// test of a leaf block) are forced inline: out of line, a call per node visit keeps the
+// stack size and the next child in memory instead of registers, and a call per block
+// costs more argument passing than the block test itself.
+#if defined(__GNUC__)
+#define SMALLVCM_BVH_INLINE inline __attribute__((always_inline))
+#else
+#define SMALLVCM_BVH_INLINE inline
+#endif
+namespace detail {
+#if defined(SMALLVCM_BVH_AVX)
+inline constexpr int kBvhLanes = 8;
+#else
+inline constexpr int kBvhLanes = 4;
+#endif
+#if defined(SMALLVCM_BVH_SSE) || defined(SMALLVCM_BVH_AVX)
+typedef float FloatVector __attribute__((vector_size(4 * kBvhLanes)));
+typedef int32_t IntVector __attribute__((vector_size(4 * kBvhLanes)));
+struct FloatN {
+    FloatVector mV;
+    static FloatN Load(const float* aAligned) { return {*reinterpret_cast<const FloatVector*>(aAligned)}; }
+#if defined(SMALLVCM_BVH_AVX)
+    static FloatN Broadcast(float x) { return {FloatVector{x, x, x, x, x, x, x, x}}; }
+#else
+    static FloatN Broadcast(float x) { return {FloatVector{x, x, x, x}}; }
+#endif
+    float operator[](int aLane) const { return mV[aLane]; }
+    void SetLane(int aLane, float aValue) { mV[aLane] = aValue; }
+};
+inline FloatN operator+(FloatN a, FloatN b) { return {a.mV + b.mV}; }
+inline FloatN operator-(FloatN a, FloatN b) { return {a.mV - b.mV}; }
+inline FloatN operator*(FloatN a, FloatN b) { return {a.mV * b.mV}; }
+inline FloatN operator/(FloatN a, FloatN b) { return {a.mV / b.mV}; }
+// std::max(a, b) and std::min(a, b) lane by lane, NaN in b included (then a): the x86
+// instructions return their second operand when either is NaN, hence the swap.
+#if defined(SMALLVCM_BVH_AVX)
+inline FloatN Max(FloatN a, FloatN b) { return {__builtin_ia32_maxps256(b.mV, a.mV)}; }
+inline FloatN Min(FloatN a, FloatN b) { return {__builtin_ia32_minps256(b.mV, a.mV)}; }
+#else
+inline FloatN Max(FloatN a, FloatN b) { return {__builtin_ia32_maxps(b.mV, a.mV)}; }
+inline FloatN Min(FloatN a, FloatN b) { return {__builtin_ia32_minps(b.mV, a.mV)}; }
+#endif
+// Comparisons give a lane mask (all bits set where true), combined with & | ~ in vector
+// registers and turned into bits only once at the end (Bits: bit i for lane i), which
+// saves the test of a block of triangles a dozen mask extractions.
+struct MaskN { IntVector mV; };
+inline MaskN operator&(MaskN a, MaskN b) { return {a.mV & b.mV}; }
+inline MaskN operator|(MaskN a, MaskN b) { return {a.mV | b.mV}; }
+inline MaskN operator~(MaskN a) { return {~a.mV}; }
+#if defined(SMALLVCM_BVH_AVX)
+inline int Bits(MaskN a) { return __builtin_ia32_movmskps256(reinterpret_cast<FloatVector>(a.mV)); }
+#else
+inline int Bits(MaskN a) { return __builtin_ia32_movmskps(reinterpret_cast<FloatVector>(a.mV)); }
+#endif
+inline MaskN LessEqual(FloatN a, FloatN b) { return {a.mV <= b.mV}; }
+inline MaskN Less(FloatN a, FloatN b) { return {a.mV < b.mV}; }
+inline MaskN Greater(FloatN a, FloatN b) { return {a.mV > b.mV}; }
+inline MaskN Equal(FloatN a, FloatN b) { return {a.mV == b.mV}; }
+// Lanes where a, b and c do not all have the same sign bit: the sign bits compared by
+// exclusive or, then spread over the lane by an arithmetic shift (four instructions).
+inline MaskN SignsDiffer(FloatN a, FloatN b, FloatN c) {
+    const IntVector ia = reinterpret_cast<IntVector>(a.mV), ib = reinterpret_cast<IntVector>(b.mV);
+    const IntVector ic = reinterpret_cast<IntVector>(c.mV);
+    return {((ia ^ ib) | (ia ^ ic)) >> 31};
+}
+#else
+struct FloatN {
+    float mV[kBvhLanes];
+    static FloatN Load(const float* aAligned) {
+        FloatN result;
+        for (int lane = 0; lane < kBvhLanes; lane++) result.mV[lane] = aAligned[lane];
+        return result;
+    }
+    static FloatN Broadcast(float aValue) {
+        FloatN result;
+        for (int lane = 0; lane < kBvhLanes; lane++) result.mV[lane] = aValue;
+        return result;
+    }
+    float operator[](int aLane) const { return mV[aLane]; }
+    void SetLane(int aLane, float aValue) { mV[aLane] = aValue; }
+};
+template <typename Op>
+inline FloatN Lanewise(FloatN a, FloatN b, Op aOp) {
+    FloatN result;
+    for (int lane = 0; lane < kBvhLanes; lane++) result.mV[lane] = aOp(a.mV[lane], b.mV[lane]);
+    return result;
+}
+// A lane mask as bits, bit i for lane i.
+struct MaskN { int mBits; };
+inline MaskN operator&(MaskN a, MaskN b) { return {a.mBits & b.mBits}; }
+inline MaskN operator|(MaskN a, MaskN b) { return {a.mBits | b.mBits}; }
+inline MaskN operator~(MaskN a) { return {~a.mBits & ((1 << kBvhLanes) - 1)}; }
+inline int Bits(MaskN a) { return a.mBits; }
+template <typename Op>
+inline MaskN MaskOf(FloatN a, FloatN b, Op aOp) {
+    int bits = 0;
+    for (int lane = 0; lane < kBvhLanes; lane++) bits |= int(aOp(a.mV[lane], b.mV[lane])) << lane;
+    return {bits};
+}
+inline FloatN operator+(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return x + y; }); }
+inline FloatN operator-(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return x - y; }); }
+inline FloatN operator*(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return x * y; }); }
+inline FloatN operator/(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return x / y; }); }
+inline FloatN Max(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return std::max(x, y); }); }
+inline FloatN Min(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return std::min(x, y); }); }
+inline MaskN LessEqual(FloatN a, FloatN b) { return MaskOf(a, b, [](float x, float y) { return x <= y; }); }
+inline MaskN Less(FloatN a, FloatN b) { return MaskOf(a, b, [](float x, float y) { return x < y; }); }
+inline MaskN Greater(FloatN a, FloatN b) { return MaskOf(a, b, [](float x, float y) { return x > y; }); }
+inline MaskN Equal(FloatN a, FloatN b) { return MaskOf(a, b, [](float x, float y) { return x == y; }); }
+inline MaskN SignsDiffer(FloatN a, FloatN b, FloatN c) {
+    int bits = 0;
+    for (int lane = 0; lane < kBvhLanes; lane++) {
+        const bool sign = std::signbit(a.mV[lane]);
+        bits |= int(std::signbit(b.mV[lane]) != sign || std::signbit(c.mV[lane]) != sign) << lane;
+    }
+    return {bits};
+}
+#endif
+// The index of the lowest set bit of a non-zero mask (one instruction where the compiler
+// has it: a loop here is a branch the predictor misses at every node).
+inline int FirstLane(int aMask) {
+#if defined(__GNUC__)
+    return __builtin_ctz(unsigned(aMask));
+#else
+    int lane = 0;
+    while (!(aMask & (1 << lane))) lane++;
+    return lane;
+#endif
+}
+// The number of set bits of a mask.
+inline int LaneCount(int aMask) {
+#if defined(__GNUC__)
+    return __builtin_popcount(unsigned(aMask));
+#else
+    int count = 0;
+    for (; aMask; aMask &= aMask - 1) count++;
+    return count;
+#endif
+}
+// The index of the highest set bit of a non-zero mask.
+inline int LastLane(int aMask) {
+#if defined(__GNUC__)
+    return 31 - __builtin_clz(unsigned(aMask));
+#else
+    int lane = 31;
+    while (!(aMask & (1 << lane))) lane--;
+    return lane;
+#endif
+}
+// The tree's two arrays live on 2 MiB pages where Linux offers them (transparent huge
+// pages on request, madvise): a ray's node and block loads jump across the whole tree,
+// and with 4 KiB pages those of a large tree miss the TLB as well as the cache (Embree
+// asks for such pages too). Arrays under 2 MiB, and other systems, get ordinary memory.
+inline constexpr size_t kHugePageBytes = size_t(2) << 20;
+template <typename T>
+struct HugePageAllocator {
+    using value_type = T;
+    HugePageAllocator() = default;
+    template <typename U>
+    HugePageAllocator(const HugePageAllocator<U>&) {}
+    static bool IsHuge(size_t aCount) { return aCount * sizeof(T) >= kHugePageBytes; }
+    T* allocate(size_t aCount) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+        if (IsHuge(aCount)) {
+            const size_t bytes = (aCount * sizeof(T) + kHugePageBytes - 1) / kHugePageBytes * kHugePageBytes;
+            void* memory = std::aligned_alloc(kHugePageBytes, bytes);
+            if (!memory) throw std::bad_alloc();
+            madvise(memory, bytes, MADV_HUGEPAGE);  // only advice: without it, ordinary pages
+            return static_cast<T*>(memory);
+        }
+#endif
+        return static_cast<T*>(::operator new(aCount * sizeof(T), std::align_val_t(alignof(T))));
+    }
+    void deallocate(T* aMemory, size_t aCount) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+        if (IsHuge(aCount)) return std::free(aMemory);
+#endif
+        ::operator delete(aMemory, std::align_val_t(alignof(T)));
+    }
+    template <typename U>
+    bool operator==(const HugePageAllocator<U>&) const { return true; }
+    template <typename U>
+    bool operator!=(const HugePageAllocator<U>&) const { return false; }
+};
+} // namespace detail
+
+// Build: top-down, splitting each node at the best of 16 binned surface-area-heuristic
+// candidates along each of the three axes (Wald 2007), and stopping where the SAH
+// says a leaf is cheaper (leaves of at most 8 primitives). The binary tree is then
+// collapsed into a kWidth-wide one (4, or 8 with AVX2; Dammertz et al. 2008): a node
+// keeps up to kWidth children, found by opening the largest child until there are kWidth.
+// Why each trick pays:
+// * kWidth children per node, their boxes stored axis by axis ("structure of arrays"):
+//   one visit tests all their boxes with one vector instruction per step, instead of
+//   walking two (or three) levels of a binary tree box by box.
+// * A leaf needs no node of its own: its parent's slot says where its primitives are.
+// * Leaf triangles are copied into blocks of kWidth, stored coordinate by coordinate, so
+//   the watertight test runs on a whole block at once, and a leaf is a few consecutive
+//   cache lines instead of indices into the scene.
+// * The SAH counts blocks, not primitives: a block costs what one triangle does, so leaves
+//   fill their blocks instead of padding them.
+// * Ordered traversal: the nearest child is entered next and the others are pushed
+//   farthest first, so the nearest hit is found early, and a popped child whose box
+//   starts beyond it is dropped without another test. Shadow rays walk in the same
+//   order and stop at the first hit: the nearest boxes are the likeliest to occlude.
+// * A scene of a few blocks (kFlatBlocks) is a single leaf: no node to visit, and a ray
+//   needs no slab-test set-up.
+// Primitives that share one centroid cannot be split and stay one leaf (splitting them by
+// count would leave boxes that all overlap, which every ray enters anyway); identical
+// copies in such a leaf (a mesh duplicated over itself) are kept once.
+
+class Bvh::Tree {
+public:
+    static constexpr int kWidth = detail::kBvhLanes;
+    // An inner node (128 bytes, two cache lines; 256 bytes 8 wide): the boxes of its
+    // children as six planes of kWidth floats (Min(k) and Max(k): the children's minima and
+    // maxima along axis k, one flat array so that a ray can address its near and far
+    // planes by offset), then for each child either an inner node (mCount == 0, mIndex =
+    // node index) or a leaf (mCount blocks from mIndex). An unused slot has an inverted box
+    // (min > max), which the slab test never hits.
+    struct alignas(64) Node {
+        float mPlanes[6 * kWidth];  // min x, min y, min z, max x, max y, max z
+        float* Min(int aAxis) { return mPlanes + aAxis * kWidth; }
+        float* Max(int aAxis) { return mPlanes + (3 + aAxis) * kWidth; }
+        const float* Min(int aAxis) const { return mPlanes + aAxis * kWidth; }
+        const float* Max(int aAxis) const { return mPlanes + (3 + aAxis) * kWidth; }
+        uint32_t mIndex[kWidth];
+        uint32_t mCount[kWidth];
+    };
+    // kWidth primitives of a leaf (160 bytes 4 wide, 320 bytes 8 wide), coordinate by
+    // coordinate: triangles with vertices mA, mB, mC ([axis][lane]), or spheres with centre mA and
+    // radius mB[0]. mId is the scene's primitive index, with kSphereBit set in every lane
+    // of a sphere block. A leaf's last block is filled up by repeating its last primitive:
+    // a copy hits at the same t as its original, so it never changes an answer.
+    struct alignas(4 * kWidth) Block {
+        uint32_t mId[kWidth];  // first: it shares the first cache line with mA
+        float mA[3][kWidth];
+        float mB[3][kWidth];
+        float mC[3][kWidth];
+        bool IsSpheres() const { return (mId[0] & kSphereBit) != 0; }
+        // Whether aLane is a filling copy of the lane before it: spheres are tested one
+        // at a time, so a copy would cost a whole second test.
+        bool IsCopy(int aLane) const { return aLane > 0 && mId[aLane] == mId[aLane - 1]; }
+        Vec3 Vertex(const float aCoordinates[3][kWidth], int aLane) const {
+            return Vec3(aCoordinates[0][aLane], aCoordinates[1][aLane], aCoordinates[2][aLane]);
+        }
+    };
+
+    void Build(const PrimitiveSoup& aSoup) {
+        mNodes.clear();
+        mBlocks.clear();
+        mRoot = ChildRef{};
+        mLeafCount = 0;
+        mBuildDepth = 0;
+        mLargestLeaf = 0;
+        mBuildSoup = &aSoup;
+        const int count = aSoup.Count();
+        mPrimitiveCount = count;
+        std::vector<uint32_t> order(count);
+        std::vector<Aabb> bounds(count);
+        std::vector<Vec3> centroids(count);
+        for (int i = 0; i < count; i++) {
+            order[i] = uint32_t(i);
+            bounds[i] = aSoup.Bounds(i);
+            centroids[i] = bounds[i].Centroid();
+        }
+        if (count > 0) {
+            std::vector<BinaryNode> binary;
+            binary.reserve(size_t(count));
+            const ChildRef binaryRoot = BuildBinary(bounds, centroids, order, 0, uint32_t(count), 0, binary);
+            mNodes.reserve(binary.size() / 2 + 1);
+            mBlocks.reserve(size_t(count) / 2 + 1);
+            mRoot = Collapse(binary, order, binaryRoot);
+        }
+        mBuildSoup = nullptr;
+    }
+
+    // Nearest hit in (aTMin, ioTMax); returns the primitive index or -1. The root's box
+    // is not tested on its own: a ray that misses it misses the boxes of the root's
+    // children too, which the first visit finds, so a separate test would only cost time.
+    int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
+        if (mBlocks.empty()) return -1;
+        int hitPrimitive = -1;
+        if (mRoot.mCount > 0) {  // the whole scene is one leaf
+            // Every block is tested below the ray's own bound, and then the nearest hit is
+            // taken block after block (KeepNearest: the same answer), so that no block's
+            // test waits for the previous one's result. (kFlatBlocks at a time: a leaf of
+            // primitives that share one centroid may have more.)
+            const BlockRay ray(aRay);
+            for (uint32_t first = 0; first < mRoot.mCount; first += kFlatBlocks) {
+                const Block* const blocks = &mBlocks[mRoot.mIndex + first];
+                const uint32_t count = std::min(kFlatBlocks, mRoot.mCount - first);
+                const float tMax = ioTMax;
+                FloatN t[kFlatBlocks];
+                int hits[kFlatBlocks];
+                for (uint32_t b = 0; b < count; b++) hits[b] = BlockHits(blocks[b], aRay, ray, aTMin, tMax, t[b]);
+                for (uint32_t b = 0; b < count; b++) KeepNearest(blocks[b], hits[b], t[b], ioTMax, hitPrimitive);
+            }
+            return hitPrimitive;
+        }
+        const RayData ray(aRay);
+        Pending stack[kStackSize];
+        int stackSize = 0;
+        uint32_t index = mRoot.mIndex, count = mRoot.mCount;
+        for (;;) {
+            if (count > 0) {  // a leaf: test its blocks
+                for (uint32_t b = 0; b < count; b++) IntersectBlock(mBlocks[index + b], aRay, ray, aTMin, ioTMax, hitPrimitive);
+            } else if (Descend(mNodes[index], ray, ioTMax, true, stack, stackSize, index, count)) {
+                continue;
+            }
+            // Pop the next child whose box starts before the nearest hit so far.
+            do {
+                if (stackSize == 0) return hitPrimitive;
+                --stackSize;
+            } while (stack[stackSize].mTNear > ioTMax * kFarWidening);
+            index = stack[stackSize].mIndex;
+            count = stack[stackSize].mCount;
+        }
+    }
+
+    // Any hit in (aTMin, aTMax): the shadow-ray query.
+    bool Occluded(const Ray& aRay, float aTMin, float aTMax) const {
+        if (mBlocks.empty()) return false;
+        if (mRoot.mCount > 0) {
+            // Last block first: a leaf's spheres come last, and in a small scene (a room
+            // with a few objects in it) the objects are what shadow rays hit.
+            const BlockRay ray(aRay);
+            for (uint32_t b = mRoot.mCount; b-- > 0;)
+                if (OccludedByBlock(mBlocks[mRoot.mIndex + b], aRay, ray, aTMin, aTMax)) return true;
+            return false;
+        }
+        const RayData ray(aRay);
+        Pending stack[kStackSize];
+        int stackSize = 0;
+        uint32_t index = mRoot.mIndex, count = mRoot.mCount;
+        for (;;) {
+            if (count > 0) {
+                for (uint32_t b = 0; b < count; b++)
+                    if (OccludedByBlock(mBlocks[index + b], aRay, ray, aTMin, aTMax)) return true;
+            } else if (Descend(mNodes[index], ray, aTMax, false, stack, stackSize, index, count)) {
+                continue;
+            }
+            if (stackSize == 0) return false;
+            --stackSize;
+            index = stack[stackSize].mIndex;
+            count = stack[stackSize].mCount;
+        }
+    }
+
+    // Nodes of the tree, leaves included (a leaf lives in its parent's slot).
+    size_t NodeCount() const { return mNodes.size() + mLeafCount; }
+    size_t StorageBytes() const { return mNodes.size() * sizeof(Node) + mBlocks.size() * sizeof(Block); }
+    int PrimitiveCount() const { return mPrimitiveCount; }
+    // Levels of the kWidth-wide tree a ray walks, and of the binary tree it was collapsed from.
+    int Depth() const { return mBlocks.empty() ? 0 : DepthOf(mRoot.mIndex, mRoot.mCount); }
+    int BuildDepth() const { return mBuildDepth; }
+    // Primitives in the largest leaf (at most kMaxLeafSize unless distinct primitives
+    // share one centroid).
+    uint32_t LargestLeaf() const { return mLargestLeaf; }
+
+private:
+    using FloatN = detail::FloatN;
+    using MaskN = detail::MaskN;
+
+    // A subtree as its parent sees it: its box, and an inner node or a leaf as in Node
+    // (while building, a leaf's mIndex and mCount are a range of the primitive order).
+    struct ChildRef {
+        Aabb mBox;
+        uint32_t mIndex = 0, mCount = 0;
+    };
+    struct BinaryNode { ChildRef mChild[2]; };
+    struct Pending { uint32_t mIndex, mCount; float mTNear; };
+
+    static constexpr uint32_t kSphereBit = 0x80000000u;
+    static constexpr uint32_t kMaxLeafSize = 8;
+    static constexpr uint32_t BlocksFor(uint32_t aPrimitives) { return (aPrimitives + kWidth - 1) / kWidth; }
+    static constexpr int kBinCount = 16;
+    // A scene of at most kFlatBlocks blocks (32 triangles 8 wide, 16 4 wide) is one leaf,
+    // every block tested by every ray: SmallVCM's Cornell boxes (3-4 blocks) are faster so
+    // than through a root node whose children nearly every ray enters anyway.
+    static constexpr uint32_t kFlatBlocks = 4;
+    // SAH costs in units of one block test: kWidth primitives cost what one does, so a
+    // leaf costs its number of blocks, and the build fills blocks instead of padding them.
+    // kTraversalCost is a binary node's two boxes, relative to a block test (the trees'
+    // speed is flat around this value; docs/performance.md, the Embree comparison).
+    static constexpr float kTraversalCost = 1.5f;
+    // The binary build stops at this depth (splitting by the median when the SAH split
+    // fails keeps real scenes far below it). The kWidth-wide tree is no deeper, and a visit
+    // leaves at most kWidth - 1 children on the stack (sorting them there takes one more
+    // entry for a moment), so (kWidth - 1) * 64 + 1 entries hold every path.
+    static constexpr int kMaxDepth = 60;
+    static constexpr int kStackSize = (kWidth - 1) * 64 + 1;
+    // A hit exactly on a face must survive rounding in the slab test: the far distance
+    // is widened by 2 ulp.
+    static constexpr float kFarWidening = 1.00000024f;
+
+    // The near and far plane offsets of the 8 sign patterns of a direction (bit k set: the
+    // ray runs backwards along axis k), copied per ray from this table rather than
+    // computed axis by axis.
+    struct PlaneOffsets { int mNear[3], mFar[3]; };
+    static constexpr PlaneOffsets PlaneOffsetsFor(int aSigns) {
+        PlaneOffsets offsets{};
+        for (int k = 0; k < 3; k++) {
+            const int backwards = (aSigns >> k) & 1;
+            offsets.mNear[k] = (k + 3 * backwards) * kWidth;
+            offsets.mFar[k] = (3 + k - 3 * backwards) * kWidth;
+        }
+        return offsets;
+    }
+    // What the tests need of a ray, computed once per ray. BlockRay, for the triangle test
+    // of a leaf block: the shear of WatertightRay and the origin, in the sheared axis
+    // order. RayData adds, for the slab test of a node, its origin, 1 / direction
+    // (infinite for a zero component) and, per axis, where in a node's mPlanes its near
+    // and far planes are (the max plane is the near one when the ray runs backwards along
+    // the axis; an offset instead of a branch per axis and node, which the predictor
+    // missed on random directions: +0.02-0.04 on the large meshes, 8 wide). A scene that
+    // is one leaf needs only BlockRay, three divisions fewer.
+    struct BlockRay {
+        WatertightRay mShear;
+        FloatN mShearX, mShearY, mShearZ;     // the shear's mSx, mSy, mSz
+        FloatN mOriginX, mOriginY, mOriginZ;  // the origin along kx, ky, kz
+#if defined(SMALLVCM_BVH_SSE) || defined(SMALLVCM_BVH_AVX)
+        // WatertightRay's values, computed another way with the same result bit for bit
+        // (for a one-leaf scene, whose first triangle test waits for the shear, and for a
+        // tree's rays, RayData below).
+        // There, the divisions wait for kz, which waits for a chain of compares, integer
+        // steps and loads by index (some 45 cycles before the first triangle can be
+        // tested). Here the three candidates, one per axis that kz may be, are divided
+        // at once, four lanes per instruction, while kz is found from the compares'
+        // bits in integer registers; kz then picks a lane (the same IEEE division as
+        // d[kx] / d[kz], so the same value).
+        SMALLVCM_BVH_INLINE explicit BlockRay(const Ray& aRay) {
+            typedef float Float4 __attribute__((vector_size(16)));
+            typedef int32_t Int4 __attribute__((vector_size(16)));
+            const Vec3& d = aRay.mDirection;
+            const Vec3& o = aRay.mOrigin;
+            // Lane i: axis i as kz; "next" is axis (i + 1) % 3, "after" (i + 2) % 3.
+            const Int4 toNext = {1, 2, 0, 3}, toAfter = {2, 0, 1, 3};
+            const Float4 dir = {d.x, d.y, d.z, 1.f};
+            const Float4 nextOver = __builtin_shuffle(dir, toNext) / dir, afterOver = __builtin_shuffle(dir, toAfter) / dir;
+            const Float4 inverse = Float4{1.f, 1.f, 1.f, 1.f} / dir;
+            const Float4 absDir = reinterpret_cast<Float4>(reinterpret_cast<Int4>(dir) & Int4{INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX});
+            const int overNext = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > __builtin_shuffle(absDir, toNext)));
+            const int overAfter = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > __builtin_shuffle(absDir, toAfter)));
+            const int xOverY = overNext & 1, yOverZ = (overNext >> 1) & 1, xOverZ = overAfter & 1;
+            const int kz = 2 - 2 * (xOverY & xOverZ) - ((1 - xOverY) & yOverZ);
+            // Lanes whose axis the ray runs backwards along: were it kz, kx and ky would
+            // swap, as in WatertightRay.
+            const Int4 backwards = dir < Float4{};
+            const int back = (__builtin_ia32_movmskps(reinterpret_cast<Float4>(backwards)) >> kz) & 1;
+            const Float4 shearX = backwards ? afterOver : nextOver, shearY = backwards ? nextOver : afterOver;
+            const Float4 originZ = {o.x, o.y, o.z, 0.f};
+            const Float4 originNext = __builtin_shuffle(originZ, toNext), originAfter = __builtin_shuffle(originZ, toAfter);
+            const Float4 originX = backwards ? originAfter : originNext, originY = backwards ? originNext : originAfter;
+            // (kz + 1 + back) % 3 and (kz + 2 - back) % 3: two bits each of 0x124, which
+            // holds 0, 1, 2, 0, 1.
+            mShear.mKz = kz;
+            mShear.mKx = (0x124 >> (2 * (kz + 1 + back))) & 3;
+            mShear.mKy = (0x124 >> (2 * (kz + 2 - back))) & 3;
+            mShear.mSx = shearX[kz];
+            mShear.mSy = shearY[kz];
+            mShear.mSz = inverse[kz];
+            mShearX = FloatN::Broadcast(mShear.mSx);
+            mShearY = FloatN::Broadcast(mShear.mSy);
+            mShearZ = FloatN::Broadcast(mShear.mSz);
+            mOriginX = FloatN::Broadcast(originX[kz]);
+            mOriginY = FloatN::Broadcast(originY[kz]);
+            mOriginZ = FloatN::Broadcast(originZ[kz]);
+        }
+#else
+        explicit BlockRay(const Ray& aRay) : BlockRay(aRay, WatertightRay(aRay.mDirection)) {}
+#endif
+        // From WatertightRay's own constructor: the portable build's way.
+        BlockRay(const Ray& aRay, const WatertightRay& aShear) : mShear(aShear) {
+            const float o[3] = {aRay.mOrigin.x, aRay.mOrigin.y, aRay.mOrigin.z};
+            mShearX = FloatN::Broadcast(mShear.mSx);
+            mShearY = FloatN::Broadcast(mShear.mSy);
+            mShearZ = FloatN::Broadcast(mShear.mSz);
+            mOriginX = FloatN::Broadcast(o[mShear.mKx]);
+            mOriginY = FloatN::Broadcast(o[mShear.mKy]);
+            mOriginZ = FloatN::Broadcast(o[mShear.mKz]);
+        }
+    };
+    struct RayData : BlockRay {
+        FloatN mOrigin[3], mInvDir[3];
+        PlaneOffsets mPlanes;  // into Node::mPlanes
+        static const PlaneOffsets& PlaneOffsetsOf(int aSigns) {
+            static constexpr PlaneOffsets kTable[8] = {PlaneOffsetsFor(0), PlaneOffsetsFor(1), PlaneOffsetsFor(2),
+                                                       PlaneOffsetsFor(3), PlaneOffsetsFor(4), PlaneOffsetsFor(5),
+                                                       PlaneOffsetsFor(6), PlaneOffsetsFor(7)};
+            return kTable[aSigns];
+        }
+#if defined(SMALLVCM_BVH_SSE) || defined(SMALLVCM_BVH_AVX)
+        // The shear the vector way (above) and the three 1 / d as one 4-lane division
+        // (the same IEEE quotients, hence the same values and the same hits): four
+        // vector divisions side by side instead of six scalar ones, three of them queued
+        // behind the compares that find kz: more instructions, less time.
+        explicit RayData(const Ray& aRay) : BlockRay(aRay) {
+            typedef float Float4 __attribute__((vector_size(16)));
+            const Vec3& d = aRay.mDirection;
+            const Float4 inverse = Float4{1.f, 1.f, 1.f, 1.f} / Float4{d.x, d.y, d.z, 1.f};
+            for (int k = 0; k < 3; k++) {
+                mOrigin[k] = FloatN::Broadcast(aRay.mOrigin[k]);
+                mInvDir[k] = FloatN::Broadcast(inverse[k]);
+            }
+            mPlanes = PlaneOffsetsOf(__builtin_ia32_movmskps(inverse) & 7);
+        }
+#else
+        explicit RayData(const Ray& aRay) : BlockRay(aRay, WatertightRay(aRay.mDirection)) {
+            int signs = 0;
+            for (int k = 0; k < 3; k++) {
+                mOrigin[k] = FloatN::Broadcast(aRay.mOrigin[k]);
+                const float invDir = 1.f / aRay.mDirection[k];
+                mInvDir[k] = FloatN::Broadcast(invDir);
+                signs |= int(std::signbit(invDir)) << k;
+            }
+            mPlanes = PlaneOffsetsOf(signs);
+        }
+#endif
+    };
+
+    // Slab test of a node's kWidth child boxes against [0, aTMax]: where the ray enters
+    // each box (oTNear) and the mask of the boxes it hits (entry before the widened exit).
+    // The near and far planes are chosen by the ray's direction, so an inverted (empty)
+    // box always misses. A ray with a zero direction component that lies in the plane
+    // of a face gets (plane - origin) * inf = 0 * inf = NaN there; Max(a, NaN) and
+    // Min(a, NaN) return a, so that axis does not narrow the interval: the ray is inside.
+    SMALLVCM_BVH_INLINE static void SlabAxis(const Node& aNode, const RayData& aRay, int k, FloatN& ioTNear, FloatN& ioTFar) {
+        const float* nearPlane = aNode.mPlanes + aRay.mPlanes.mNear[k];
+        const float* farPlane = aNode.mPlanes + aRay.mPlanes.mFar[k];
+        ioTNear = Max(ioTNear, (FloatN::Load(nearPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+        ioTFar = Min(ioTFar, (FloatN::Load(farPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
+    }
+    SMALLVCM_BVH_INLINE static int SlabTestChildren(const Node& aNode, const RayData& aRay, float aTMax, FloatN& oTNear) {
+        FloatN tNear = FloatN::Broadcast(0.f), tFar = FloatN::Broadcast(aTMax);
+        // The three axes written out, not looped over.
+        SlabAxis(aNode, aRay, 0, tNear, tFar);
+        SlabAxis(aNode, aRay, 1, tNear, tFar);
+        SlabAxis(aNode, aRay, 2, tNear, tFar);
+        oTNear = tNear;
+        return Bits(LessEqual(tNear, tFar * FloatN::Broadcast(kFarWidening)));
+    }
+
+    // Visits an inner node: continues (true) into its nearest hit child, given back in
+    // ioIndex / ioCount, after pushing the other hit children (farthest first when
+    // aSortAll); false when the ray misses them all.
+    SMALLVCM_BVH_INLINE static bool Descend(const Node& aNode, const RayData& aRay, float aTMax, bool aSortAll, Pending* ioStack,
+                        int& ioStackSize, uint32_t& ioIndex, uint32_t& ioCount) {
+        // The children's references are the node's last cache line (8 wide), which the
+        // slab test does not read: loaded only once it has chosen a child, they were a
+        // second wait for memory per visit; requested now, they arrive with the planes.
+#if defined(__GNUC__)
+        __builtin_prefetch(aNode.mIndex);  // the builtin itself, which the compiler keeps here
+#endif
+        FloatN tNear;
+        int hits = SlabTestChildren(aNode, aRay, aTMax, tNear);
+        if (hits == 0) return false;
+        // The hit children, nearest entered, the others pushed farthest first (of equal
+        // tNear, the later lane is entered first). One or two hit children, the usual
+        // case, take no branch on which of the two it is: with one, first and second are
+        // the same lane, which is entered, and the entry written for the farther one is
+        // not counted on the stack (a branch between one and two hit children would be
+        // mispredicted often). Three or more go to a sorting loop.
+        const int first = detail::FirstLane(hits);
+        const int rest = hits & (hits - 1);
+        if ((rest & (rest - 1)) == 0) {
+            const int second = detail::LastLane(hits);
+            const bool firstNearer = tNear[first] < tNear[second];
+            const int nearer = firstNearer ? first : second, farther = firstNearer ? second : first;
+            ioStack[ioStackSize] = Pending{aNode.mIndex[farther], aNode.mCount[farther], tNear[farther]};
+            ioStackSize += rest != 0;
+            ioIndex = aNode.mIndex[nearer];
+            ioCount = aNode.mCount[nearer];
+            return true;
+        }
+        const int second = detail::FirstLane(rest);
+        hits = rest & (rest - 1);
+        Pending* children = ioStack + ioStackSize;
+        int childCount = 0;
+        if (!aSortAll) {
+            // Three or more for a shadow ray: only the nearest matters (entered first, it
+            // is the likeliest to occlude); the others go on the stack in lane order. Saves
+            // the sort's mispredicted branches: any-hit on the soup of triangles 0.68 ->
+            // 0.78 of Embree, 8 wide.
+            children[0] = Pending{aNode.mIndex[first], aNode.mCount[first], tNear[first]};
+            children[1] = Pending{aNode.mIndex[second], aNode.mCount[second], tNear[second]};
+            int nearest = tNear[second] < tNear[first] ? 1 : 0;
+            childCount = 2;
+            while (hits) {
+                const int c = detail::FirstLane(hits);
+                hits &= hits - 1;
+                children[childCount] = Pending{aNode.mIndex[c], aNode.mCount[c], tNear[c]};
+                nearest = tNear[c] < children[nearest].mTNear ? childCount : nearest;
+                childCount++;
+            }
+            ioIndex = children[nearest].mIndex;
+            ioCount = children[nearest].mCount;
+            children[nearest] = children[childCount - 1];
+            ioStackSize += childCount - 1;
+            return true;
+        }
+        // Three or more: each goes straight to its place on the stack, by decreasing tNear
+        // (of equal tNear, the earlier lane lower: the later is entered first), which is
+        // the number of hit children farther than it, or as far in an earlier lane, counted
+        // with one vector compare; the nearest, then on top, is taken off again. (An
+        // insertion sort had a data-dependent exit per child, which the predictor missed.)
+        const int all = (1 << first) | rest;
+        childCount = detail::LaneCount(all);
+        for (int left = all; left; left &= left - 1) {
+            const int c = detail::FirstLane(left);
+            const FloatN tc = FloatN::Broadcast(tNear[c]);
+            const int before = Bits(Greater(tNear, tc)) | (Bits(Equal(tNear, tc)) & ((1 << c) - 1));
+            children[detail::LaneCount(before & all)] = Pending{aNode.mIndex[c], aNode.mCount[c], tNear[c]};
+        }
+        ioStackSize += childCount - 1;
+        ioIndex = children[childCount - 1].mIndex;
+        ioCount = children[childCount - 1].mCount;
+        return true;
+    }
+
+    // IntersectTriangle on the kWidth triangles of a block at once, operation for operation
+    // (same order, same rounding), so each lane's answer is bit for bit the scalar one.
+    // Returns the mask of lanes hit in (aTMin, aTMax) with their distances in oT; lanes
+    // where an edge function is exactly 0 are left to the scalar test (oFallback).
+    SMALLVCM_BVH_INLINE static int IntersectTriangles(const Block& aBlock, const BlockRay& aRay, float aTMin, float aTMax,
+                                                      FloatN& oT, int& oFallback) {
+        const int kx = aRay.mShear.mKx, ky = aRay.mShear.mKy, kz = aRay.mShear.mKz;
+        const FloatN az = FloatN::Load(aBlock.mA[kz]) - aRay.mOriginZ;
+        const FloatN bz = FloatN::Load(aBlock.mB[kz]) - aRay.mOriginZ;
+        const FloatN cz = FloatN::Load(aBlock.mC[kz]) - aRay.mOriginZ;
+        const FloatN ax = (FloatN::Load(aBlock.mA[kx]) - aRay.mOriginX) - aRay.mShearX * az;
+        const FloatN ay = (FloatN::Load(aBlock.mA[ky]) - aRay.mOriginY) - aRay.mShearY * az;
+        const FloatN bx = (FloatN::Load(aBlock.mB[kx]) - aRay.mOriginX) - aRay.mShearX * bz;
+        const FloatN by = (FloatN::Load(aBlock.mB[ky]) - aRay.mOriginY) - aRay.mShearY * bz;
+        const FloatN cx = (FloatN::Load(aBlock.mC[kx]) - aRay.mOriginX) - aRay.mShearX * cz;
+        const FloatN cy = (FloatN::Load(aBlock.mC[ky]) - aRay.mOriginY) - aRay.mShearY * cz;
+        const FloatN u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
+        const FloatN zero = FloatN::Broadcast(0.f);
+        const MaskN onEdge = Equal(u, zero) | Equal(v, zero) | Equal(w, zero);
+        // The scalar test's "some edge function negative and some positive" is, where none
+        // is 0 (onEdge lanes go to the scalar test), "their sign bits differ": four
+        // instructions instead of ten. A NaN among them makes det NaN, which detUsable rejects.
+        const MaskN signsDiffer = SignsDiffer(u, v, w);
+        const FloatN det = u + v + w;
+        // det is finite and not 0 exactly where det - det == 0 and det != 0.
+        const MaskN detUsable = Equal(det - det, zero) & ~Equal(det, zero);
+        oT = aRay.mShearZ * (u * az + v * bz + w * cz) / det;
+        const MaskN inRange = Greater(oT, FloatN::Broadcast(aTMin)) & Less(oT, FloatN::Broadcast(aTMax));
+        oFallback = Bits(onEdge);
+        return Bits(~signsDiffer & detUsable & inRange & ~onEdge);
+    }
+
+    // The triangles the block test left to the scalar one, in lane order.
+    static void ScalarLanes(const Block& aBlock, int aLanes, const Ray& aRay, const BlockRay& aData, float aTMin,
+                            float aTMax, FloatN& ioT, int& ioHits) {
+        for (int lane = 0; lane < kWidth; lane++) {
+            if (!(aLanes & (1 << lane))) continue;
+            float t;
+                if (IntersectTriangle(aBlock.Vertex(aBlock.mA, lane), aBlock.Vertex(aBlock.mB, lane),
+                                  aBlock.Vertex(aBlock.mC, lane), aRay, aData.mShear, aTMin, aTMax, t)) {
+                ioT.SetLane(lane, t);
+                ioHits |= 1 << lane;
+            }
+        }
+    }
+
+    // The hits of a block's primitives in (aTMin, aTMax): the mask of lanes hit, their
+    // distances in oT. Spheres one at a time, inlined.
+    SMALLVCM_BVH_INLINE static int BlockHits(const Block& aBlock, const Ray& aRay, const BlockRay& aData, float aTMin,
+                                             float aTMax, FloatN& oT) {
+        int hits = 0;
+        if (aBlock.IsSpheres()) {
+            for (int lane = 0; lane < kWidth && !aBlock.IsCopy(lane); lane++) {
+                float t;
+                if (IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax, t)) {
+                    oT.SetLane(lane, t);
+                    hits |= 1 << lane;
+                }
+            }
+            return hits;
+        }
+        int fallback;
+        hits = IntersectTriangles(aBlock, aData, aTMin, aTMax, oT, fallback);
+        if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, aTMax, oT, hits);
+        return hits;
+    }
+
+    // The nearest of a block's hits below ioTMax updates ioTMax and ioPrimitive; of lanes
+    // hit at the same t the first wins, as if they were tested one after the other. Hits
+    // found below a larger bound give the same answer: those beyond ioTMax are dropped
+    // here, and those below it are found below either bound (a sphere reports its nearer
+    // root in range; where that is beyond ioTMax, so is the farther). The hit lanes only,
+    // in lane order (a loop over all lanes would be kWidth branches the predictor misses).
+    SMALLVCM_BVH_INLINE static void KeepNearest(const Block& aBlock, int aHits, const FloatN& aT, float& ioTMax,
+                                                int& ioPrimitive) {
+        while (aHits) {
+            const int lane = detail::FirstLane(aHits);
+            aHits &= aHits - 1;
+            if (aT[lane] < ioTMax) {
+                ioTMax = aT[lane];
+                ioPrimitive = int(aBlock.mId[lane] & ~kSphereBit);
+            }
+        }
+    }
+
+    // The nearest hit of a block below ioTMax.
+    SMALLVCM_BVH_INLINE static void IntersectBlock(const Block& aBlock, const Ray& aRay, const BlockRay& aData, float aTMin,
+                                                   float& ioTMax, int& ioPrimitive) {
+        FloatN t;
+        KeepNearest(aBlock, BlockHits(aBlock, aRay, aData, aTMin, ioTMax, t), t, ioTMax, ioPrimitive);
+    }
+
+    SMALLVCM_BVH_INLINE static bool OccludedByBlock(const Block& aBlock, const Ray& aRay, const BlockRay& aData, float aTMin,
+                                                    float aTMax) {
+        if (aBlock.IsSpheres()) {
+            for (int lane = 0; lane < kWidth && !aBlock.IsCopy(lane); lane++) {
+                float t;
+                if (IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax, t)) return true;
+            }
+            return false;
+        }
+        FloatN t;
+        int fallback;
+        int hits = IntersectTriangles(aBlock, aData, aTMin, aTMax, t, fallback);
+        if (hits) return true;
+        if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, aTMax, t, hits);
+        return hits != 0;
+    }
+
+    int DepthOf(uint32_t aIndex, uint32_t aCount) const {
+        if (aCount > 0) return 1;
+        const Node& n = mNodes[aIndex];
+        int deepest = 0;
+        for (int c = 0; c < kWidth; c++)
+            if (n.Min(0)[c] <= n.Max(0)[c]) deepest = std::max(deepest, DepthOf(n.mIndex[c], n.mCount[c]));
+        return 1 + deepest;
+    }
+
+    // Builds the binary subtree over ioOrder[aBegin, aEnd) into ioNodes and returns it
+    // as its parent sees it.
+    ChildRef BuildBinary(const std::vector<Aabb>& aBounds, const std::vector<Vec3>& aCentroids,
+                         std::vector<uint32_t>& ioOrder, uint32_t aBegin, uint32_t aEnd, int aDepth,
+                         std::vector<BinaryNode>& ioNodes) {
+        mBuildDepth = std::max(mBuildDepth, aDepth + 1);
+        ChildRef result;
+        Aabb centroidBox;
+        for (uint32_t i = aBegin; i < aEnd; i++) {
+            result.mBox.Extend(aBounds[ioOrder[i]]);
+            centroidBox.Extend(aCentroids[ioOrder[i]]);
+        }
+        const uint32_t count = aEnd - aBegin;
+        auto makeLeaf = [&] {
+            result.mIndex = aBegin;
+            result.mCount = count > kMaxLeafSize ? KeepDistinct(ioOrder, aBegin, aEnd) : count;
+            mLargestLeaf = std::max(mLargestLeaf, result.mCount);
+            return result;
+        };
+
+        const Vec3 extent = centroidBox.mMax - centroidBox.mMin;
+        const int axis = (extent.x >= extent.y && extent.x >= extent.z) ? 0 : (extent.y >= extent.z ? 1 : 2);
+        const uint32_t triangles = uint32_t(mBuildSoup->TriangleCount());
+        if (aDepth == 0 && BlocksFor(triangles) + BlocksFor(count - triangles) <= kFlatBlocks) return makeLeaf();  // a small scene
+        // An extent so small (a denormal: centroids 1e-43 apart) that kBinCount / extent
+        // overflows would bin by NaN (0 * inf): such primitives are one leaf, as equal ones are.
+        if (count == 1 || !(extent[axis] > 0.f) || !std::isfinite(kBinCount / extent[axis]) || aDepth >= kMaxDepth)
+            return makeLeaf();
+
+        // Binned SAH: cost of a split = A_left B_left + A_right B_right, B the blocks
+        // of each side (relative to the parent's area A: split cost = kTraversalCost +
+        // that / A, leaf cost = B). Candidates on all three axes, binned in one pass: the
+        // longest axis alone misses the better split of thin parts (columns, arches).
+        struct Bin { Aabb box; uint32_t count = 0; };
+        Bin bins[3][kBinCount];
+        float binScale[3];
+        for (int a = 0; a < 3; a++) {
+            binScale[a] = kBinCount / extent[a];
+            // A flat axis bins everything into bin 0, which offers no split.
+            if (!(extent[a] > 0.f) || !std::isfinite(binScale[a])) binScale[a] = 0.f;
+        }
+        auto binOf = [&](uint32_t aPrimitive, int aAxis) {
+            const int b = int((aCentroids[aPrimitive][aAxis] - centroidBox.mMin[aAxis]) * binScale[aAxis]);
+            return std::min(std::max(b, 0), kBinCount - 1);
+        };
+        for (uint32_t i = aBegin; i < aEnd; i++) {
+            const uint32_t primitive = ioOrder[i];
+            for (int a = 0; a < 3; a++) {
+                Bin& bin = bins[a][binOf(primitive, a)];
+                bin.box.Extend(aBounds[primitive]);
+                bin.count++;
+            }
+        }
+        float bestCost = std::numeric_limits<float>::infinity();
+        int bestSplit = -1, bestAxis = axis;
+        for (int a = 0; a < 3; a++) {
+            float rightCost[kBinCount];
+            Aabb accumulated;
+            uint32_t accumulatedCount = 0;
+            for (int b = kBinCount - 1; b > 0; b--) {
+                accumulated.Extend(bins[a][b].box);
+                accumulatedCount += bins[a][b].count;
+                rightCost[b] = accumulated.SurfaceArea() * float(BlocksFor(accumulatedCount));
+            }
+            accumulated = Aabb();
+            accumulatedCount = 0;
+            for (int b = 0; b < kBinCount - 1; b++) {
+                accumulated.Extend(bins[a][b].box);
+                accumulatedCount += bins[a][b].count;
+                const float cost = accumulated.SurfaceArea() * float(BlocksFor(accumulatedCount)) + rightCost[b + 1];
+                if (accumulatedCount > 0 && accumulatedCount < count && cost < bestCost) {
+                    bestCost = cost;
+                    bestSplit = b;
+                    bestAxis = a;
+                }
+            }
+        }
+        const float area = result.mBox.SurfaceArea();
+        const bool splitPays = bestSplit >= 0 && area > 0.f && kTraversalCost + bestCost / area < float(BlocksFor(count));
+        if (count <= kMaxLeafSize && !splitPays) return makeLeaf();
+
+        uint32_t middle;
+        if (bestSplit >= 0) {
+            uint32_t* first = ioOrder.data() + aBegin;
+            uint32_t* last = ioOrder.data() + aEnd;
+            middle = uint32_t(std::partition(first, last, [&](uint32_t p) { return binOf(p, bestAxis) <= bestSplit; }) - ioOrder.data());
+        } else {
+            middle = aBegin + count / 2;
+            std::nth_element(ioOrder.begin() + aBegin, ioOrder.begin() + middle, ioOrder.begin() + aEnd,
+                             [&](uint32_t a, uint32_t b) { return aCentroids[a][axis] < aCentroids[b][axis]; });
+        }
+        const ChildRef left = BuildBinary(aBounds, aCentroids, ioOrder, aBegin, middle, aDepth + 1, ioNodes);
+        const ChildRef right = BuildBinary(aBounds, aCentroids, ioOrder, middle, aEnd, aDepth + 1, ioNodes);
+        ioNodes.push_back(BinaryNode{{left, right}});
+        result.mIndex = uint32_t(ioNodes.size() - 1);
+        result.mCount = 0;
+        return result;
+    }
+
+    // A leaf that no split could bring down to kMaxLeafSize (its primitives share one
+    // centroid, or the depth cap was reached) keeps one of each group of identical
+    // primitives: a copy is never nearer than its original, and a mesh duplicated a
+    // million times over itself would otherwise cost every ray that enters the leaf a
+    // million tests. Sorts ioOrder[aBegin, aEnd) so the distinct ones come first and
+    // returns their count; the copies stay in the order, referenced by no leaf.
+    uint32_t KeepDistinct(std::vector<uint32_t>& ioOrder, uint32_t aBegin, uint32_t aEnd) const {
+        const PrimitiveSoup& soup = *mBuildSoup;
+        const auto key = [&](uint32_t aPrimitive) {
+            std::array<float, 10> k{};
+            const size_t p = aPrimitive;
+            if (int(p) < soup.TriangleCount()) {
+                const Vec3 v[3] = {soup.mTriangleP0[p], soup.mTriangleP1[p], soup.mTriangleP2[p]};
+                for (int i = 0; i < 9; i++) k[size_t(i) + 1] = v[i / 3][i % 3];
+            } else {
+                const size_t sphere = p - size_t(soup.TriangleCount());
+                k[0] = 1.f;
+                for (int i = 0; i < 3; i++) k[size_t(i) + 1] = soup.mSphereCenter[sphere][i];
+                k[4] = soup.mSphereRadius[sphere];
+            }
+            return k;
+        };
+        uint32_t* first = ioOrder.data() + aBegin;
+        uint32_t* last = ioOrder.data() + aEnd;
+        std::sort(first, last, [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
+        const uint32_t* distinctEnd = std::unique(first, last, [&](uint32_t a, uint32_t b) { return key(a) == key(b); });
+        return uint32_t(distinctEnd - first);
+    }
+
+    // Turns the binary subtree aSubtree into kWidth-wide nodes (depth-first, a node before
+    // its children) and its leaves into blocks, and returns it as its parent sees it.
+    ChildRef Collapse(const std::vector<BinaryNode>& aBinary, const std::vector<uint32_t>& aOrder, const ChildRef& aSubtree) {
+        if (aSubtree.mCount > 0) {
+            mLeafCount++;
+            return EmitLeaf(aOrder, aSubtree);
+        }
+        // Open the inner child of largest surface area until there are kWidth children.
+        ChildRef children[kWidth];
+        int childCount = 2;
+        children[0] = aBinary[aSubtree.mIndex].mChild[0];
+        children[1] = aBinary[aSubtree.mIndex].mChild[1];
+        while (childCount < kWidth) {
+            int largest = -1;
+            for (int c = 0; c < childCount; c++)
+                if (children[c].mCount == 0 && (largest < 0 || children[c].mBox.SurfaceArea() > children[largest].mBox.SurfaceArea()))
+                    largest = c;
+            if (largest < 0) break;  // only leaves left
+            const BinaryNode& opened = aBinary[children[largest].mIndex];
+            children[largest] = opened.mChild[0];
+            children[childCount++] = opened.mChild[1];
+        }
+        const uint32_t nodeIndex = uint32_t(mNodes.size());
+        mNodes.push_back(Node{});
+        for (int c = 0; c < kWidth; c++) {
+            const ChildRef child = c < childCount ? Collapse(aBinary, aOrder, children[c]) : ChildRef{};  // empty: inverted box
+            Node& node = mNodes[nodeIndex];  // Collapse may have reallocated mNodes
+            for (int k = 0; k < 3; k++) {
+                node.Min(k)[c] = child.mBox.mMin[k];
+                node.Max(k)[c] = child.mBox.mMax[k];
+            }
+            node.mIndex[c] = child.mIndex;
+            node.mCount[c] = child.mCount;
+        }
+        ChildRef result = aSubtree;
+        result.mIndex = nodeIndex;
+        return result;
+    }
+
+    // Copies a leaf's primitives, aOrder[mIndex, mIndex + mCount), into blocks: its
+    // triangles, then its spheres, each kind's last block filled up with its last
+    // primitive. Returns the leaf as its parent sees it (mCount blocks from mIndex).
+    ChildRef EmitLeaf(const std::vector<uint32_t>& aOrder, const ChildRef& aLeaf) {
+        const int triangleCount = mBuildSoup->TriangleCount();
+        ChildRef result = aLeaf;
+        result.mIndex = uint32_t(mBlocks.size());
+        for (const bool spheres : {false, true}) {
+            int lane = kWidth;
+            uint32_t last = 0;
+            for (uint32_t i = 0; i < aLeaf.mCount; i++) {
+                const uint32_t primitive = aOrder[aLeaf.mIndex + i];
+                if ((int(primitive) >= triangleCount) != spheres) continue;
+                if (lane == kWidth) {
+                    mBlocks.emplace_back();
+                    lane = 0;
+                }
+                WriteLane(mBlocks.back(), lane++, primitive);
+                last = primitive;
+            }
+            while (lane < kWidth) WriteLane(mBlocks.back(), lane++, last);
+        }
+        result.mCount = uint32_t(mBlocks.size()) - result.mIndex;
+        return result;
+    }
+
+    void WriteLane(Block& ioBlock, int aLane, uint32_t aPrimitive) const {
+        const PrimitiveSoup& soup = *mBuildSoup;
+        const size_t p = aPrimitive;
+        if (int(p) < soup.TriangleCount()) {
+            for (int k = 0; k < 3; k++) {
+                ioBlock.mA[k][aLane] = soup.mTriangleP0[p][k];
+                ioBlock.mB[k][aLane] = soup.mTriangleP1[p][k];
+                ioBlock.mC[k][aLane] = soup.mTriangleP2[p][k];
+            }
+            ioBlock.mId[aLane] = aPrimitive;
+        } else {
+            const size_t sphere = p - size_t(soup.TriangleCount());
+            for (int k = 0; k < 3; k++) ioBlock.mA[k][aLane] = soup.mSphereCenter[sphere][k];
+            ioBlock.mB[0][aLane] = soup.mSphereRadius[sphere];
+            ioBlock.mId[aLane] = aPrimitive | kSphereBit;
+        }
+    }
+
+    std::vector<Node, detail::HugePageAllocator<Node>> mNodes;    // inner nodes, depth-first (a node before its children)
+    std::vector<Block, detail::HugePageAllocator<Block>> mBlocks;  // the leaves' primitives, leaf after leaf
+    ChildRef mRoot;              // the root, a leaf when the scene is small enough
+    size_t mLeafCount = 0;
+    int mPrimitiveCount = 0;
+    int mBuildDepth = 0;
+    uint32_t mLargestLeaf = 0;
+    const PrimitiveSoup* mBuildSoup = nullptr;  // during Build only
+};
+
+inline void Bvh::Build(const PrimitiveSoup& aSoup) {
+    auto tree = std::make_shared<Tree>();
+    tree->Build(aSoup);
+    mTree = std::move(tree);
+}
+inline int Bvh::Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
+    return mTree ? mTree->Intersect(aRay, aTMin, ioTMax) : -1;
+}
+inline bool Bvh::Occluded(const Ray& aRay, float aTMin, float aTMax) const {
+    return mTree && mTree->Occluded(aRay, aTMin, aTMax);
+}
+inline size_t Bvh::NodeCount() const { return mTree ? mTree->NodeCount() : 0; }
+inline size_t Bvh::StorageBytes() const { return mTree ? mTree->StorageBytes() : 0; }
+inline size_t Bvh::NodeBytes() { return sizeof(Tree::Node); }
+inline int Bvh::PrimitiveCount() const { return mTree ? mTree->PrimitiveCount() : 0; }
+inline int Bvh::Depth() const { return mTree ? mTree->Depth() : 0; }
+inline int Bvh::BuildDepth() const { return mTree ? mTree->BuildDepth() : 0; }
+inline uint32_t Bvh::LargestLeaf() const { return mTree ? mTree->LargestLeaf() : 0; }
+
+// =====================================================================================
+// [SECTION] Appendix: range search
+// =====================================================================================
+// Provides: how RangeSearch meets the contract stated above its declaration in [SECTION]
+// Integrator: the VertexCM family (a reader who skips this appendix loses nothing the
+// renderer depends on), and HashGrid, the same search over bare point indices.
+// Relies on Vec3 and Sqr from [SECTION] Math.
+//
+// The structure is SmallVCM's hashed grid: a uniform grid of cells of size 2r, hashed
+// into a table of buckets. A query visits the cells overlapping the query's bounding box
+// -- at most 2 x 2 x 2 -- skipping buckets already visited (two cells can hash to one
+// bucket; visiting it twice would count its points twice). The grid keeps its own copy
+// of the positions in bucket order, each with the point's index (16 bytes), and beside
+// them, in the same order, the items: the distance tests of a query read a few
+// consecutive cache lines, and only the items of the points that pass are read.
+//
+// A query runs in three steps, each of which requests the memory the next one reads
+// before it is needed, so that the misses of a query's cells overlap: Prepare (the
+// buckets; requests their ranges), Locate (reads the ranges; requests the points),
+// Select (the distance tests; requests the items of those that pass). Then the visits.
+//
+// Most cells around a query are empty when the points are sparse (far fewer points than
+// cells near a surface). A grid whose last build's queries mostly found nothing marks,
+// at its next build, the cells that have points (a bit per hash value), so that a query
+// none of whose cells is marked ends at once; and it gives the table four buckets a
+// point, so that fewer occupied cells share a bucket. A dense grid does neither: there
+// the bits and the larger table would only be more memory to read.
+
+template <class Item>
+class RangeSearch<Item>::Grid {
+public:
+    template <class PositionOf, class ItemOf>
+    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf) {
+        // Sparse: more than two thirds of the last build's queries found no point.
+        mMarkOccupiedCells = 3 * mEmptyQueries > 2 * mQueries;
+        mQueries = mEmptyQueries = 0;
+        mRadius = aRadius;
+        mRadiusSqr = Sqr(aRadius);
+        mInvCellSize = 1.f / (2.f * aRadius);
+        // A power of two: the hash is masked, not divided.
+        const size_t wanted = mMarkOccupiedCells ? kSparseBucketsPerPoint * aCount : aCount;
+        size_t buckets = 1;
+        while (buckets < wanted) buckets *= 2;
+        mBucketMask = uint32_t(buckets - 1);
+        mBucketEnds.assign(buckets, 0);
+        ResizeForOverwrite(mPoints, aCount);
+        ResizeForOverwrite(mItems, aCount);
+        ResizeForOverwrite(mBucketOf, aCount);
+        const size_t occupiedBits = mMarkOccupiedCells ? std::max<size_t>(64, kOccupiedBitsPerBucket * buckets) : 0;
+        mOccupiedMask = uint32_t(occupiedBits - 1);
+        mOccupied.assign(occupiedBits / 64, 0);
+        for (size_t i = 0; i < aCount; i++) {
+            const uint32_t hash = HashOf(CellOf(aPositionOf(i)));
+            mBucketOf[i] = hash & mBucketMask;
+            if (mMarkOccupiedCells) mOccupied[(hash & mOccupiedMask) >> 6] |= uint64_t(1) << (hash & 63u);
+        }
+        // Counting sort. The table's counters and the points' slots are random places in a
+        // large array: each is requested kAhead points before it is written.
+        constexpr size_t kAhead = 16;
+        for (size_t i = 0; i < aCount; i++) {
+            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
+            mBucketEnds[mBucketOf[i]]++;
+        }
+        // In place: the counts become the buckets' beginnings, and filling the points in
+        // advances each to its bucket's end.
+        uint32_t sum = 0;
+        for (uint32_t& entry : mBucketEnds) { const uint32_t count = entry; entry = sum; sum += count; }
+        for (size_t i = 0; i < aCount; i++) {
+            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
+            if (i + kAhead / 2 < aCount) {  // where that point will go, unless its bucket gets a point before it
+                const uint32_t slot = mBucketEnds[mBucketOf[i + kAhead / 2]];
+                Prefetch(&mPoints[slot]);
+                Prefetch(&mItems[slot]);
+            }
+            const uint32_t slot = mBucketEnds[mBucketOf[i]]++;
+            mPoints[slot] = Point{aPositionOf(i), uint32_t(i)};
+            mItems[slot] = aItemOf(i);
+        }
+    }
+
+    template <class Visit>
+    void Process(const Vec3& aPoint, Visit& aVisit) const {
+        Query query;
+        Prepare(aPoint, query);
+        if (query.mBucketCount > 0) {
+            Locate(query);
+            Select(query);
+        }
+        mQueries++;
+        mEmptyQueries += query.mSelectedCount == 0;
+        if (query.mSelectedCount <= Query::kMaxSelected) {
+            for (int i = 0; i < query.mSelectedCount; i++) VisitPoint(query.mSelected[i], aVisit);
+            return;
+        }
+        for (int r = 0; r < query.mRangeCount; r++)  // too many passed for Select's list
+            for (uint32_t k = query.mBegins[r]; k < query.mEnds[r]; k++)
+                if (Passes(query, k)) VisitPoint(k, aVisit);
+    }
+
+private:
+    // A query and what its steps found.
+    struct Query {
+        static constexpr int kMaxSelected = 32;  // more points pass: Process tests them again
+        Vec3 mPoint{0.f};
+        int mBucketCount = 0;
+        uint32_t mBuckets[27];
+        int mRangeCount = 0;              // the buckets' ranges of points, those that touch
+        uint32_t mBegins[27], mEnds[27];  // joined, the empty left out (Locate)
+        int mSelectedCount = 0;           // the points that passed, in visiting order (Select)
+        uint32_t mSelected[kMaxSelected + 1];  // (the last entry takes the writes past the end)
+    };
+
+    // Finds the buckets of the cells around aPoint (2 x 2 x 2, as cells are 2r wide; 3 per
+    // axis when rounding puts a bound on a cell border) and requests their ranges.
+    void Prepare(const Vec3& aPoint, Query& aQuery) const {
+        aQuery.mPoint = aPoint;
+        aQuery.mBucketCount = 0;
+        aQuery.mRangeCount = 0;
+        aQuery.mSelectedCount = 0;
+        if (mPoints.empty()) return;
+        const glm::ivec3 low = CellOf(aPoint - Vec3(mRadius));
+        const glm::ivec3 high = CellOf(aPoint + Vec3(mRadius));
+        // The cells' hashes in the loops' order, z outermost (HashOf, its terms summed once
+        // per row); the usual 2 x 2 x 2 written down at once.
+        uint32_t hashes[27];
+        int cells = 0;
+        if (high - low == glm::ivec3(1)) {
+            const uint32_t base = uint32_t(low.x) + uint32_t(low.y) * kHashY + uint32_t(low.z) * kHashZ;
+            const uint32_t steps[8] = {0u, 1u, kHashY, kHashY + 1u, kHashZ, kHashZ + 1u, kHashZ + kHashY, kHashZ + kHashY + 1u};
+            for (int i = 0; i < 8; i++) hashes[i] = base + steps[i];
+            cells = 8;
+        } else {
+            for (int z = low.z; z <= high.z; z++) {
+                const uint32_t zHash = uint32_t(z) * kHashZ;
+                for (int y = low.y; y <= high.y; y++) {
+                    const uint32_t yzHash = zHash + uint32_t(y) * kHashY;
+                    for (int x = low.x; x <= high.x; x++) hashes[cells++] = uint32_t(x) + yzHash;
+                }
+            }
+        }
+        // No marked cell: nothing can pass.
+        bool anyOccupied = mOccupied.empty();
+        if (!anyOccupied)
+            for (int c = 0; c < cells; c++) anyOccupied |= IsOccupied(hashes[c]);
+        if (!anyOccupied) return;
+        uint32_t* const buckets = aQuery.mBuckets;
+        int count = 0;
+        uint64_t summary = 0;
+        for (int c = 0; c < cells; c++) {
+            const uint32_t bucket = hashes[c] & mBucketMask;
+            // Two cells may share a bucket: its points are visited once. A 64-bit summary
+            // of the buckets so far (one bit per bucket mod 64) rules that out cheaply, and
+            // only a match is checked in full.
+            const uint64_t summaryBit = uint64_t(1) << (bucket & 63u);
+            if ((summary & summaryBit) && std::find(buckets, buckets + count, bucket) != buckets + count) continue;
+            summary |= summaryBit;
+            buckets[count++] = bucket;
+            Prefetch(&mBucketEnds[bucket]);
+        }
+        aQuery.mBucketCount = count;
+    }
+
+    // Reads the ranges of the query's buckets and requests the lines of their points. Two
+    // cells side by side along x have neighbouring buckets, whose ranges touch: joined into
+    // one, they are the same points in the same order.
+    void Locate(Query& aQuery) const {
+        int ranges = 0;
+        for (int b = 0; b < aQuery.mBucketCount; b++) {
+            const uint32_t bucket = aQuery.mBuckets[b];
+            const uint32_t begin = bucket == 0 ? 0 : mBucketEnds[bucket - 1];
+            const uint32_t end = mBucketEnds[bucket];
+            if (begin == end) continue;
+            if (ranges > 0 && aQuery.mEnds[ranges - 1] == begin) aQuery.mEnds[ranges - 1] = end;
+            else {
+                aQuery.mBegins[ranges] = begin;
+                aQuery.mEnds[ranges] = end;
+                ranges++;
+            }
+            Prefetch(&mPoints[begin]);
+            Prefetch(&mPoints[end - 1]);
+            // The items of the range too, so that they arrive with the points.
+            const char* first = reinterpret_cast<const char*>(&mItems[begin]);
+            const char* last = reinterpret_cast<const char*>(&mItems[end]) - 1;
+            if (last - first < 8 * 64)
+                for (const char* line = first; line <= last + 63; line += 64) Prefetch(line);
+        }
+        aQuery.mRangeCount = ranges;
+    }
+
+    // The distance tests: the points within the radius (distance <= r), in visiting order,
+    // their items requested. More than kMaxSelected: mSelectedCount says how many, and
+    // Process tests them again. Which candidates pass is random, so the index is written
+    // down for every candidate and the count advanced by the test, without a branch.
+    void Select(Query& aQuery) const {
+        int count = 0;
+        for (int r = 0; r < aQuery.mRangeCount; r++)
+            for (uint32_t k = aQuery.mBegins[r]; k < aQuery.mEnds[r]; k++) {
+                aQuery.mSelected[std::min(count, Query::kMaxSelected)] = k;
+                count += int(Passes(aQuery, k));
+            }
+        aQuery.mSelectedCount = count;
+        if (count > Query::kMaxSelected) return;
+        for (int i = 0; i < count; i++) {
+            const Item* const item = &mItems[aQuery.mSelected[i]];
+            Prefetch(item);
+            Prefetch(reinterpret_cast<const char*>(item + 1) - 1);  // an item may straddle two lines
+        }
+    }
+
+    bool Passes(const Query& aQuery, uint32_t aSlot) const {
+        const Vec3 d = mPoints[aSlot].mPosition - aQuery.mPoint;
+        return glm::dot(d, d) <= mRadiusSqr;
+    }
+    template <class Visit>
+    void VisitPoint(uint32_t aSlot, Visit& aVisit) const {
+        if constexpr (std::is_invocable_v<Visit&, const Item&, uint32_t>) aVisit(mItems[aSlot], mPoints[aSlot].mIndex);
+        else aVisit(mItems[aSlot]);
+    }
+
+    // Sizes an array that Build overwrites whole. Growing, it drops its old contents instead
+    // of copying them and reserves a quarter more, as the point count differs by a few
+    // percent between builds (pages never written take no memory).
+    template <class T>
+    static void ResizeForOverwrite(std::vector<T>& aArray, size_t aCount) {
+        if (aArray.capacity() < aCount) {
+            std::vector<T>().swap(aArray);
+            aArray.reserve(aCount + aCount / 4);
+        }
+        aArray.resize(aCount);
+    }
+
+    glm::ivec3 CellOf(const Vec3& aPosition) const {
+        // floor() by truncation and a correction for negatives (std::floor is a library
+        // call without SSE4.1).
+        auto floorToInt = [](float aX) { const int i = int(aX); return i - int(aX < float(i)); };
+        const Vec3 scaled = aPosition * mInvCellSize;
+        return glm::ivec3(floorToInt(scaled.x), floorToInt(scaled.y), floorToInt(scaled.z));
+    }
+    // Neighbours along x get neighbouring buckets (x enters with factor 1), so the two
+    // x-cells of a query share cache lines; y and z enter with large odd factors, which
+    // keeps cells of one surface from colliding in a pattern.
+    static constexpr uint32_t kHashY = 73856093u, kHashZ = 19349663u;
+    static uint32_t HashOf(const glm::ivec3& aCell) {
+        return uint32_t(aCell.x) + uint32_t(aCell.y) * kHashY + uint32_t(aCell.z) * kHashZ;
+    }
+    // The occupied cells' bits: one per hash value modulo eight times the bucket count.
+    static constexpr size_t kOccupiedBitsPerBucket = 8;
+    static constexpr size_t kSparseBucketsPerPoint = 4;
+    bool IsOccupied(uint32_t aHash) const { return (mOccupied[(aHash & mOccupiedMask) >> 6] >> (aHash & 63u)) & 1u; }
+
+    float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
+    uint32_t mBucketMask = 0;
+    std::vector<uint32_t> mBucketEnds;
+    struct Point { Vec3 mPosition; uint32_t mIndex; };
+    std::vector<Point> mPoints;       // in bucket order
+    std::vector<Item> mItems;         // in the same order
+    std::vector<uint32_t> mBucketOf;  // build scratch, kept to avoid reallocating
+    std::vector<uint64_t> mOccupied;  // IsOccupied's bits (none unless mMarkOccupiedCells)
+    uint32_t mOccupiedMask = 0;
+    bool mMarkOccupiedCells = false;
+    mutable uint64_t mQueries = 0, mEmptyQueries = 0;  // since the last Build (one thread: see the contract)
+};
+
+template <class Item>
+template <class PositionOf, class ItemOf>
+void RangeSearch<Item>::Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf) {
+    if (!mGrid) mGrid = std::make_shared<Grid>();
+    mGrid->Build(aCount, aRadius, aPositionOf, aItemOf);
+}
+
+template <class Item>
+template <class Visit>
+void RangeSearch<Item>::Process(const Vec3& aPoint, Visit&& aVisit) const {
+    if (mGrid) mGrid->Process(aPoint, aVisit);
+}
+
+// The search over point indices: aVisit(index) for every point within the radius.
+class HashGrid : public RangeSearch<uint32_t> {
+public:
+    template <class PositionOf>
+    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf) {
+        RangeSearch<uint32_t>::Build(aCount, aRadius, aPositionOf, [](size_t i) { return uint32_t(i); });
+    }
+};
 
 // =====================================================================================
 // [SECTION] Render loop
@@ -4490,8 +5406,8 @@ inline std::unique_ptr<AbstractRenderer> CreateRenderer(const Scene& aScene, con
 inline int MaxThreads() { return 4 * int(std::max(1u, std::thread::hardware_concurrency())); }
 
 // A merging radius above a quarter of the scene's radius blurs light across whole walls
-// and makes every lookup visit a large share of all light vertices (at 10, renders run
-// over a hundred times slower); a photon search radius beyond the scene finds nothing more.
+// and makes every lookup visit a large share of all light vertices; a photon search
+// radius beyond the scene finds nothing more.
 constexpr float kMaxRadiusFactor = 0.25f;
 constexpr float kMaxPhotonRadiusFactor = 1.f;
 
@@ -4738,9 +5654,9 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions, c
     CheckRenderMemory(aScene.mCamera, aOptions, aIntegrator, threadCount);
     std::vector<std::unique_ptr<AbstractRenderer>> renderers = detail::CreateRenderers(aScene, aOptions, aIntegrator, threadCount);
 
-    // Each thread keeps its renderer's film and frees the rest (light vertices, grids: tens
-    // of MB at 512x512) as soon as its share is done: a thread that finishes first does it
-    // while the others still render, not one renderer after another at the end.
+    // Each thread keeps its renderer's film and frees the rest (light vertices, grids) as
+    // soon as its share is done: a thread that finishes first does it while the others
+    // still render, not one renderer after another at the end.
     std::vector<Film> films(static_cast<size_t>(threadCount));
     detail::IterationSchedule schedule(aOptions, threadCount, start);
     const auto work = [&schedule, &renderers, &films](int aThread) {
@@ -4917,1028 +5833,6 @@ Image ReadHdr(const std::string& aPath);
 Image ReadImage(const std::string& aPath);
 
 // =====================================================================================
-// [SECTION] Appendix: BVH
-// =====================================================================================
-// Provides: how Bvh meets the contract stated above its declaration in [SECTION]
-// Geometry (a reader who skips this appendix loses nothing the renderer depends on).
-// Relies on IntersectTriangle, IntersectSphere, Aabb and PrimitiveSoup from that section.
-// Invariant: the tree is immutable once built (Bvh holds it through a shared pointer to
-// const), which is what makes concurrent queries safe.
-//
-// kBvhLanes floats processed together: the width of the tree's nodes and leaf blocks.
-// With GCC or Clang on x86 they are a compiler vector type, each operator one
-// instruction: four lanes of SSE (SSE2: every x86-64) by default, eight lanes of AVX
-// when the compiler may use AVX2 (-mavx2, which the Makefile adds on a build machine that
-// has AVX2, or -march=native on such a machine),
-// where one instruction tests eight boxes or eight triangles: the 8-wide tree has half
-// the levels of the 4-wide one, so a ray visits fewer nodes and pushes fewer of them
-// (Embree's BVH8 for single rays). Elsewhere, or when SMALLVCM_BVH_SCALAR is defined,
-// plain loops over four floats. Each lane is the same IEEE single-precision operation
-// every way, so every way gives the same hits bit for bit (given the same contraction
-// of multiply-adds: none under the Makefile's flags and with -mavx2, which has no FMA;
-// -march=native brings FMA, add -ffp-contract=off to keep the multiplies separate);
-// only which of two primitives hit at exactly the same t is returned may depend on the
-// width, as the contract allows. Every translation unit must see the same width (the
-// Makefile compiles all with one CXXFLAGS): the tree's layout depends on it.
-#if defined(__GNUC__) && defined(__AVX2__) && !defined(SMALLVCM_BVH_SCALAR)
-#define SMALLVCM_BVH_AVX 1
-#elif defined(__GNUC__) && defined(__SSE2__) && !defined(SMALLVCM_BVH_SCALAR)
-#define SMALLVCM_BVH_SSE 1
-#endif
-
-// The traversal's inner steps (the slab test of a node, the choice of the next child, the
-// test of a leaf block) are forced inline: GCC left them out of line, and a call per node
-// visit kept the stack size and the next child in memory instead of registers (8 wide:
-// closest hit +0.05-0.08 of Embree's speed on the large meshes, make bench-embree); a
-// call per block cost some 35 instructions of argument passing and saved registers, a
-// fifth of a ray on SmallVCM's Cornell boxes.
-#if defined(__GNUC__)
-#define SMALLVCM_BVH_INLINE inline __attribute__((always_inline))
-#else
-#define SMALLVCM_BVH_INLINE inline
-#endif
-namespace detail {
-#if defined(SMALLVCM_BVH_AVX)
-inline constexpr int kBvhLanes = 8;
-#else
-inline constexpr int kBvhLanes = 4;
-#endif
-#if defined(SMALLVCM_BVH_SSE) || defined(SMALLVCM_BVH_AVX)
-typedef float FloatVector __attribute__((vector_size(4 * kBvhLanes)));
-typedef int32_t IntVector __attribute__((vector_size(4 * kBvhLanes)));
-struct FloatN {
-    FloatVector mV;
-    static FloatN Load(const float* aAligned) { return {*reinterpret_cast<const FloatVector*>(aAligned)}; }
-#if defined(SMALLVCM_BVH_AVX)
-    static FloatN Broadcast(float x) { return {FloatVector{x, x, x, x, x, x, x, x}}; }
-#else
-    static FloatN Broadcast(float x) { return {FloatVector{x, x, x, x}}; }
-#endif
-    float operator[](int aLane) const { return mV[aLane]; }
-    void SetLane(int aLane, float aValue) { mV[aLane] = aValue; }
-};
-inline FloatN operator+(FloatN a, FloatN b) { return {a.mV + b.mV}; }
-inline FloatN operator-(FloatN a, FloatN b) { return {a.mV - b.mV}; }
-inline FloatN operator*(FloatN a, FloatN b) { return {a.mV * b.mV}; }
-inline FloatN operator/(FloatN a, FloatN b) { return {a.mV / b.mV}; }
-// std::max(a, b) and std::min(a, b) lane by lane, NaN in b included (then a): the x86
-// instructions return their second operand when either is NaN, hence the swap.
-#if defined(SMALLVCM_BVH_AVX)
-inline FloatN Max(FloatN a, FloatN b) { return {__builtin_ia32_maxps256(b.mV, a.mV)}; }
-inline FloatN Min(FloatN a, FloatN b) { return {__builtin_ia32_minps256(b.mV, a.mV)}; }
-#else
-inline FloatN Max(FloatN a, FloatN b) { return {__builtin_ia32_maxps(b.mV, a.mV)}; }
-inline FloatN Min(FloatN a, FloatN b) { return {__builtin_ia32_minps(b.mV, a.mV)}; }
-#endif
-// Comparisons give a lane mask (all bits set where true), combined with & | ~ in vector
-// registers and turned into bits only once at the end (Bits: bit i for lane i), which
-// saves the test of a block of triangles a dozen mask extractions.
-struct MaskN { IntVector mV; };
-inline MaskN operator&(MaskN a, MaskN b) { return {a.mV & b.mV}; }
-inline MaskN operator|(MaskN a, MaskN b) { return {a.mV | b.mV}; }
-inline MaskN operator~(MaskN a) { return {~a.mV}; }
-#if defined(SMALLVCM_BVH_AVX)
-inline int Bits(MaskN a) { return __builtin_ia32_movmskps256(reinterpret_cast<FloatVector>(a.mV)); }
-#else
-inline int Bits(MaskN a) { return __builtin_ia32_movmskps(reinterpret_cast<FloatVector>(a.mV)); }
-#endif
-inline MaskN LessEqual(FloatN a, FloatN b) { return {a.mV <= b.mV}; }
-inline MaskN Less(FloatN a, FloatN b) { return {a.mV < b.mV}; }
-inline MaskN Greater(FloatN a, FloatN b) { return {a.mV > b.mV}; }
-inline MaskN Equal(FloatN a, FloatN b) { return {a.mV == b.mV}; }
-// Lanes where a, b and c do not all have the same sign bit: the sign bits compared by
-// exclusive or, then spread over the lane by an arithmetic shift (four instructions).
-inline MaskN SignsDiffer(FloatN a, FloatN b, FloatN c) {
-    const IntVector ia = reinterpret_cast<IntVector>(a.mV), ib = reinterpret_cast<IntVector>(b.mV);
-    const IntVector ic = reinterpret_cast<IntVector>(c.mV);
-    return {((ia ^ ib) | (ia ^ ic)) >> 31};
-}
-#else
-struct FloatN {
-    float mV[kBvhLanes];
-    static FloatN Load(const float* aAligned) {
-        FloatN result;
-        for (int lane = 0; lane < kBvhLanes; lane++) result.mV[lane] = aAligned[lane];
-        return result;
-    }
-    static FloatN Broadcast(float aValue) {
-        FloatN result;
-        for (int lane = 0; lane < kBvhLanes; lane++) result.mV[lane] = aValue;
-        return result;
-    }
-    float operator[](int aLane) const { return mV[aLane]; }
-    void SetLane(int aLane, float aValue) { mV[aLane] = aValue; }
-};
-template <typename Op>
-inline FloatN Lanewise(FloatN a, FloatN b, Op aOp) {
-    FloatN result;
-    for (int lane = 0; lane < kBvhLanes; lane++) result.mV[lane] = aOp(a.mV[lane], b.mV[lane]);
-    return result;
-}
-// A lane mask as bits, bit i for lane i.
-struct MaskN { int mBits; };
-inline MaskN operator&(MaskN a, MaskN b) { return {a.mBits & b.mBits}; }
-inline MaskN operator|(MaskN a, MaskN b) { return {a.mBits | b.mBits}; }
-inline MaskN operator~(MaskN a) { return {~a.mBits & ((1 << kBvhLanes) - 1)}; }
-inline int Bits(MaskN a) { return a.mBits; }
-template <typename Op>
-inline MaskN MaskOf(FloatN a, FloatN b, Op aOp) {
-    int bits = 0;
-    for (int lane = 0; lane < kBvhLanes; lane++) bits |= int(aOp(a.mV[lane], b.mV[lane])) << lane;
-    return {bits};
-}
-inline FloatN operator+(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return x + y; }); }
-inline FloatN operator-(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return x - y; }); }
-inline FloatN operator*(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return x * y; }); }
-inline FloatN operator/(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return x / y; }); }
-inline FloatN Max(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return std::max(x, y); }); }
-inline FloatN Min(FloatN a, FloatN b) { return Lanewise(a, b, [](float x, float y) { return std::min(x, y); }); }
-inline MaskN LessEqual(FloatN a, FloatN b) { return MaskOf(a, b, [](float x, float y) { return x <= y; }); }
-inline MaskN Less(FloatN a, FloatN b) { return MaskOf(a, b, [](float x, float y) { return x < y; }); }
-inline MaskN Greater(FloatN a, FloatN b) { return MaskOf(a, b, [](float x, float y) { return x > y; }); }
-inline MaskN Equal(FloatN a, FloatN b) { return MaskOf(a, b, [](float x, float y) { return x == y; }); }
-inline MaskN SignsDiffer(FloatN a, FloatN b, FloatN c) {
-    int bits = 0;
-    for (int lane = 0; lane < kBvhLanes; lane++) {
-        const bool sign = std::signbit(a.mV[lane]);
-        bits |= int(std::signbit(b.mV[lane]) != sign || std::signbit(c.mV[lane]) != sign) << lane;
-    }
-    return {bits};
-}
-#endif
-// The index of the lowest set bit of a non-zero mask (one instruction where the compiler
-// has it: a loop here is a branch the predictor misses at every node).
-inline int FirstLane(int aMask) {
-#if defined(__GNUC__)
-    return __builtin_ctz(unsigned(aMask));
-#else
-    int lane = 0;
-    while (!(aMask & (1 << lane))) lane++;
-    return lane;
-#endif
-}
-// The number of set bits of a mask.
-inline int LaneCount(int aMask) {
-#if defined(__GNUC__)
-    return __builtin_popcount(unsigned(aMask));
-#else
-    int count = 0;
-    for (; aMask; aMask &= aMask - 1) count++;
-    return count;
-#endif
-}
-// The index of the highest set bit of a non-zero mask.
-inline int LastLane(int aMask) {
-#if defined(__GNUC__)
-    return 31 - __builtin_clz(unsigned(aMask));
-#else
-    int lane = 31;
-    while (!(aMask & (1 << lane))) lane--;
-    return lane;
-#endif
-}
-// The tree's two arrays live on 2 MiB pages where Linux offers them (transparent huge
-// pages on request, madvise): a ray's node and block loads jump across the whole tree,
-// and with 4 KiB pages those of a tree of tens of MB miss the TLB as well as the cache
-// (10^6 triangles, 40-55 MB: closest hit +0.04-0.10 of Embree's speed, which asks for
-// such pages too). Arrays under 2 MiB, and other systems, get ordinary memory.
-inline constexpr size_t kHugePageBytes = size_t(2) << 20;
-template <typename T>
-struct HugePageAllocator {
-    using value_type = T;
-    HugePageAllocator() = default;
-    template <typename U>
-    HugePageAllocator(const HugePageAllocator<U>&) {}
-    static bool IsHuge(size_t aCount) { return aCount * sizeof(T) >= kHugePageBytes; }
-    T* allocate(size_t aCount) {
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-        if (IsHuge(aCount)) {
-            const size_t bytes = (aCount * sizeof(T) + kHugePageBytes - 1) / kHugePageBytes * kHugePageBytes;
-            void* memory = std::aligned_alloc(kHugePageBytes, bytes);
-            if (!memory) throw std::bad_alloc();
-            madvise(memory, bytes, MADV_HUGEPAGE);  // only advice: without it, ordinary pages
-            return static_cast<T*>(memory);
-        }
-#endif
-        return static_cast<T*>(::operator new(aCount * sizeof(T), std::align_val_t(alignof(T))));
-    }
-    void deallocate(T* aMemory, size_t aCount) {
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-        if (IsHuge(aCount)) return std::free(aMemory);
-#endif
-        ::operator delete(aMemory, std::align_val_t(alignof(T)));
-    }
-    template <typename U>
-    bool operator==(const HugePageAllocator<U>&) const { return true; }
-    template <typename U>
-    bool operator!=(const HugePageAllocator<U>&) const { return false; }
-};
-} // namespace detail
-
-// Build: top-down, splitting each node at the best of 16 binned surface-area-heuristic
-// candidates along each of the three axes (Wald 2007), and stopping where the SAH
-// says a leaf is cheaper (leaves of at most 8 primitives). The binary tree is then
-// collapsed into a kWidth-wide one (4, or 8 with AVX2; Dammertz et al. 2008): a node
-// keeps up to kWidth children, found by opening the largest child until there are kWidth.
-// Why each trick pays:
-// * kWidth children per node, their boxes stored axis by axis ("structure of arrays"):
-//   one visit tests all their boxes with one vector instruction per step, instead of
-//   walking two (or three) levels of a binary tree box by box.
-// * A leaf needs no node of its own: its parent's slot says where its primitives are.
-// * Leaf triangles are copied into blocks of kWidth, stored coordinate by coordinate, so
-//   the watertight test runs on a whole block at once, and a leaf is a few consecutive
-//   cache lines instead of indices into the scene.
-// * The SAH counts blocks, not primitives: a block costs what one triangle does, so leaves
-//   fill their blocks (54 bytes per triangle instead of 163 when it counted triangles).
-// * Ordered traversal: the nearest child is entered next and the others are pushed
-//   farthest first, so the nearest hit is found early, and a popped child whose box
-//   starts beyond it is dropped without another test. Shadow rays walk in the same
-//   order and stop at the first hit: the nearest boxes are the likeliest to occlude.
-// * A scene of a few blocks (kFlatBlocks) is a single leaf: no node to visit, and a ray
-//   needs no slab-test set-up.
-// Primitives that share one centroid cannot be split and stay one leaf (splitting them by
-// count would leave boxes that all overlap, which every ray enters anyway); identical
-// copies in such a leaf (a mesh duplicated over itself) are kept once.
-
-class Bvh::Tree {
-public:
-    static constexpr int kWidth = detail::kBvhLanes;
-    // An inner node (128 bytes, two cache lines; 256 bytes 8 wide): the boxes of its
-    // children as six planes of kWidth floats (Min(k) and Max(k): the children's minima and
-    // maxima along axis k, one flat array so that a ray can address its near and far
-    // planes by offset), then for each child either an inner node (mCount == 0, mIndex =
-    // node index) or a leaf (mCount blocks from mIndex). An unused slot has an inverted box
-    // (min > max), which the slab test never hits.
-    struct alignas(64) Node {
-        float mPlanes[6 * kWidth];  // min x, min y, min z, max x, max y, max z
-        float* Min(int aAxis) { return mPlanes + aAxis * kWidth; }
-        float* Max(int aAxis) { return mPlanes + (3 + aAxis) * kWidth; }
-        const float* Min(int aAxis) const { return mPlanes + aAxis * kWidth; }
-        const float* Max(int aAxis) const { return mPlanes + (3 + aAxis) * kWidth; }
-        uint32_t mIndex[kWidth];
-        uint32_t mCount[kWidth];
-    };
-    // kWidth primitives of a leaf (160 bytes 4 wide, 320 bytes 8 wide), coordinate by
-    // coordinate: triangles with vertices mA, mB, mC ([axis][lane]), or spheres with centre mA and
-    // radius mB[0]. mId is the scene's primitive index, with kSphereBit set in every lane
-    // of a sphere block. A leaf's last block is filled up by repeating its last primitive:
-    // a copy hits at the same t as its original, so it never changes an answer.
-    struct alignas(4 * kWidth) Block {
-        uint32_t mId[kWidth];  // first: it shares the first cache line with mA
-        float mA[3][kWidth];
-        float mB[3][kWidth];
-        float mC[3][kWidth];
-        bool IsSpheres() const { return (mId[0] & kSphereBit) != 0; }
-        // Whether aLane is a filling copy of the lane before it: spheres are tested one
-        // at a time, so a copy would cost a whole second test.
-        bool IsCopy(int aLane) const { return aLane > 0 && mId[aLane] == mId[aLane - 1]; }
-        Vec3 Vertex(const float aCoordinates[3][kWidth], int aLane) const {
-            return Vec3(aCoordinates[0][aLane], aCoordinates[1][aLane], aCoordinates[2][aLane]);
-        }
-    };
-
-    void Build(const PrimitiveSoup& aSoup) {
-        mNodes.clear();
-        mBlocks.clear();
-        mRoot = ChildRef{};
-        mLeafCount = 0;
-        mBuildDepth = 0;
-        mLargestLeaf = 0;
-        mBuildSoup = &aSoup;
-        const int count = aSoup.Count();
-        mPrimitiveCount = count;
-        std::vector<uint32_t> order(count);
-        std::vector<Aabb> bounds(count);
-        std::vector<Vec3> centroids(count);
-        for (int i = 0; i < count; i++) {
-            order[i] = uint32_t(i);
-            bounds[i] = aSoup.Bounds(i);
-            centroids[i] = bounds[i].Centroid();
-        }
-        if (count > 0) {
-            std::vector<BinaryNode> binary;
-            binary.reserve(size_t(count));
-            const ChildRef binaryRoot = BuildBinary(bounds, centroids, order, 0, uint32_t(count), 0, binary);
-            mNodes.reserve(binary.size() / 2 + 1);
-            mBlocks.reserve(size_t(count) / 2 + 1);
-            mRoot = Collapse(binary, order, binaryRoot);
-        }
-        mBuildSoup = nullptr;
-    }
-
-    // Nearest hit in (aTMin, ioTMax); returns the primitive index or -1. The root's box
-    // is not tested on its own: a ray that misses it misses the boxes of the root's
-    // children too, which the first visit finds, so a separate test was only a cost (about
-    // 40 instructions a ray, with branches on the direction's signs).
-    int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
-        if (mBlocks.empty()) return -1;
-        int hitPrimitive = -1;
-        if (mRoot.mCount > 0) {  // the whole scene is one leaf
-            // Every block is tested below the ray's own bound, and then the nearest hit is
-            // taken block after block (KeepNearest: the same answer). Tested block after
-            // block below the nearest hit so far, each block's range test waited for the
-            // previous block's division: VCM on scene 0 at 256x256 2-3 % less time so.
-            // (kFlatBlocks at a time: a leaf of primitives that share one centroid may have more.)
-            const BlockRay ray(aRay);
-            for (uint32_t first = 0; first < mRoot.mCount; first += kFlatBlocks) {
-                const Block* const blocks = &mBlocks[mRoot.mIndex + first];
-                const uint32_t count = std::min(kFlatBlocks, mRoot.mCount - first);
-                const float tMax = ioTMax;
-                FloatN t[kFlatBlocks];
-                int hits[kFlatBlocks];
-                for (uint32_t b = 0; b < count; b++) hits[b] = BlockHits(blocks[b], aRay, ray, aTMin, tMax, t[b]);
-                for (uint32_t b = 0; b < count; b++) KeepNearest(blocks[b], hits[b], t[b], ioTMax, hitPrimitive);
-            }
-            return hitPrimitive;
-        }
-        const RayData ray(aRay);
-        Pending stack[kStackSize];
-        int stackSize = 0;
-        uint32_t index = mRoot.mIndex, count = mRoot.mCount;
-        for (;;) {
-            if (count > 0) {  // a leaf: test its blocks
-                for (uint32_t b = 0; b < count; b++) IntersectBlock(mBlocks[index + b], aRay, ray, aTMin, ioTMax, hitPrimitive);
-            } else if (Descend(mNodes[index], ray, ioTMax, true, stack, stackSize, index, count)) {
-                continue;
-            }
-            // Pop the next child whose box starts before the nearest hit so far.
-            do {
-                if (stackSize == 0) return hitPrimitive;
-                --stackSize;
-            } while (stack[stackSize].mTNear > ioTMax * kFarWidening);
-            index = stack[stackSize].mIndex;
-            count = stack[stackSize].mCount;
-        }
-    }
-
-    // Any hit in (aTMin, aTMax): the shadow-ray query.
-    bool Occluded(const Ray& aRay, float aTMin, float aTMax) const {
-        if (mBlocks.empty()) return false;
-        if (mRoot.mCount > 0) {
-            // Last block first: a leaf's spheres come last, and in a small scene (a room
-            // with a few objects in it) the objects are what shadow rays hit.
-            const BlockRay ray(aRay);
-            for (uint32_t b = mRoot.mCount; b-- > 0;)
-                if (OccludedByBlock(mBlocks[mRoot.mIndex + b], aRay, ray, aTMin, aTMax)) return true;
-            return false;
-        }
-        const RayData ray(aRay);
-        Pending stack[kStackSize];
-        int stackSize = 0;
-        uint32_t index = mRoot.mIndex, count = mRoot.mCount;
-        for (;;) {
-            if (count > 0) {
-                for (uint32_t b = 0; b < count; b++)
-                    if (OccludedByBlock(mBlocks[index + b], aRay, ray, aTMin, aTMax)) return true;
-            } else if (Descend(mNodes[index], ray, aTMax, false, stack, stackSize, index, count)) {
-                continue;
-            }
-            if (stackSize == 0) return false;
-            --stackSize;
-            index = stack[stackSize].mIndex;
-            count = stack[stackSize].mCount;
-        }
-    }
-
-    // Nodes of the tree, leaves included (a leaf lives in its parent's slot).
-    size_t NodeCount() const { return mNodes.size() + mLeafCount; }
-    size_t StorageBytes() const { return mNodes.size() * sizeof(Node) + mBlocks.size() * sizeof(Block); }
-    int PrimitiveCount() const { return mPrimitiveCount; }
-    // Levels of the kWidth-wide tree a ray walks, and of the binary tree it was collapsed from.
-    int Depth() const { return mBlocks.empty() ? 0 : DepthOf(mRoot.mIndex, mRoot.mCount); }
-    int BuildDepth() const { return mBuildDepth; }
-    // Primitives in the largest leaf (at most kMaxLeafSize unless distinct primitives
-    // share one centroid).
-    uint32_t LargestLeaf() const { return mLargestLeaf; }
-
-private:
-    using FloatN = detail::FloatN;
-    using MaskN = detail::MaskN;
-
-    // A subtree as its parent sees it: its box, and an inner node or a leaf as in Node
-    // (while building, a leaf's mIndex and mCount are a range of the primitive order).
-    struct ChildRef {
-        Aabb mBox;
-        uint32_t mIndex = 0, mCount = 0;
-    };
-    struct BinaryNode { ChildRef mChild[2]; };
-    struct Pending { uint32_t mIndex, mCount; float mTNear; };
-
-    static constexpr uint32_t kSphereBit = 0x80000000u;
-    static constexpr uint32_t kMaxLeafSize = 8;
-    static constexpr uint32_t BlocksFor(uint32_t aPrimitives) { return (aPrimitives + kWidth - 1) / kWidth; }
-    static constexpr int kBinCount = 16;
-    // A scene of at most kFlatBlocks blocks (32 triangles 8 wide, 16 4 wide) is one leaf,
-    // every block tested by every ray: SmallVCM's Cornell boxes (3-4 blocks) traced 10 %
-    // faster so (pt, CPU time) than through a root node whose children nearly every ray
-    // enters anyway, the node's visit mostly branches the predictor misses; 6 blocks 4
-    // wide gained nothing.
-    static constexpr uint32_t kFlatBlocks = 4;
-    // SAH costs in units of one block test: kWidth primitives cost what one does, so a
-    // leaf costs its number of blocks, and the build fills blocks instead of padding them.
-    // kTraversalCost is a binary node's two boxes (measured with make bench-embree: 1.0,
-    // 1.5 and 2.0 within 5 % of each other, 0.5 about 10 % slower).
-    static constexpr float kTraversalCost = 1.5f;
-    // The binary build stops at this depth (splitting by the median when the SAH split
-    // fails keeps real scenes far below it). The kWidth-wide tree is no deeper, and a visit
-    // leaves at most kWidth - 1 children on the stack (sorting them there takes one more
-    // entry for a moment), so (kWidth - 1) * 64 + 1 entries hold every path.
-    static constexpr int kMaxDepth = 60;
-    static constexpr int kStackSize = (kWidth - 1) * 64 + 1;
-    // A hit exactly on a face must survive rounding in the slab test: the far distance
-    // is widened by 2 ulp.
-    static constexpr float kFarWidening = 1.00000024f;
-
-    // The near and far plane offsets of the 8 sign patterns of a direction (bit k set: the
-    // ray runs backwards along axis k), copied per ray from this table rather than
-    // computed axis by axis (which GCC packed into vectors lane by lane: 40 instructions).
-    struct PlaneOffsets { int mNear[3], mFar[3]; };
-    static constexpr PlaneOffsets PlaneOffsetsFor(int aSigns) {
-        PlaneOffsets offsets{};
-        for (int k = 0; k < 3; k++) {
-            const int backwards = (aSigns >> k) & 1;
-            offsets.mNear[k] = (k + 3 * backwards) * kWidth;
-            offsets.mFar[k] = (3 + k - 3 * backwards) * kWidth;
-        }
-        return offsets;
-    }
-    // What the tests need of a ray, computed once per ray. BlockRay, for the triangle test
-    // of a leaf block: the shear of WatertightRay and the origin, in the sheared axis
-    // order. RayData adds, for the slab test of a node, its origin, 1 / direction
-    // (infinite for a zero component) and, per axis, where in a node's mPlanes its near
-    // and far planes are (the max plane is the near one when the ray runs backwards along
-    // the axis; an offset instead of a branch per axis and node, which the predictor
-    // missed on random directions: +0.02-0.04 on the large meshes, 8 wide). A scene that
-    // is one leaf needs only BlockRay, three divisions fewer.
-    struct BlockRay {
-        WatertightRay mShear;
-        FloatN mShearX, mShearY, mShearZ;     // the shear's mSx, mSy, mSz
-        FloatN mOriginX, mOriginY, mOriginZ;  // the origin along kx, ky, kz
-#if defined(SMALLVCM_BVH_SSE) || defined(SMALLVCM_BVH_AVX)
-        // WatertightRay's values, computed another way with the same result bit for bit
-        // (for a one-leaf scene, whose first triangle test waits for the shear, and for a
-        // tree's rays, RayData below).
-        // There, the divisions wait for kz, which waits for a chain of compares, integer
-        // steps and loads by index (some 45 cycles before the first triangle can be
-        // tested). Here the three candidates, one per axis that kz may be, are divided
-        // at once, four lanes per instruction, while kz is found from the compares'
-        // bits in integer registers; kz then picks a lane (the same IEEE division as
-        // d[kx] / d[kz], so the same value).
-        SMALLVCM_BVH_INLINE explicit BlockRay(const Ray& aRay) {
-            typedef float Float4 __attribute__((vector_size(16)));
-            typedef int32_t Int4 __attribute__((vector_size(16)));
-            const Vec3& d = aRay.mDirection;
-            const Vec3& o = aRay.mOrigin;
-            // Lane i: axis i as kz; "next" is axis (i + 1) % 3, "after" (i + 2) % 3.
-            const Int4 toNext = {1, 2, 0, 3}, toAfter = {2, 0, 1, 3};
-            const Float4 dir = {d.x, d.y, d.z, 1.f};
-            const Float4 nextOver = __builtin_shuffle(dir, toNext) / dir, afterOver = __builtin_shuffle(dir, toAfter) / dir;
-            const Float4 inverse = Float4{1.f, 1.f, 1.f, 1.f} / dir;
-            const Float4 absDir = reinterpret_cast<Float4>(reinterpret_cast<Int4>(dir) & Int4{INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX});
-            const int overNext = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > __builtin_shuffle(absDir, toNext)));
-            const int overAfter = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > __builtin_shuffle(absDir, toAfter)));
-            const int xOverY = overNext & 1, yOverZ = (overNext >> 1) & 1, xOverZ = overAfter & 1;
-            const int kz = 2 - 2 * (xOverY & xOverZ) - ((1 - xOverY) & yOverZ);
-            // Lanes whose axis the ray runs backwards along: were it kz, kx and ky would
-            // swap, as in WatertightRay.
-            const Int4 backwards = dir < Float4{};
-            const int back = (__builtin_ia32_movmskps(reinterpret_cast<Float4>(backwards)) >> kz) & 1;
-            const Float4 shearX = backwards ? afterOver : nextOver, shearY = backwards ? nextOver : afterOver;
-            const Float4 originZ = {o.x, o.y, o.z, 0.f};
-            const Float4 originNext = __builtin_shuffle(originZ, toNext), originAfter = __builtin_shuffle(originZ, toAfter);
-            const Float4 originX = backwards ? originAfter : originNext, originY = backwards ? originNext : originAfter;
-            // (kz + 1 + back) % 3 and (kz + 2 - back) % 3: two bits each of 0x124, which
-            // holds 0, 1, 2, 0, 1.
-            mShear.mKz = kz;
-            mShear.mKx = (0x124 >> (2 * (kz + 1 + back))) & 3;
-            mShear.mKy = (0x124 >> (2 * (kz + 2 - back))) & 3;
-            mShear.mSx = shearX[kz];
-            mShear.mSy = shearY[kz];
-            mShear.mSz = inverse[kz];
-            mShearX = FloatN::Broadcast(mShear.mSx);
-            mShearY = FloatN::Broadcast(mShear.mSy);
-            mShearZ = FloatN::Broadcast(mShear.mSz);
-            mOriginX = FloatN::Broadcast(originX[kz]);
-            mOriginY = FloatN::Broadcast(originY[kz]);
-            mOriginZ = FloatN::Broadcast(originZ[kz]);
-        }
-#else
-        explicit BlockRay(const Ray& aRay) : BlockRay(aRay, WatertightRay(aRay.mDirection)) {}
-#endif
-        // From WatertightRay's own constructor: the portable build's way.
-        BlockRay(const Ray& aRay, const WatertightRay& aShear) : mShear(aShear) {
-            const float o[3] = {aRay.mOrigin.x, aRay.mOrigin.y, aRay.mOrigin.z};
-            mShearX = FloatN::Broadcast(mShear.mSx);
-            mShearY = FloatN::Broadcast(mShear.mSy);
-            mShearZ = FloatN::Broadcast(mShear.mSz);
-            mOriginX = FloatN::Broadcast(o[mShear.mKx]);
-            mOriginY = FloatN::Broadcast(o[mShear.mKy]);
-            mOriginZ = FloatN::Broadcast(o[mShear.mKz]);
-        }
-    };
-    struct RayData : BlockRay {
-        FloatN mOrigin[3], mInvDir[3];
-        PlaneOffsets mPlanes;  // into Node::mPlanes
-        static const PlaneOffsets& PlaneOffsetsOf(int aSigns) {
-            static constexpr PlaneOffsets kTable[8] = {PlaneOffsetsFor(0), PlaneOffsetsFor(1), PlaneOffsetsFor(2),
-                                                       PlaneOffsetsFor(3), PlaneOffsetsFor(4), PlaneOffsetsFor(5),
-                                                       PlaneOffsetsFor(6), PlaneOffsetsFor(7)};
-            return kTable[aSigns];
-        }
-#if defined(SMALLVCM_BVH_SSE) || defined(SMALLVCM_BVH_AVX)
-        // The shear the vector way (above) and the three 1 / d as one 4-lane division
-        // (the same IEEE quotients, hence the same values and the same hits): four
-        // vector divisions side by side instead of six scalar ones, three of them queued
-        // behind the compares that find kz. More instructions (about 50 a ray), less
-        // time: closest hit +0.02-0.03 of Embree's speed on sphere-1e4 and sphere-1e5.
-        explicit RayData(const Ray& aRay) : BlockRay(aRay) {
-            typedef float Float4 __attribute__((vector_size(16)));
-            const Vec3& d = aRay.mDirection;
-            const Float4 inverse = Float4{1.f, 1.f, 1.f, 1.f} / Float4{d.x, d.y, d.z, 1.f};
-            for (int k = 0; k < 3; k++) {
-                mOrigin[k] = FloatN::Broadcast(aRay.mOrigin[k]);
-                mInvDir[k] = FloatN::Broadcast(inverse[k]);
-            }
-            mPlanes = PlaneOffsetsOf(__builtin_ia32_movmskps(inverse) & 7);
-        }
-#else
-        explicit RayData(const Ray& aRay) : BlockRay(aRay, WatertightRay(aRay.mDirection)) {
-            int signs = 0;
-            for (int k = 0; k < 3; k++) {
-                mOrigin[k] = FloatN::Broadcast(aRay.mOrigin[k]);
-                const float invDir = 1.f / aRay.mDirection[k];
-                mInvDir[k] = FloatN::Broadcast(invDir);
-                signs |= int(std::signbit(invDir)) << k;
-            }
-            mPlanes = PlaneOffsetsOf(signs);
-        }
-#endif
-    };
-
-    // Slab test of a node's kWidth child boxes against [0, aTMax]: where the ray enters
-    // each box (oTNear) and the mask of the boxes it hits (entry before the widened exit).
-    // The near and far planes are chosen by the ray's direction, so an inverted (empty)
-    // box always misses. A ray with a zero direction component that lies in the plane
-    // of a face gets (plane - origin) * inf = 0 * inf = NaN there; Max(a, NaN) and
-    // Min(a, NaN) return a, so that axis does not narrow the interval: the ray is inside.
-    SMALLVCM_BVH_INLINE static void SlabAxis(const Node& aNode, const RayData& aRay, int k, FloatN& ioTNear, FloatN& ioTFar) {
-        const float* nearPlane = aNode.mPlanes + aRay.mPlanes.mNear[k];
-        const float* farPlane = aNode.mPlanes + aRay.mPlanes.mFar[k];
-        ioTNear = Max(ioTNear, (FloatN::Load(nearPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
-        ioTFar = Min(ioTFar, (FloatN::Load(farPlane) - aRay.mOrigin[k]) * aRay.mInvDir[k]);
-    }
-    SMALLVCM_BVH_INLINE static int SlabTestChildren(const Node& aNode, const RayData& aRay, float aTMax, FloatN& oTNear) {
-        FloatN tNear = FloatN::Broadcast(0.f), tFar = FloatN::Broadcast(aTMax);
-        // The three axes written out (GCC kept the loop: a third of a visit's instructions).
-        SlabAxis(aNode, aRay, 0, tNear, tFar);
-        SlabAxis(aNode, aRay, 1, tNear, tFar);
-        SlabAxis(aNode, aRay, 2, tNear, tFar);
-        oTNear = tNear;
-        return Bits(LessEqual(tNear, tFar * FloatN::Broadcast(kFarWidening)));
-    }
-
-    // Visits an inner node: continues (true) into its nearest hit child, given back in
-    // ioIndex / ioCount, after pushing the other hit children (farthest first when
-    // aSortAll); false when the ray misses them all.
-    SMALLVCM_BVH_INLINE static bool Descend(const Node& aNode, const RayData& aRay, float aTMax, bool aSortAll, Pending* ioStack,
-                        int& ioStackSize, uint32_t& ioIndex, uint32_t& ioCount) {
-        // The children's references are the node's last cache line (8 wide), which the
-        // slab test does not read: loaded only once it has chosen a child, they were a
-        // second wait for memory per visit, and requested now they arrive with the
-        // planes (sphere-1e6 closest hit 0.75-0.82 -> 0.86-0.91 of Embree).
-#if defined(__GNUC__)
-        __builtin_prefetch(aNode.mIndex);  // the builtin itself: through Prefetch() GCC 12 emitted nothing here
-#endif
-        FloatN tNear;
-        int hits = SlabTestChildren(aNode, aRay, aTMax, tNear);
-        if (hits == 0) return false;
-        // The hit children, nearest entered, the others pushed farthest first (of equal
-        // tNear, the later lane is entered first). One or two hit children, the usual
-        // case, take no branch on which of the two it is: with one, first and second are
-        // the same lane, which is entered, and the entry written for the farther one is
-        // not counted on the stack. (A branch between one and two hit children was the
-        // traversal's most mispredicted, wrong at 42 % of visits on sphere-1e5.) Three
-        // or more go to a sorting loop, whose exit the predictor would miss on the others.
-        const int first = detail::FirstLane(hits);
-        const int rest = hits & (hits - 1);
-        if ((rest & (rest - 1)) == 0) {
-            const int second = detail::LastLane(hits);
-            const bool firstNearer = tNear[first] < tNear[second];
-            const int nearer = firstNearer ? first : second, farther = firstNearer ? second : first;
-            ioStack[ioStackSize] = Pending{aNode.mIndex[farther], aNode.mCount[farther], tNear[farther]};
-            ioStackSize += rest != 0;
-            ioIndex = aNode.mIndex[nearer];
-            ioCount = aNode.mCount[nearer];
-            return true;
-        }
-        const int second = detail::FirstLane(rest);
-        hits = rest & (rest - 1);
-        Pending* children = ioStack + ioStackSize;
-        int childCount = 0;
-        if (!aSortAll) {
-            // Three or more for a shadow ray: only the nearest matters (entered first, it
-            // is the likeliest to occlude); the others go on the stack in lane order. Saves
-            // the sort's mispredicted branches: any-hit on the soup of triangles 0.68 ->
-            // 0.78 of Embree, 8 wide.
-            children[0] = Pending{aNode.mIndex[first], aNode.mCount[first], tNear[first]};
-            children[1] = Pending{aNode.mIndex[second], aNode.mCount[second], tNear[second]};
-            int nearest = tNear[second] < tNear[first] ? 1 : 0;
-            childCount = 2;
-            while (hits) {
-                const int c = detail::FirstLane(hits);
-                hits &= hits - 1;
-                children[childCount] = Pending{aNode.mIndex[c], aNode.mCount[c], tNear[c]};
-                nearest = tNear[c] < children[nearest].mTNear ? childCount : nearest;
-                childCount++;
-            }
-            ioIndex = children[nearest].mIndex;
-            ioCount = children[nearest].mCount;
-            children[nearest] = children[childCount - 1];
-            ioStackSize += childCount - 1;
-            return true;
-        }
-        // Three or more: each goes straight to its place on the stack, by decreasing tNear
-        // (of equal tNear, the earlier lane lower: the later is entered first), which is
-        // the number of hit children farther than it, or as far in an earlier lane, counted
-        // with one vector compare; the nearest, then on top, is taken off again. (An
-        // insertion sort had a data-dependent exit per child, which the predictor missed.)
-        const int all = (1 << first) | rest;
-        childCount = detail::LaneCount(all);
-        for (int left = all; left; left &= left - 1) {
-            const int c = detail::FirstLane(left);
-            const FloatN tc = FloatN::Broadcast(tNear[c]);
-            const int before = Bits(Greater(tNear, tc)) | (Bits(Equal(tNear, tc)) & ((1 << c) - 1));
-            children[detail::LaneCount(before & all)] = Pending{aNode.mIndex[c], aNode.mCount[c], tNear[c]};
-        }
-        ioStackSize += childCount - 1;
-        ioIndex = children[childCount - 1].mIndex;
-        ioCount = children[childCount - 1].mCount;
-        return true;
-    }
-
-    // IntersectTriangle on the kWidth triangles of a block at once, operation for operation
-    // (same order, same rounding), so each lane's answer is bit for bit the scalar one.
-    // Returns the mask of lanes hit in (aTMin, aTMax) with their distances in oT; lanes
-    // where an edge function is exactly 0 are left to the scalar test (oFallback).
-    SMALLVCM_BVH_INLINE static int IntersectTriangles(const Block& aBlock, const BlockRay& aRay, float aTMin, float aTMax,
-                                                      FloatN& oT, int& oFallback) {
-        const int kx = aRay.mShear.mKx, ky = aRay.mShear.mKy, kz = aRay.mShear.mKz;
-        const FloatN az = FloatN::Load(aBlock.mA[kz]) - aRay.mOriginZ;
-        const FloatN bz = FloatN::Load(aBlock.mB[kz]) - aRay.mOriginZ;
-        const FloatN cz = FloatN::Load(aBlock.mC[kz]) - aRay.mOriginZ;
-        const FloatN ax = (FloatN::Load(aBlock.mA[kx]) - aRay.mOriginX) - aRay.mShearX * az;
-        const FloatN ay = (FloatN::Load(aBlock.mA[ky]) - aRay.mOriginY) - aRay.mShearY * az;
-        const FloatN bx = (FloatN::Load(aBlock.mB[kx]) - aRay.mOriginX) - aRay.mShearX * bz;
-        const FloatN by = (FloatN::Load(aBlock.mB[ky]) - aRay.mOriginY) - aRay.mShearY * bz;
-        const FloatN cx = (FloatN::Load(aBlock.mC[kx]) - aRay.mOriginX) - aRay.mShearX * cz;
-        const FloatN cy = (FloatN::Load(aBlock.mC[ky]) - aRay.mOriginY) - aRay.mShearY * cz;
-        const FloatN u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
-        const FloatN zero = FloatN::Broadcast(0.f);
-        const MaskN onEdge = Equal(u, zero) | Equal(v, zero) | Equal(w, zero);
-        // The scalar test's "some edge function negative and some positive" is, where none
-        // is 0 (onEdge lanes go to the scalar test), "their sign bits differ": four
-        // instructions instead of ten. A NaN among them makes det NaN, which detUsable rejects.
-        const MaskN signsDiffer = SignsDiffer(u, v, w);
-        const FloatN det = u + v + w;
-        // det is finite and not 0 exactly where det - det == 0 and det != 0.
-        const MaskN detUsable = Equal(det - det, zero) & ~Equal(det, zero);
-        oT = aRay.mShearZ * (u * az + v * bz + w * cz) / det;
-        const MaskN inRange = Greater(oT, FloatN::Broadcast(aTMin)) & Less(oT, FloatN::Broadcast(aTMax));
-        oFallback = Bits(onEdge);
-        return Bits(~signsDiffer & detUsable & inRange & ~onEdge);
-    }
-
-    // The triangles the block test left to the scalar one, in lane order.
-    static void ScalarLanes(const Block& aBlock, int aLanes, const Ray& aRay, const BlockRay& aData, float aTMin,
-                            float aTMax, FloatN& ioT, int& ioHits) {
-        for (int lane = 0; lane < kWidth; lane++) {
-            if (!(aLanes & (1 << lane))) continue;
-            float t;
-                if (IntersectTriangle(aBlock.Vertex(aBlock.mA, lane), aBlock.Vertex(aBlock.mB, lane),
-                                  aBlock.Vertex(aBlock.mC, lane), aRay, aData.mShear, aTMin, aTMax, t)) {
-                ioT.SetLane(lane, t);
-                ioHits |= 1 << lane;
-            }
-        }
-    }
-
-    // The hits of a block's primitives in (aTMin, aTMax): the mask of lanes hit, their
-    // distances in oT. Spheres one at a time, inlined (a generic lane loop around them cost
-    // the Cornell scenes, two spheres, 3 %).
-    SMALLVCM_BVH_INLINE static int BlockHits(const Block& aBlock, const Ray& aRay, const BlockRay& aData, float aTMin,
-                                             float aTMax, FloatN& oT) {
-        int hits = 0;
-        if (aBlock.IsSpheres()) {
-            for (int lane = 0; lane < kWidth && !aBlock.IsCopy(lane); lane++) {
-                float t;
-                if (IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax, t)) {
-                    oT.SetLane(lane, t);
-                    hits |= 1 << lane;
-                }
-            }
-            return hits;
-        }
-        int fallback;
-        hits = IntersectTriangles(aBlock, aData, aTMin, aTMax, oT, fallback);
-        if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, aTMax, oT, hits);
-        return hits;
-    }
-
-    // The nearest of a block's hits below ioTMax updates ioTMax and ioPrimitive; of lanes
-    // hit at the same t the first wins, as if they were tested one after the other. Hits
-    // found below a larger bound give the same answer: those beyond ioTMax are dropped
-    // here, and those below it are found below either bound (a sphere reports its nearer
-    // root in range; where that is beyond ioTMax, so is the farther). The hit lanes only,
-    // in lane order (a loop over all lanes would be kWidth branches the predictor misses).
-    SMALLVCM_BVH_INLINE static void KeepNearest(const Block& aBlock, int aHits, const FloatN& aT, float& ioTMax,
-                                                int& ioPrimitive) {
-        while (aHits) {
-            const int lane = detail::FirstLane(aHits);
-            aHits &= aHits - 1;
-            if (aT[lane] < ioTMax) {
-                ioTMax = aT[lane];
-                ioPrimitive = int(aBlock.mId[lane] & ~kSphereBit);
-            }
-        }
-    }
-
-    // The nearest hit of a block below ioTMax.
-    SMALLVCM_BVH_INLINE static void IntersectBlock(const Block& aBlock, const Ray& aRay, const BlockRay& aData, float aTMin,
-                                                   float& ioTMax, int& ioPrimitive) {
-        FloatN t;
-        KeepNearest(aBlock, BlockHits(aBlock, aRay, aData, aTMin, ioTMax, t), t, ioTMax, ioPrimitive);
-    }
-
-    SMALLVCM_BVH_INLINE static bool OccludedByBlock(const Block& aBlock, const Ray& aRay, const BlockRay& aData, float aTMin,
-                                                    float aTMax) {
-        if (aBlock.IsSpheres()) {
-            for (int lane = 0; lane < kWidth && !aBlock.IsCopy(lane); lane++) {
-                float t;
-                if (IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax, t)) return true;
-            }
-            return false;
-        }
-        FloatN t;
-        int fallback;
-        int hits = IntersectTriangles(aBlock, aData, aTMin, aTMax, t, fallback);
-        if (hits) return true;
-        if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, aTMax, t, hits);
-        return hits != 0;
-    }
-
-    int DepthOf(uint32_t aIndex, uint32_t aCount) const {
-        if (aCount > 0) return 1;
-        const Node& n = mNodes[aIndex];
-        int deepest = 0;
-        for (int c = 0; c < kWidth; c++)
-            if (n.Min(0)[c] <= n.Max(0)[c]) deepest = std::max(deepest, DepthOf(n.mIndex[c], n.mCount[c]));
-        return 1 + deepest;
-    }
-
-    // Builds the binary subtree over ioOrder[aBegin, aEnd) into ioNodes and returns it
-    // as its parent sees it.
-    ChildRef BuildBinary(const std::vector<Aabb>& aBounds, const std::vector<Vec3>& aCentroids,
-                         std::vector<uint32_t>& ioOrder, uint32_t aBegin, uint32_t aEnd, int aDepth,
-                         std::vector<BinaryNode>& ioNodes) {
-        mBuildDepth = std::max(mBuildDepth, aDepth + 1);
-        ChildRef result;
-        Aabb centroidBox;
-        for (uint32_t i = aBegin; i < aEnd; i++) {
-            result.mBox.Extend(aBounds[ioOrder[i]]);
-            centroidBox.Extend(aCentroids[ioOrder[i]]);
-        }
-        const uint32_t count = aEnd - aBegin;
-        auto makeLeaf = [&] {
-            result.mIndex = aBegin;
-            result.mCount = count > kMaxLeafSize ? KeepDistinct(ioOrder, aBegin, aEnd) : count;
-            mLargestLeaf = std::max(mLargestLeaf, result.mCount);
-            return result;
-        };
-
-        const Vec3 extent = centroidBox.mMax - centroidBox.mMin;
-        const int axis = (extent.x >= extent.y && extent.x >= extent.z) ? 0 : (extent.y >= extent.z ? 1 : 2);
-        const uint32_t triangles = uint32_t(mBuildSoup->TriangleCount());
-        if (aDepth == 0 && BlocksFor(triangles) + BlocksFor(count - triangles) <= kFlatBlocks) return makeLeaf();  // a small scene
-        // An extent so small (a denormal: centroids 1e-43 apart) that kBinCount / extent
-        // overflows would bin by NaN (0 * inf): such primitives are one leaf, as equal ones are.
-        if (count == 1 || !(extent[axis] > 0.f) || !std::isfinite(kBinCount / extent[axis]) || aDepth >= kMaxDepth)
-            return makeLeaf();
-
-        // Binned SAH: cost of a split = A_left B_left + A_right B_right, B the blocks
-        // of each side (relative to the parent's area A: split cost = kTraversalCost +
-        // that / A, leaf cost = B). Candidates on all three axes, binned in one pass: the
-        // longest axis alone missed the better split of thin parts (columns, arches) often
-        // enough that the Sponza-like hall traced 0.76 of Embree's closest-hit speed
-        // instead of 0.87 (8 wide), and the trees took 5-10 % less memory; building costs
-        // about 1.6 times as long.
-        struct Bin { Aabb box; uint32_t count = 0; };
-        Bin bins[3][kBinCount];
-        float binScale[3];
-        for (int a = 0; a < 3; a++) {
-            binScale[a] = kBinCount / extent[a];
-            // A flat axis bins everything into bin 0, which offers no split.
-            if (!(extent[a] > 0.f) || !std::isfinite(binScale[a])) binScale[a] = 0.f;
-        }
-        auto binOf = [&](uint32_t aPrimitive, int aAxis) {
-            const int b = int((aCentroids[aPrimitive][aAxis] - centroidBox.mMin[aAxis]) * binScale[aAxis]);
-            return std::min(std::max(b, 0), kBinCount - 1);
-        };
-        for (uint32_t i = aBegin; i < aEnd; i++) {
-            const uint32_t primitive = ioOrder[i];
-            for (int a = 0; a < 3; a++) {
-                Bin& bin = bins[a][binOf(primitive, a)];
-                bin.box.Extend(aBounds[primitive]);
-                bin.count++;
-            }
-        }
-        float bestCost = std::numeric_limits<float>::infinity();
-        int bestSplit = -1, bestAxis = axis;
-        for (int a = 0; a < 3; a++) {
-            float rightCost[kBinCount];
-            Aabb accumulated;
-            uint32_t accumulatedCount = 0;
-            for (int b = kBinCount - 1; b > 0; b--) {
-                accumulated.Extend(bins[a][b].box);
-                accumulatedCount += bins[a][b].count;
-                rightCost[b] = accumulated.SurfaceArea() * float(BlocksFor(accumulatedCount));
-            }
-            accumulated = Aabb();
-            accumulatedCount = 0;
-            for (int b = 0; b < kBinCount - 1; b++) {
-                accumulated.Extend(bins[a][b].box);
-                accumulatedCount += bins[a][b].count;
-                const float cost = accumulated.SurfaceArea() * float(BlocksFor(accumulatedCount)) + rightCost[b + 1];
-                if (accumulatedCount > 0 && accumulatedCount < count && cost < bestCost) {
-                    bestCost = cost;
-                    bestSplit = b;
-                    bestAxis = a;
-                }
-            }
-        }
-        const float area = result.mBox.SurfaceArea();
-        const bool splitPays = bestSplit >= 0 && area > 0.f && kTraversalCost + bestCost / area < float(BlocksFor(count));
-        if (count <= kMaxLeafSize && !splitPays) return makeLeaf();
-
-        uint32_t middle;
-        if (bestSplit >= 0) {
-            uint32_t* first = ioOrder.data() + aBegin;
-            uint32_t* last = ioOrder.data() + aEnd;
-            middle = uint32_t(std::partition(first, last, [&](uint32_t p) { return binOf(p, bestAxis) <= bestSplit; }) - ioOrder.data());
-        } else {
-            middle = aBegin + count / 2;
-            std::nth_element(ioOrder.begin() + aBegin, ioOrder.begin() + middle, ioOrder.begin() + aEnd,
-                             [&](uint32_t a, uint32_t b) { return aCentroids[a][axis] < aCentroids[b][axis]; });
-        }
-        const ChildRef left = BuildBinary(aBounds, aCentroids, ioOrder, aBegin, middle, aDepth + 1, ioNodes);
-        const ChildRef right = BuildBinary(aBounds, aCentroids, ioOrder, middle, aEnd, aDepth + 1, ioNodes);
-        ioNodes.push_back(BinaryNode{{left, right}});
-        result.mIndex = uint32_t(ioNodes.size() - 1);
-        result.mCount = 0;
-        return result;
-    }
-
-    // A leaf that no split could bring down to kMaxLeafSize (its primitives share one
-    // centroid, or the depth cap was reached) keeps one of each group of identical
-    // primitives: a copy is never nearer than its original, and a mesh duplicated a
-    // million times over itself would otherwise cost every ray that enters the leaf a
-    // million tests. Sorts ioOrder[aBegin, aEnd) so the distinct ones come first and
-    // returns their count; the copies stay in the order, referenced by no leaf.
-    uint32_t KeepDistinct(std::vector<uint32_t>& ioOrder, uint32_t aBegin, uint32_t aEnd) const {
-        const PrimitiveSoup& soup = *mBuildSoup;
-        const auto key = [&](uint32_t aPrimitive) {
-            std::array<float, 10> k{};
-            const size_t p = aPrimitive;
-            if (int(p) < soup.TriangleCount()) {
-                const Vec3 v[3] = {soup.mTriangleP0[p], soup.mTriangleP1[p], soup.mTriangleP2[p]};
-                for (int i = 0; i < 9; i++) k[size_t(i) + 1] = v[i / 3][i % 3];
-            } else {
-                const size_t sphere = p - size_t(soup.TriangleCount());
-                k[0] = 1.f;
-                for (int i = 0; i < 3; i++) k[size_t(i) + 1] = soup.mSphereCenter[sphere][i];
-                k[4] = soup.mSphereRadius[sphere];
-            }
-            return k;
-        };
-        uint32_t* first = ioOrder.data() + aBegin;
-        uint32_t* last = ioOrder.data() + aEnd;
-        std::sort(first, last, [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
-        const uint32_t* distinctEnd = std::unique(first, last, [&](uint32_t a, uint32_t b) { return key(a) == key(b); });
-        return uint32_t(distinctEnd - first);
-    }
-
-    // Turns the binary subtree aSubtree into kWidth-wide nodes (depth-first, a node before
-    // its children) and its leaves into blocks, and returns it as its parent sees it.
-    ChildRef Collapse(const std::vector<BinaryNode>& aBinary, const std::vector<uint32_t>& aOrder, const ChildRef& aSubtree) {
-        if (aSubtree.mCount > 0) {
-            mLeafCount++;
-            return EmitLeaf(aOrder, aSubtree);
-        }
-        // Open the inner child of largest surface area until there are kWidth children.
-        ChildRef children[kWidth];
-        int childCount = 2;
-        children[0] = aBinary[aSubtree.mIndex].mChild[0];
-        children[1] = aBinary[aSubtree.mIndex].mChild[1];
-        while (childCount < kWidth) {
-            int largest = -1;
-            for (int c = 0; c < childCount; c++)
-                if (children[c].mCount == 0 && (largest < 0 || children[c].mBox.SurfaceArea() > children[largest].mBox.SurfaceArea()))
-                    largest = c;
-            if (largest < 0) break;  // only leaves left
-            const BinaryNode& opened = aBinary[children[largest].mIndex];
-            children[largest] = opened.mChild[0];
-            children[childCount++] = opened.mChild[1];
-        }
-        const uint32_t nodeIndex = uint32_t(mNodes.size());
-        mNodes.push_back(Node{});
-        for (int c = 0; c < kWidth; c++) {
-            const ChildRef child = c < childCount ? Collapse(aBinary, aOrder, children[c]) : ChildRef{};  // empty: inverted box
-            Node& node = mNodes[nodeIndex];  // Collapse may have reallocated mNodes
-            for (int k = 0; k < 3; k++) {
-                node.Min(k)[c] = child.mBox.mMin[k];
-                node.Max(k)[c] = child.mBox.mMax[k];
-            }
-            node.mIndex[c] = child.mIndex;
-            node.mCount[c] = child.mCount;
-        }
-        ChildRef result = aSubtree;
-        result.mIndex = nodeIndex;
-        return result;
-    }
-
-    // Copies a leaf's primitives, aOrder[mIndex, mIndex + mCount), into blocks: its
-    // triangles, then its spheres, each kind's last block filled up with its last
-    // primitive. Returns the leaf as its parent sees it (mCount blocks from mIndex).
-    ChildRef EmitLeaf(const std::vector<uint32_t>& aOrder, const ChildRef& aLeaf) {
-        const int triangleCount = mBuildSoup->TriangleCount();
-        ChildRef result = aLeaf;
-        result.mIndex = uint32_t(mBlocks.size());
-        for (const bool spheres : {false, true}) {
-            int lane = kWidth;
-            uint32_t last = 0;
-            for (uint32_t i = 0; i < aLeaf.mCount; i++) {
-                const uint32_t primitive = aOrder[aLeaf.mIndex + i];
-                if ((int(primitive) >= triangleCount) != spheres) continue;
-                if (lane == kWidth) {
-                    mBlocks.emplace_back();
-                    lane = 0;
-                }
-                WriteLane(mBlocks.back(), lane++, primitive);
-                last = primitive;
-            }
-            while (lane < kWidth) WriteLane(mBlocks.back(), lane++, last);
-        }
-        result.mCount = uint32_t(mBlocks.size()) - result.mIndex;
-        return result;
-    }
-
-    void WriteLane(Block& ioBlock, int aLane, uint32_t aPrimitive) const {
-        const PrimitiveSoup& soup = *mBuildSoup;
-        const size_t p = aPrimitive;
-        if (int(p) < soup.TriangleCount()) {
-            for (int k = 0; k < 3; k++) {
-                ioBlock.mA[k][aLane] = soup.mTriangleP0[p][k];
-                ioBlock.mB[k][aLane] = soup.mTriangleP1[p][k];
-                ioBlock.mC[k][aLane] = soup.mTriangleP2[p][k];
-            }
-            ioBlock.mId[aLane] = aPrimitive;
-        } else {
-            const size_t sphere = p - size_t(soup.TriangleCount());
-            for (int k = 0; k < 3; k++) ioBlock.mA[k][aLane] = soup.mSphereCenter[sphere][k];
-            ioBlock.mB[0][aLane] = soup.mSphereRadius[sphere];
-            ioBlock.mId[aLane] = aPrimitive | kSphereBit;
-        }
-    }
-
-    std::vector<Node, detail::HugePageAllocator<Node>> mNodes;    // inner nodes, depth-first (a node before its children)
-    std::vector<Block, detail::HugePageAllocator<Block>> mBlocks;  // the leaves' primitives, leaf after leaf
-    ChildRef mRoot;              // the root, a leaf when the scene is small enough
-    size_t mLeafCount = 0;
-    int mPrimitiveCount = 0;
-    int mBuildDepth = 0;
-    uint32_t mLargestLeaf = 0;
-    const PrimitiveSoup* mBuildSoup = nullptr;  // during Build only
-};
-
-inline void Bvh::Build(const PrimitiveSoup& aSoup) {
-    auto tree = std::make_shared<Tree>();
-    tree->Build(aSoup);
-    mTree = std::move(tree);
-}
-inline int Bvh::Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
-    return mTree ? mTree->Intersect(aRay, aTMin, ioTMax) : -1;
-}
-inline bool Bvh::Occluded(const Ray& aRay, float aTMin, float aTMax) const {
-    return mTree && mTree->Occluded(aRay, aTMin, aTMax);
-}
-inline size_t Bvh::NodeCount() const { return mTree ? mTree->NodeCount() : 0; }
-inline size_t Bvh::StorageBytes() const { return mTree ? mTree->StorageBytes() : 0; }
-inline size_t Bvh::NodeBytes() { return sizeof(Tree::Node); }
-inline int Bvh::PrimitiveCount() const { return mTree ? mTree->PrimitiveCount() : 0; }
-inline int Bvh::Depth() const { return mTree ? mTree->Depth() : 0; }
-inline int Bvh::BuildDepth() const { return mTree ? mTree->BuildDepth() : 0; }
-inline uint32_t Bvh::LargestLeaf() const { return mTree ? mTree->LargestLeaf() : 0; }
-
-// =====================================================================================
 // [SECTION] Scene loading (glTF)
 // =====================================================================================
 // Provides: LoadGltfScene, which reads the subset of glTF 2.0 documented in
@@ -6018,6 +5912,7 @@ Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr,
 #include <iterator>
 #include <map>
 #include <new>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <unordered_map>
@@ -6165,9 +6060,7 @@ std::vector<unsigned char> EncodeImage(const std::string& aPath, const Image& aI
             throw Error(aPath + ": HDR encoding failed");
     } else if (format == ImageFormat::kPfm) {
         // PFM: "PF", size, scale (negative = little endian), rows bottom to top.
-        // A row of Vec3 is the row's floats in PFM's order, copied whole into bytes sized
-        // once (appending 4 bytes at a time took 3 ms at 512x512, in the last serial step of
-        // every render).
+        // A row of Vec3 is the row's floats in PFM's order, copied whole into bytes sized once.
         static_assert(sizeof(Vec3) == 3 * sizeof(float), "a Vec3 is three packed floats");
         const std::string header = "PF\n" + std::to_string(aImage.mWidth) + " " + std::to_string(aImage.mHeight) + "\n-1\n";
         const size_t rowBytes = size_t(aImage.mWidth) * sizeof(Vec3);
@@ -7214,7 +7107,7 @@ private:
         if (edges.empty()) return false;
         // Sorted by the smaller id with one counting pass (the ids are dense, at most id),
         // then each vertex's few edges by std::sort: the same order as one std::sort over
-        // all of them, which took 1 % of the time of a short render of an 81 920-triangle mesh.
+        // all of them, in linear time.
         std::vector<uint32_t> bucketStart(size_t(id) + 2, 0u);
         for (const uint64_t edge : edges) bucketStart[size_t(edge >> 32) + 1]++;
         for (size_t b = 1; b < bucketStart.size(); b++) bucketStart[b] += bucketStart[b - 1];

@@ -58,11 +58,12 @@ public:
                 bsdf.Setup(ray, hit, mScene, Transport::kRadiance);  // a camera path carries radiance
                 if (!bsdf.IsValid() || length >= mOptions.mMaxPathLength) break;
                 if (!bsdf.IsDelta()) radiance += throughput * NextEventEstimate(bsdf, point, aRng);
-                ScatterSample scatter;  // its weight f cos / pdf includes Russian roulette
-                if (!SampleScatteringWithRoulette(bsdf, aRng, scatter)) break;
-                throughput *= scatter.mWeight;
-                bsdfPdfW = scatter.IsSpecular() ? 0.f : scatter.mPdfW;
-                ray = mScene.SpawnRay(point, scatter.mDirection);
+                // Its weight f cos / pdf includes Russian roulette; nothing: the path ends.
+                const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aRng);
+                if (!scatter) break;
+                throughput *= scatter->mWeight;
+                bsdfPdfW = scatter->IsSpecular() ? 0.f : scatter->mPdfW;
+                ray = mScene.SpawnRay(point, scatter->mDirection);
             }
             mFilm.AddColor(pixel, radiance);
         }
@@ -79,14 +80,14 @@ private:
     smallvcm::Vec3 NextEventEstimate(const smallvcm::Bsdf& aBsdf, const smallvcm::Vec3& aPoint, smallvcm::Rng& aRng) const {
         using namespace smallvcm;
         const LightPick pick = mScene.PickLight(aRng.GetFloat());  // a light and its probability
-        LightSample sample;
-        if (!pick.mLight->Illuminate(mScene.GetSceneSphere(), aPoint, aRng.GetVec2(), sample)) return Vec3(0.f);
-        const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample.mDirToLight);  // its pdfs include Russian roulette
-        if (bsdf.IsBlack() || mScene.Occluded(aPoint, sample.mDirToLight, sample.mDistance)) return Vec3(0.f);
-        const float lightPdfW = sample.mDirectPdfW * pick.mProb;
+        const std::optional<LightSample> sample = pick.mLight->Illuminate(mScene.GetSceneSphere(), aPoint, aRng.GetVec2());
+        if (!sample) return Vec3(0.f);
+        const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample->mDirToLight);  // its pdfs include Russian roulette
+        if (bsdf.IsBlack() || mScene.Occluded(aPoint, sample->mDirToLight, sample->mDistance)) return Vec3(0.f);
+        const float lightPdfW = sample->mDirectPdfW * pick.mProb;
         // A point or directional light cannot be hit by BSDF sampling: weight 1.
         const float weight = pick.mLight->IsDelta() ? 1.f : lightPdfW / (lightPdfW + bsdf.mDirPdfW);
-        return sample.mRadiance * bsdf.mValue * (weight * bsdf.mCosThetaGen / lightPdfW);
+        return sample->mRadiance * bsdf.mValue * (weight * bsdf.mCosThetaGen / lightPdfW);
     }
 };
 

@@ -171,12 +171,11 @@ std::vector<Photon> TracePhotons(const Scene& aScene, int aPaths, uint64_t aSeed
     for (int i = 0; i < aPaths; i++) {
         const int l = std::min(int(rng.GetFloat() * float(lightCount)), lightCount - 1);
         const Vec2 rndDirection = rng.GetVec2(), rndPosition = rng.GetVec2();
-        smallvcm::LightEmission emission;
-        if (!aScene.GetLight(l).Emit(aScene.GetSceneSphere(), rndDirection, rndPosition, emission) ||
-            !(emission.mEmissionPdfW > 0.f))
-            continue;
-        Vec3 throughput = emission.mEnergy * (float(lightCount) / emission.mEmissionPdfW);
-        Ray ray = aScene.SpawnRay(emission.mPosition, emission.mDirection);
+        const std::optional<smallvcm::LightEmission> emission =
+            aScene.GetLight(l).Emit(aScene.GetSceneSphere(), rndDirection, rndPosition);
+        if (!emission || !(emission->mEmissionPdfW > 0.f)) continue;
+        Vec3 throughput = emission->mEnergy * (float(lightCount) / emission->mEmissionPdfW);
+        Ray ray = aScene.SpawnRay(emission->mPosition, emission->mDirection);
         for (int bounce = 0; bounce < 10; bounce++) {
             const SurfacePoint hit = aScene.Intersect(ray);
             if (!hit.IsValid()) break;
@@ -189,10 +188,10 @@ std::vector<Photon> TracePhotons(const Scene& aScene, int aPaths, uint64_t aSeed
                 photons.push_back({point, normal, Luminance(throughput), bounce > 0});
                 break;
             }
-            smallvcm::ScatterSample scatter;
-            if (!smallvcm::SampleScatteringWithRoulette(bsdf, rng, scatter)) break;
-            throughput *= scatter.mWeight;
-            ray = aScene.SpawnRay(point, scatter.mDirection);
+            const std::optional<smallvcm::ScatterSample> scatter = smallvcm::SampleScatteringWithRoulette(bsdf, rng);
+            if (!scatter) break;
+            throughput *= scatter->mWeight;
+            ray = aScene.SpawnRay(point, scatter->mDirection);
         }
     }
     return photons;
@@ -509,9 +508,10 @@ PathDensities MeasurePathDensities(const Scene& aScene, int aPaths, float aPatch
     for (int i = 0; i < aPaths; i++) {
         const int l = std::min(int(rng.GetFloat() * float(lightCount)), lightCount - 1);
         const Vec2 rndDirection = rng.GetVec2(), rndPosition = rng.GetVec2();
-        smallvcm::LightEmission emission;
-        if (!aScene.GetLight(l).Emit(aScene.GetSceneSphere(), rndDirection, rndPosition, emission)) continue;
-        const Ray ray = aScene.SpawnRay(emission.mPosition, emission.mDirection);
+        const std::optional<smallvcm::LightEmission> emission =
+            aScene.GetLight(l).Emit(aScene.GetSceneSphere(), rndDirection, rndPosition);
+        if (!emission) continue;
+        const Ray ray = aScene.SpawnRay(emission->mPosition, emission->mDirection);
         const SurfacePoint hit = aScene.Intersect(ray);
         if (!hit.IsValid()) continue;
         const Vec3 offset = ray.mOrigin + hit.mDist * ray.mDirection - out.mPoint;
@@ -530,11 +530,11 @@ PathDensities MeasurePathDensities(const Scene& aScene, int aPaths, float aPatch
         double sum = 0.0;
         for (int i = 0; i < kGrid * kGrid; i++) {
             const Vec2 rnd((float(i % kGrid) + 0.5f) / kGrid, (float(i / kGrid) + 0.5f) / kGrid);
-            smallvcm::LightSample sample;
-            if (!light.Illuminate(aScene.GetSceneSphere(), out.mPoint, rnd, sample)) continue;
-            const float cosAtPoint = glm::dot(normal, sample.mDirToLight);
-            if (cosAtPoint <= 0.f || aScene.Occluded(out.mPoint, sample.mDirToLight, sample.mDistance)) continue;
-            sum += double(sample.mCosAtLight) * cosAtPoint / (smallvcm::kPi * Sqr(sample.mDistance));
+            const std::optional<smallvcm::LightSample> sample = light.Illuminate(aScene.GetSceneSphere(), out.mPoint, rnd);
+            if (!sample) continue;
+            const float cosAtPoint = glm::dot(normal, sample->mDirToLight);
+            if (cosAtPoint <= 0.f || aScene.Occluded(out.mPoint, sample->mDirToLight, sample->mDistance)) continue;
+            sum += double(sample->mCosAtLight) * cosAtPoint / (smallvcm::kPi * Sqr(sample->mDistance));
         }
         const double mean = sum / (kGrid * kGrid);  // (1 / A_l) integral over light l
         out.mDensityIntegrated += mean / lightCount;

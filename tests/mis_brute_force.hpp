@@ -193,13 +193,12 @@ inline bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
     // Sometimes aim at a point of an area light so that the camera sees it directly (k = 1).
     if (aRng.GetFloat() < 0.05f) {
         const Light& light = aScene.GetLight(std::min(int(aRng.GetFloat() * float(aScene.LightCount())), aScene.LightCount() - 1));
-        LightSample sample;
-        Vec2 target;
-        if (light.mType == LightType::kArea &&
-            light.Illuminate(aScene.GetSceneSphere(), camera.Position(), aRng.GetVec2(), sample) &&
-            camera.WorldToRaster(camera.Position() + sample.mDirToLight * sample.mDistance, target) &&
-            camera.CheckRaster(target))
-            raster = target;
+        if (light.mType == LightType::kArea) {
+            const std::optional<LightSample> sample = light.Illuminate(aScene.GetSceneSphere(), camera.Position(), aRng.GetVec2());
+            const std::optional<Vec2> target =
+                sample ? camera.WorldToRaster(camera.Position() + sample->mDirToLight * sample->mDistance) : std::nullopt;
+            if (target && camera.CheckRaster(*target)) raster = *target;
+        }
     }
     Ray ray = camera.GenerateRay(raster);
 
@@ -262,8 +261,9 @@ inline bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
             const int lightCount = aScene.LightCount();
             int lightId = std::min(int(aRng.GetFloat() * float(lightCount)), lightCount - 1);
             const Light& light = aScene.GetLight(lightId);
-            LightSample sample;
-            if (!light.Illuminate(aScene.GetSceneSphere(), hitPoint, aRng.GetVec2(), sample)) return false;
+            const std::optional<LightSample> lightSample = light.Illuminate(aScene.GetSceneSphere(), hitPoint, aRng.GetVec2());
+            if (!lightSample) return false;
+            const LightSample& sample = *lightSample;
             float cosToLight;
             if (IsBlack(bsdf.Evaluate(sample.mDirToLight, cosToLight))) return false;
             oPath = FullPath();
@@ -579,7 +579,8 @@ public:
         switch (mLight.mType) {
         case LightType::kPoint:
         case LightType::kDirectional:
-            mLight.Illuminate(sceneSphere, mPath.x[1], Vec2(0.5f), sample);
+            if (const std::optional<LightSample> illuminated = mLight.Illuminate(sceneSphere, mPath.x[1], Vec2(0.5f)))
+                sample = *illuminated;
             break;
         case LightType::kArea: {
             sample.mDirToLight = Dir(mPath, 1, 0);

@@ -44,11 +44,11 @@ TEST_CASE("Raster to ray to world point to raster returns to the same raster pos
             REQUIRE(ray.mOrigin == camera.Position());
             REQUIRE(glm::length(ray.mDirection) == Approx(1.f).epsilon(1e-6));
             const float distance = 0.1f + 100.f * rng.GetFloat();
-            Vec2 back(0.f);
-            REQUIRE(camera.WorldToRaster(ray.mOrigin + distance * ray.mDirection, back));
-            REQUIRE(std::abs(back.x - raster.x) <= 1e-3f);
-            REQUIRE(std::abs(back.y - raster.y) <= 1e-3f);
-            REQUIRE(camera.CheckRaster(back) == camera.CheckRaster(raster));
+            const std::optional<Vec2> back = camera.WorldToRaster(ray.mOrigin + distance * ray.mDirection);
+            REQUIRE(back.has_value());
+            REQUIRE(std::abs(back->x - raster.x) <= 1e-3f);
+            REQUIRE(std::abs(back->y - raster.y) <= 1e-3f);
+            REQUIRE(camera.CheckRaster(*back) == camera.CheckRaster(raster));
         }
     }
 }
@@ -105,10 +105,11 @@ TEST_CASE("Raster x grows to the right and raster y = 0 is the top row", "[camer
     REQUIRE(glm::dot(top.mDirection, camera.Up()) > 0.f);
     REQUIRE(glm::dot(bottom.mDirection, camera.Up()) < 0.f);
     // A point above the camera's axis lands in the upper half of the image.
-    Vec2 raster(0.f);
-    REQUIRE(camera.WorldToRaster(camera.Position() + 5.f * camera.Forward() + 0.5f * camera.Up(), raster));
-    REQUIRE(raster.y < 180.f);
-    REQUIRE(raster.x == Approx(320.f).margin(1e-3));
+    const std::optional<Vec2> raster =
+        camera.WorldToRaster(camera.Position() + 5.f * camera.Forward() + 0.5f * camera.Up());
+    REQUIRE(raster.has_value());
+    REQUIRE(raster->y < 180.f);
+    REQUIRE(raster->x == Approx(320.f).margin(1e-3));
     // Pixel indices: y * width + x, top-left first.
     REQUIRE(camera.RasterToIndex(Vec2(0.5f, 0.5f)) == 0);
     REQUIRE(camera.RasterToIndex(Vec2(639.9f, 0.2f)) == 639);
@@ -135,10 +136,11 @@ TEST_CASE("Pixels are square: a circle facing the camera projects to equal width
             float minX = 1e9f, maxX = -1e9f, minY = 1e9f, maxY = -1e9f;
             for (int i = 0; i < 3600; i++) {
                 const float phi = 2.f * kPi * float(i) / 3600.f;
-                Vec2 raster(0.f);
-                REQUIRE(camera.WorldToRaster(centre + radius * (std::cos(phi) * camera.Right() + std::sin(phi) * camera.Up()), raster));
-                minX = std::min(minX, raster.x); maxX = std::max(maxX, raster.x);
-                minY = std::min(minY, raster.y); maxY = std::max(maxY, raster.y);
+                const Vec3 onCircle = centre + radius * (std::cos(phi) * camera.Right() + std::sin(phi) * camera.Up());
+                const std::optional<Vec2> raster = camera.WorldToRaster(onCircle);
+                REQUIRE(raster.has_value());
+                minX = std::min(minX, raster->x); maxX = std::max(maxX, raster->x);
+                minY = std::min(minY, raster->y); maxY = std::max(maxY, raster->y);
             }
             const float expected = 2.f * 0.1f * camera.ImagePlaneDist();  // 2 r f / d
             REQUIRE(maxX - minX == Approx(expected).margin(1e-3));
@@ -150,14 +152,15 @@ TEST_CASE("Pixels are square: a circle facing the camera projects to equal width
 
 TEST_CASE("Points behind the camera or in its plane are rejected by WorldToRaster", "[camera]") {
     const Camera camera = MakeCamera(512, 512);
-    Vec2 raster(0.f);
-    REQUIRE_FALSE(camera.WorldToRaster(camera.Position() - 3.f * camera.Forward(), raster));
-    REQUIRE_FALSE(camera.WorldToRaster(camera.Position() - 0.1f * camera.Forward() + 5.f * camera.Right(), raster));
-    REQUIRE_FALSE(camera.WorldToRaster(camera.Position() + 2.f * camera.Right() + 1.f * camera.Up(), raster));
-    REQUIRE_FALSE(camera.WorldToRaster(camera.Position(), raster));
+    REQUIRE_FALSE(camera.WorldToRaster(camera.Position() - 3.f * camera.Forward()).has_value());
+    REQUIRE_FALSE(camera.WorldToRaster(camera.Position() - 0.1f * camera.Forward() + 5.f * camera.Right()).has_value());
+    REQUIRE_FALSE(camera.WorldToRaster(camera.Position() + 2.f * camera.Right() + 1.f * camera.Up()).has_value());
+    REQUIRE_FALSE(camera.WorldToRaster(camera.Position()).has_value());
     // Just in front it is accepted (even if far outside the image).
-    REQUIRE(camera.WorldToRaster(camera.Position() + 1e-3f * camera.Forward() + 1.f * camera.Right(), raster));
-    REQUIRE_FALSE(camera.CheckRaster(raster));
+    const std::optional<Vec2> raster =
+        camera.WorldToRaster(camera.Position() + 1e-3f * camera.Forward() + 1.f * camera.Right());
+    REQUIRE(raster.has_value());
+    REQUIRE_FALSE(camera.CheckRaster(*raster));
 }
 
 TEST_CASE("A camera rejects a non-positive resolution with an Error", "[camera]") {
@@ -195,8 +198,8 @@ TEST_CASE("The Cornell camera loaded from the scene file has SmallVCM's position
     for (int i = 0; i < 1000; i++) {
         const Vec2 raster = rng.GetVec2() * 256.f;
         const Ray ray = camera.GenerateRay(raster);
-        Vec2 back(0.f);
-        REQUIRE(camera.WorldToRaster(ray.mOrigin + 3.f * ray.mDirection, back));
-        REQUIRE(glm::length(back - raster) <= 1e-3f);
+        const std::optional<Vec2> back = camera.WorldToRaster(ray.mOrigin + 3.f * ray.mDirection);
+        REQUIRE(back.has_value());
+        REQUIRE(glm::length(*back - raster) <= 1e-3f);
     }
 }

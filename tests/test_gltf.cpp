@@ -696,12 +696,12 @@ TEST_CASE("A file without a camera gets one that frames every corner of the scen
         CHECK(camera.Position().z > offset.z);  // in front: glTF's front is +Z
         for (int c = 0; c < 8; c++) {
             const Vec3 corner = offset + Vec3(c & 1 ? 1.f : -1.f, c & 2 ? 1.f : -1.f, c & 4 ? 1.f : -1.f);
-            Vec2 raster;
-            REQUIRE(camera.WorldToRaster(corner, raster));
-            CHECK(raster.x >= 0.f);
-            CHECK(raster.x <= float(width));
-            CHECK(raster.y >= 0.f);
-            CHECK(raster.y <= 64.f);
+            const std::optional<Vec2> raster = camera.WorldToRaster(corner);
+            REQUIRE(raster.has_value());
+            CHECK(raster->x >= 0.f);
+            CHECK(raster->x <= float(width));
+            CHECK(raster->y >= 0.f);
+            CHECK(raster->y <= 64.f);
         }
     }
 }

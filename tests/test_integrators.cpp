@@ -234,9 +234,11 @@ TEST_CASE("Light tracing splats land in the pixels that see the lit surface, als
     // ~2500 photons on it, enough to reach each of its ~50 interior pixels many times.
     const Image lt = RenderWith(scene, Algorithm::kLightTracing, 1024).mImage;
     const Image eye = RenderWith(scene, Algorithm::kEyeLight, 16).mImage;
-    Vec2 cornerA(0.f), cornerC(0.f);
-    REQUIRE(scene.mCamera.WorldToRaster(a, cornerA));
-    REQUIRE(scene.mCamera.WorldToRaster(c, cornerC));
+    const std::optional<Vec2> rasterA = scene.mCamera.WorldToRaster(a);
+    const std::optional<Vec2> rasterC = scene.mCamera.WorldToRaster(c);
+    REQUIRE(rasterA.has_value());
+    REQUIRE(rasterC.has_value());
+    const Vec2 cornerA = *rasterA, cornerC = *rasterC;
     int inside = 0, mismatched = 0;
     for (int y = 0; y < 20; y++)
         for (int x = 0; x < 48; x++) {

@@ -67,9 +67,8 @@ MeanAndError InverseDirectPdf(const Scene& aScene, const Light& aLight, const Ve
     std::vector<double> values;
     values.reserve(size_t(aSamples));
     for (int i = 0; i < aSamples; i++) {
-        LightSample sample;
-        const bool ok = aLight.Illuminate(aScene.GetSceneSphere(), aReceiver, rng.GetVec2(), sample);
-        values.push_back(ok && sample.mDirectPdfW > 0.f ? 1.0 / double(sample.mDirectPdfW) : 0.0);
+        const std::optional<LightSample> sample = aLight.Illuminate(aScene.GetSceneSphere(), aReceiver, rng.GetVec2());
+        values.push_back(sample && sample->mDirectPdfW > 0.f ? 1.0 / double(sample->mDirectPdfW) : 0.0);
     }
     return MeanOf(values);
 }
@@ -129,11 +128,11 @@ TEST_CASE("Light sub-paths carry each light's analytic power: E[energy / emissio
         Rng rng(17);
         std::vector<double> values;
         for (int i = 0; i < 100000; i++) {
-            LightEmission emission;
             const Vec2 direction = rng.GetVec2();
             const Vec2 position = rng.GetVec2();
-            const bool ok = light.Emit(scene.GetSceneSphere(), direction, position, emission) && emission.mEmissionPdfW > 0.f;
-            values.push_back(ok ? double(emission.mEnergy.x) / double(emission.mEmissionPdfW) : 0.0);
+            const std::optional<LightEmission> emission = light.Emit(scene.GetSceneSphere(), direction, position);
+            const bool ok = emission && emission->mEmissionPdfW > 0.f;
+            values.push_back(ok ? double(emission->mEnergy.x) / double(emission->mEmissionPdfW) : 0.0);
         }
         const MeanAndError stats = MeanOf(values);
         std::printf("[light_units] %-11s power %.5f +- %.5f, analytic %.5f\n", c.name, stats.mean, stats.standardError, c.power);
@@ -154,13 +153,16 @@ TEST_CASE("Points sampled on an area light are uniform by area across and within
     Rng rng(23);
     int unplaced = 0;
     for (int i = 0; i < samples; i++) {
-        LightEmission emission;
-        light.Emit(scene.GetSceneSphere(), rng.GetVec2(), rng.GetVec2(), emission);
+        const std::optional<LightEmission> emission = light.Emit(scene.GetSceneSphere(), rng.GetVec2(), rng.GetVec2());
+        if (!emission) {  // no point to place (cannot happen: the light is not textured)
+            unplaced++;
+            continue;
+        }
         int bin = -1;
         for (int t = 0; t < triangles && bin < 0; t++) {
             // Barycentric coordinates of the point in triangle t.
             const glm::dvec3 e1(light.mTriangleE1[size_t(t)]), e2(light.mTriangleE2[size_t(t)]);
-            const glm::dvec3 q = glm::dvec3(emission.mPosition) - glm::dvec3(light.mTriangleP0[size_t(t)]);
+            const glm::dvec3 q = glm::dvec3(emission->mPosition) - glm::dvec3(light.mTriangleP0[size_t(t)]);
             const glm::dvec3 n = glm::cross(e1, e2);
             if (std::abs(glm::dot(q, n)) > 1e-5 * glm::length(n)) continue;  // not in its plane
             const double nn = glm::dot(n, n);
@@ -200,9 +202,10 @@ TEST_CASE("Next-event estimation, emission and a ray hitting a light report the 
             const Light& light = scene.GetLight(id);
             for (int i = 0; i < 2000; i++) {
                 const Vec3 receiver = id == l.area ? Vec3(0.f) : Vec3(0.f, 0.f, -1.f);
-                LightSample sample;
+                const std::optional<LightSample> lit = light.Illuminate(sphere, receiver, rng.GetVec2());
                 // Near the horizon the two sides' float cosines differ relatively more.
-                if (!light.Illuminate(sphere, receiver, rng.GetVec2(), sample) || sample.mCosAtLight < 0.01f) continue;
+                if (!lit || lit->mCosAtLight < 0.01f) continue;
+                const LightSample& sample = *lit;
                 const Vec3 point = receiver + sample.mDirToLight * sample.mDistance;
                 const Vec3 normal = id == l.sphere ? glm::normalize(point - light.mSphereCenter) : Vec3(0.f, 0.f, -1.f);
                 const Light::RadianceAtHit received = light.GetRadiance(sphere, sample.mDirToLight, normal, Vec2(0.f));
@@ -221,9 +224,10 @@ TEST_CASE("Next-event estimation, emission and a ray hitting a light report the 
         for (int id : {l.area, l.sphere}) {
             const Light& light = scene.GetLight(id);
             for (int i = 0; i < 2000; i++) {
-                LightEmission emission;
                 const Vec2 direction = rng.GetVec2();
-                if (!light.Emit(sphere, direction, rng.GetVec2(), emission)) continue;
+                const std::optional<LightEmission> emitted = light.Emit(sphere, direction, rng.GetVec2());
+                if (!emitted) continue;
+                const LightEmission& emission = *emitted;
                 const Light::RadianceAtHit received = light.GetRadiance(sphere, -emission.mDirection, emission.mNormal, Vec2(0.f));
                 const float directPdfA = received.mDirectPdfA, emissionPdfW = received.mEmissionPdfW;
                 INFO(LightTypeName(light.mType) << " light, sample " << i << ", cos " << emission.mCosAtLight);
@@ -239,13 +243,15 @@ TEST_CASE("Next-event estimation, emission and a ray hitting a light report the 
         for (int id : {l.point, l.directional, l.background}) {
             const Light& light = scene.GetLight(id);
             for (int i = 0; i < 200; i++) {
-                LightEmission emission;
-                REQUIRE(light.Emit(sphere, rng.GetVec2(), rng.GetVec2(), emission));
+                const std::optional<LightEmission> emitted = light.Emit(sphere, rng.GetVec2(), rng.GetVec2());
+                REQUIRE(emitted.has_value());
+                const LightEmission& emission = *emitted;
                 // A receiver along the emitted ray; for the background, Illuminate's
                 // sample is another direction, whose pdfs must be the same constants.
                 const Vec3 receiver = emission.mPosition + 0.7f * emission.mDirection;
-                LightSample sample;
-                REQUIRE(light.Illuminate(sphere, receiver, rng.GetVec2(), sample));
+                const std::optional<LightSample> lit = light.Illuminate(sphere, receiver, rng.GetVec2());
+                REQUIRE(lit.has_value());
+                const LightSample& sample = *lit;
                 INFO(LightTypeName(light.mType) << " light, sample " << i);
                 CHECK(Close(sample.mEmissionPdfW, emission.mEmissionPdfW));
                 // Delta and infinite lights: Illuminate's "solid angle" pdf is the area pdf
@@ -328,8 +334,8 @@ TEST_CASE("A textured area light gives each point it samples the texel at that p
                    << "), the texture at the point gives (" << aExpected.x << ", " << aExpected.y << ", " << aExpected.z << ")\n";
     };
     for (int i = 0; i < 4000; i++) {
-        LightSample sample;
-        if (light.Illuminate(scene.GetSceneSphere(), Vec3(0.f), rng.GetVec2(), sample)) {
+        if (const std::optional<LightSample> lit = light.Illuminate(scene.GetSceneSphere(), Vec3(0.f), rng.GetVec2())) {
+            const LightSample& sample = *lit;
             const Vec3 point = sample.mDirToLight * sample.mDistance;
             bool found = false;
             const Vec3 expected = expectedRadiance(point, found);
@@ -339,9 +345,9 @@ TEST_CASE("A textured area light gives each point it samples the texel at that p
             }
             illuminated++;
         }
-        LightEmission emission;
         const Vec2 direction = rng.GetVec2();
-        if (light.Emit(scene.GetSceneSphere(), direction, rng.GetVec2(), emission)) {
+        if (const std::optional<LightEmission> emitting = light.Emit(scene.GetSceneSphere(), direction, rng.GetVec2())) {
+            const LightEmission& emission = *emitting;
             bool found = false;
             const Vec3 expected = expectedRadiance(emission.mPosition, found);
             REQUIRE(found);

@@ -116,17 +116,17 @@ TEST_CASE("A spot light's next-event estimate is I s(cos theta) cos / d^2 inside
     for (double theta : {0.0, 0.2, 0.35, 0.45, 0.55, 0.65, 1.2}) {
         const Vec3 direction(float(std::sin(theta)), 0.f, float(-std::cos(theta)));
         const Vec3 receiver = float(distance) * direction;
-        LightSample sample;
-        const bool lit = light.Illuminate(scene.GetSceneSphere(), receiver, Vec2(0.3f, 0.7f), sample);
+        const std::optional<LightSample> lit = light.Illuminate(scene.GetSceneSphere(), receiver, Vec2(0.3f, 0.7f));
         const double falloff = ReferenceSpotFalloff(std::cos(theta), inner, outer);
         INFO("theta " << theta << ", reference falloff " << falloff);
         if (theta < inner) CHECK(falloff == 1.0);
         if (theta > inner && theta < outer) CHECK((falloff > 0.0 && falloff < 1.0));
         if (falloff == 0.0) {
-            CHECK_FALSE(lit);
+            CHECK_FALSE(lit.has_value());
             continue;
         }
-        REQUIRE(lit);
+        REQUIRE(lit.has_value());
+        const LightSample& sample = *lit;
         // A receiver facing the light: irradiance E = radiance * cos(0) / pdf = I s / d^2.
         const glm::dvec3 irradiance = glm::dvec3(sample.mRadiance) / double(sample.mDirectPdfW);
         for (int c = 0; c < 3; c++)
@@ -165,9 +165,10 @@ TEST_CASE("Light sub-paths from a spot light carry its analytic power, ring by r
         int mismatches = 0;
         float worstDifference = 0.f;
         for (int i = 0; i < samples; i++) {
-            LightEmission emission;
             const Vec2 rndDirection = rng.GetVec2(), rndPosition = rng.GetVec2();
-            if (!light.Emit(scene.GetSceneSphere(), rndDirection, rndPosition, emission)) continue;
+            const std::optional<LightEmission> emitted = light.Emit(scene.GetSceneSphere(), rndDirection, rndPosition);
+            if (!emitted) continue;
+            const LightEmission& emission = *emitted;
             // Emitted flux estimate of this sample: energy / pdf (one channel: grey light).
             const double value = double(emission.mEnergy.x) / double(emission.mEmissionPdfW);
             const double cosTheta = -double(emission.mDirection.z);
@@ -178,12 +179,11 @@ TEST_CASE("Light sub-paths from a spot light carry its analytic power, ring by r
             // The falloff is evaluated from two float cosines of the same direction (the
             // sampled one, and the axis dotted with the normalised direction to the light):
             // they differ by ~1e-7, times ds/dc <= 2 / d <= 2000 (d >= 0.001).
-            LightSample sample;
-            const bool lit = light.Illuminate(scene.GetSceneSphere(), emission.mPosition + 1.5f * emission.mDirection,
-                                              Vec2(0.5f), sample);
-            const float difference = std::abs((lit ? sample.mRadiance.x : 0.f) - emission.mEnergy.x) / intensity.x;
+            const std::optional<LightSample> sample =
+                light.Illuminate(scene.GetSceneSphere(), emission.mPosition + 1.5f * emission.mDirection, Vec2(0.5f));
+            const float difference = std::abs((sample ? sample->mRadiance.x : 0.f) - emission.mEnergy.x) / intensity.x;
             worstDifference = std::max(worstDifference, difference);
-            if (difference > 1e-3f || (lit && std::abs(sample.mEmissionPdfW - emission.mEmissionPdfW) > 1e-6f * emission.mEmissionPdfW) ||
+            if (difference > 1e-3f || (sample && std::abs(sample->mEmissionPdfW - emission.mEmissionPdfW) > 1e-6f * emission.mEmissionPdfW) ||
                 emission.mDirectPdfA != 1.f || emission.mCosAtLight != 1.f)
                 mismatches++;
         }
@@ -245,10 +245,9 @@ TEST_CASE("A two-sided area light is seen alike from both sides by next-event es
             INFO((twoSided ? "two-sided" : "one-sided") << ", receiver on the " << (side > 0.f ? "front" : "back"));
             // A receiver 1 above or below (0.1, 0.2); the sample lands somewhere on the square.
             const Vec3 receiver(0.1f, 0.2f, side);
-            LightSample sample;
-            const bool lit = light.Illuminate(scene.GetSceneSphere(), receiver, Vec2(0.3f, 0.6f), sample);
+            const std::optional<LightSample> lit = light.Illuminate(scene.GetSceneSphere(), receiver, Vec2(0.3f, 0.6f));
             const bool emits = twoSided || side > 0.f;
-            REQUIRE(lit == emits);
+            REQUIRE(lit.has_value() == emits);
             // The ray from the receiver hits the square's side that faces it.
             const Light::RadianceAtHit received =
                 light.GetRadiance(scene.GetSceneSphere(), Vec3(0.f, 0.f, -side), Vec3(0.f, 0.f, 1.f), Vec2(0.f));
@@ -258,6 +257,7 @@ TEST_CASE("A two-sided area light is seen alike from both sides by next-event es
                 CHECK(IsBlack(hitRadiance));
                 continue;
             }
+            const LightSample& sample = *lit;
             CHECK(sample.mRadiance == radiance);
             CHECK(hitRadiance == radiance);
             const float cosAtLight = std::abs(sample.mDirToLight.z);
@@ -281,9 +281,10 @@ TEST_CASE("Light sub-paths from a two-sided area light leave both sides equally 
         Rng rng(777, 5);
         int mismatches = 0;
         for (int i = 0; i < samples; i++) {
-            LightEmission emission;
             const Vec2 rndDirection = rng.GetVec2(), rndPosition = rng.GetVec2();
-            REQUIRE(light.Emit(scene.GetSceneSphere(), rndDirection, rndPosition, emission));
+            const std::optional<LightEmission> emitted = light.Emit(scene.GetSceneSphere(), rndDirection, rndPosition);
+            REQUIRE(emitted.has_value());
+            const LightEmission& emission = *emitted;
             flux.push_back(double(emission.mEnergy.x) / double(emission.mEmissionPdfW));
             down.push_back(emission.mDirection.z < 0.f ? 1.0 : 0.0);
             // A camera ray arriving along the emitted direction reversed, at this point,
@@ -383,18 +384,21 @@ TEST_CASE("A constant emission texture gives next-event samples, light sub-paths
         for (int i = 0; i < 2000; i++) {
             const Vec2 r1 = rng.GetVec2(), r2 = rng.GetVec2();
             const Vec3 receiver(rng.GetFloat() - 0.5f, rng.GetFloat() - 0.5f, twoSided && i % 2 ? -1.f : 1.f);
-            LightSample sa, sb;
-            const bool litA = a.Illuminate(plain.GetSceneSphere(), receiver, r1, sa);
-            REQUIRE(litA == b.Illuminate(textured.GetSceneSphere(), receiver, r1, sb));
-            if (litA) {
-                CHECK(CloseRelative(sa.mRadiance, sb.mRadiance, 1e-6f));
-                CHECK(sa.mDirToLight == sb.mDirToLight);
-                CHECK(sa.mDirectPdfW == sb.mDirectPdfW);
-                CHECK(sa.mEmissionPdfW == sb.mEmissionPdfW);
+            const std::optional<LightSample> sa = a.Illuminate(plain.GetSceneSphere(), receiver, r1);
+            const std::optional<LightSample> sb = b.Illuminate(textured.GetSceneSphere(), receiver, r1);
+            REQUIRE(sa.has_value() == sb.has_value());
+            if (sa) {
+                CHECK(CloseRelative(sa->mRadiance, sb->mRadiance, 1e-6f));
+                CHECK(sa->mDirToLight == sb->mDirToLight);
+                CHECK(sa->mDirectPdfW == sb->mDirectPdfW);
+                CHECK(sa->mEmissionPdfW == sb->mEmissionPdfW);
             }
-            LightEmission ea, eb;
-            REQUIRE(a.Emit(plain.GetSceneSphere(), r1, r2, ea));
-            REQUIRE(b.Emit(textured.GetSceneSphere(), r1, r2, eb));
+            const std::optional<LightEmission> emittedA = a.Emit(plain.GetSceneSphere(), r1, r2);
+            REQUIRE(emittedA.has_value());
+            const std::optional<LightEmission> emittedB = b.Emit(textured.GetSceneSphere(), r1, r2);
+            REQUIRE(emittedB.has_value());
+            const LightEmission& ea = *emittedA;
+            const LightEmission& eb = *emittedB;
             CHECK(CloseRelative(ea.mEnergy, eb.mEnergy, 1e-6f));
             CHECK(CloseRelative(ea.mRadiance, eb.mRadiance, 1e-6f));  // what light tracing splats for the point itself
             CHECK(ea.mPosition == eb.mPosition);
