@@ -241,7 +241,8 @@ inline bool IsFinite(const Vec3& aV) {
 // A function the compiler must not inline: a rarely taken branch's body, which would
 // otherwise make its caller too large to be inlined itself. And one it must inline: a
 // small, hot function the compiler's size limits would keep out of line (each call then
-// costs more than the function's own work; Bsdf::Evaluate).
+// costs more than the function's own work; Bsdf::Evaluate), or a technique whose returned
+// contribution should stay in registers instead of going through memory (VertexCM's).
 #if defined(__GNUC__) || defined(__clang__)
 #define SMALLVCM_NOINLINE __attribute__((noinline))
 #define SMALLVCM_ALWAYS_INLINE inline __attribute__((always_inline))
@@ -2360,7 +2361,8 @@ private:
 //    members are that thread's private state (caches, light vertices, photon maps): no
 //    locks. The scene is shared and read-only.
 //  * The renderer's Film (mFilm, the camera's resolution) receives its contributions:
-//    AddColor(pixel, value) adds radiance; add extra layers in the constructor with
+//    AddColor(pixel, value) adds radiance (Splat(pixel, value) one that lands anywhere
+//    in the image, as light tracing's do); add extra layers in the constructor with
 //    AddLayer(name) (only when mOptions.mTechniqueLayers asks for them, by convention)
 //    and write them with AddToLayer.
 //  * RunIteration(i, rng) renders iteration i, conventionally one sample per pixel, and

@@ -525,7 +525,7 @@ public:
                                            sample.mEmissionPdfW * mPick, cosToLight, sample.mCosAtLight, mLight.IsDelta());
         }
         case Kind::kConnection: {
-            // ConnectToLightVertices: light vertex y = x_{s-1}, camera vertex z = x_s.
+            // ConnectVertices: light vertex y = x_{s-1}, camera vertex z = x_s.
             const int y = aTechnique.index - 1, z = aTechnique.index;
             Vec3 direction = mPath.x[size_t(y)] - mPath.x[size_t(z)];
             const float distance = glm::length(direction);
