@@ -112,7 +112,7 @@
 //  [SECTION] Integrator interface
 //  [SECTION] Integrator: eye light
 //  [SECTION] Integrator: path tracing
-//  [SECTION] Integrator: photon mapping (classic)
+//  [SECTION] Integrator: photon mapping (classic)   (the k-nearest search by its contract)
 //  [SECTION] Integrator: the VertexCM family (LT, PPM, BPM, BPT, VCM)
 //      the MIS quantities (VcmMis), the range search by its contract, and VertexCM's
 //      stages: 1. light sub-paths (TraceLightSubpath; light tracing: ConnectToCamera),
@@ -121,7 +121,7 @@
 //      vertex connection ConnectVertices, merging MergeWithLightVertices)
 //  PART II: appendices a student may skip, each behind an interface Part I states
 //  [SECTION] Appendix: BVH
-//  [SECTION] Appendix: range search
+//  [SECTION] Appendix: range search    (the hashed grid; the kd-tree)
 //  [SECTION] Render loop                 (threads, budgets, progress, Ctrl-C)
 //  [SECTION] Image output and metrics
 //  [SECTION] Scene loading (glTF)
@@ -324,12 +324,10 @@ private:
 
 // --- Cosine-weighted hemisphere around +z: pdf = cos(theta) / pi -------------------
 // BEGIN EXERCISE cosine_hemisphere
-inline Vec3 SampleCosHemisphereW(const Vec2& aSamples, float* oPdfW = nullptr) {
+inline Vec3 SampleCosHemisphereW(const Vec2& aSamples) {
     const float term1 = 2.f * kPi * aSamples.x;
     const float term2 = std::sqrt(1.f - aSamples.y);
-    const Vec3 ret(std::cos(term1) * term2, std::sin(term1) * term2, std::sqrt(aSamples.y));
-    if (oPdfW) *oPdfW = ret.z * kInvPi;
-    return ret;
+    return Vec3(std::cos(term1) * term2, std::sin(term1) * term2, std::sqrt(aSamples.y));
 }
 inline float CosHemispherePdfW(const Vec3& aLocalDirection) {
     return std::max(0.f, aLocalDirection.z) * kInvPi;
@@ -338,11 +336,10 @@ inline float CosHemispherePdfW(const Vec3& aLocalDirection) {
 
 // --- Power-cosine lobe around +z (the Phong lobe): pdf = (n+1)/(2 pi) cos^n ---------
 // BEGIN EXERCISE phong_bsdf/lobe
-inline Vec3 SamplePowerCosHemisphereW(const Vec2& aSamples, float aPower, float* oPdfW = nullptr) {
+inline Vec3 SamplePowerCosHemisphereW(const Vec2& aSamples, float aPower) {
     const float term1 = 2.f * kPi * aSamples.x;
     const float cosTheta = std::pow(1.f - aSamples.y, 1.f / (aPower + 1.f));
     const float sinTheta = std::sqrt(std::max(0.f, 1.f - cosTheta * cosTheta));
-    if (oPdfW) *oPdfW = (aPower + 1.f) * std::pow(cosTheta, aPower) * (0.5f * kInvPi);
     return Vec3(std::cos(term1) * sinTheta, std::sin(term1) * sinTheta, cosTheta);
 }
 inline float PowerCosHemispherePdfW(const Vec3& aLocalDirection, float aPower) {
@@ -352,21 +349,19 @@ inline float PowerCosHemispherePdfW(const Vec3& aLocalDirection, float aPower) {
 // END EXERCISE phong_bsdf/lobe
 
 // --- Uniform sphere: pdf = 1 / (4 pi) ----------------------------------------------
-inline Vec3 SampleUniformSphereW(const Vec2& aSamples, float* oPdfW = nullptr) {
+inline Vec3 SampleUniformSphereW(const Vec2& aSamples) {
     const float z = 1.f - 2.f * aSamples.y;
     const float r = std::sqrt(std::max(0.f, 1.f - z * z));
     const float phi = 2.f * kPi * aSamples.x;
-    if (oPdfW) *oPdfW = 0.25f * kInvPi;
     return Vec3(r * std::cos(phi), r * std::sin(phi), z);
 }
 inline float UniformSpherePdfW() { return 0.25f * kInvPi; }
 
 // --- Uniform cone around +z with cos(half angle) = aCosMax: pdf = 1 / (2 pi (1 - cosMax))
-inline Vec3 SampleUniformConeW(const Vec2& aSamples, float aCosMax, float* oPdfW = nullptr) {
+inline Vec3 SampleUniformConeW(const Vec2& aSamples, float aCosMax) {
     const float cosTheta = 1.f - aSamples.y * (1.f - aCosMax);
     const float sinTheta = std::sqrt(std::max(0.f, 1.f - cosTheta * cosTheta));
     const float phi = 2.f * kPi * aSamples.x;
-    if (oPdfW) *oPdfW = 1.f / (2.f * kPi * (1.f - aCosMax));
     return Vec3(std::cos(phi) * sinTheta, std::sin(phi) * sinTheta, cosTheta);
 }
 inline float UniformConePdfW(float aCosMax) { return 1.f / (2.f * kPi * (1.f - aCosMax)); }
@@ -441,22 +436,22 @@ struct SurfacePoint {
 // Robustness: the discriminant is computed as r^2 - |f - (f.d) d|^2 (f = o - c), which
 // does not lose precision when the ray starts far away, and the smaller root comes from
 // c/q instead of -b - sqrt(...) to avoid cancellation (Haines et al., Ray Tracing Gems
-// ch. 7). From inside the sphere the far root is returned.
-inline bool IntersectSphere(const Vec3& aCenter, float aRadius, const Ray& aRay,
-                            float aTMin, float aTMax, float& oT) {
+// ch. 7). From inside the sphere the far root is returned. Returns t, or nothing.
+inline std::optional<float> IntersectSphere(const Vec3& aCenter, float aRadius, const Ray& aRay, float aTMin,
+                                            float aTMax) {
     const Vec3 f = aRay.mOrigin - aCenter;
     const float b = glm::dot(f, aRay.mDirection);
     const Vec3 perpendicular = f - b * aRay.mDirection;
     const float discriminant = aRadius * aRadius - glm::dot(perpendicular, perpendicular);
-    if (discriminant < 0.f) return false;
+    if (discriminant < 0.f) return std::nullopt;
     const float c = glm::dot(f, f) - aRadius * aRadius;
     const float q = -b - std::copysign(std::sqrt(discriminant), b);
     float t0 = (q != 0.f) ? c / q : 0.f;
     float t1 = q;
     if (t0 > t1) std::swap(t0, t1);
-    if (t0 > aTMin && t0 < aTMax) { oT = t0; return true; }
-    if (t1 > aTMin && t1 < aTMax) { oT = t1; return true; }
-    return false;
+    if (t0 > aTMin && t0 < aTMax) return t0;
+    if (t1 > aTMin && t1 < aTMax) return t1;
+    return std::nullopt;
 }
 
 // Triangle, watertight (Woop, Benthin and Wald 2013). The vertices are moved into a frame
@@ -505,22 +500,24 @@ inline void EdgeFunctionsInDouble(float ax, float ay, float bx, float by, float 
 
 // The unit normal of triangle (aP0, aP1, aP2) by its winding (counter-clockwise seen
 // from the front), computed in double so that long thin triangles keep an accurate normal.
-// Returns false for a degenerate triangle: a repeated vertex, collinear vertices (sine of
-// the angle between its edges below kCollinearSine), or coordinates so extreme that the
+// Nothing for a degenerate triangle: a repeated vertex, collinear vertices (sine of the
+// angle between its edges below kCollinearSine), or coordinates so extreme that the
 // normal is not representable. Scene::Finalize and the loader share this one test.
-inline bool TriangleNormal(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, Vec3& oNormal) {
+inline std::optional<Vec3> TriangleNormal(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2) {
     const glm::dvec3 edge1 = glm::dvec3(aP1) - glm::dvec3(aP0);
     const glm::dvec3 edge2 = glm::dvec3(aP2) - glm::dvec3(aP0);
     const glm::dvec3 cross = glm::cross(edge1, edge2);
     const double doubleArea = glm::length(cross);
     if (!std::isfinite(doubleArea) || !(doubleArea > kCollinearSine * glm::length(edge1) * glm::length(edge2)))
-        return false;
-    oNormal = Vec3(cross / doubleArea);
-    return std::isfinite(oNormal.x) && std::isfinite(oNormal.y) && std::isfinite(oNormal.z);
+        return std::nullopt;
+    const Vec3 normal(cross / doubleArea);
+    if (!std::isfinite(normal.x) || !std::isfinite(normal.y) || !std::isfinite(normal.z)) return std::nullopt;
+    return normal;
 }
 
-inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Ray& aRay,
-                              const WatertightRay& aShear, float aTMin, float aTMax, float& oT) {
+// Returns t, or nothing.
+inline std::optional<float> IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Ray& aRay,
+                                              const WatertightRay& aShear, float aTMin, float aTMax) {
     const int kx = aShear.mKx, ky = aShear.mKy, kz = aShear.mKz;
     const float sx = aShear.mSx, sy = aShear.mSy, sz = aShear.mSz;
     const Vec3 pa = aP0 - aRay.mOrigin, pb = aP1 - aRay.mOrigin, pc = aP2 - aRay.mOrigin;
@@ -530,18 +527,17 @@ inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2,
     const float cx = c[kx] - sx * c[kz], cy = c[ky] - sy * c[kz];
     float u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
     if (u == 0.f || v == 0.f || w == 0.f) EdgeFunctionsInDouble(ax, ay, bx, by, cx, cy, u, v, w);
-    if ((u < 0.f || v < 0.f || w < 0.f) && (u > 0.f || v > 0.f || w > 0.f)) return false;
+    if ((u < 0.f || v < 0.f || w < 0.f) && (u > 0.f || v > 0.f || w > 0.f)) return std::nullopt;
     const float det = u + v + w;
-    if (det == 0.f || !std::isfinite(det)) return false;
+    if (det == 0.f || !std::isfinite(det)) return std::nullopt;
     const float t = sz * (u * a[kz] + v * b[kz] + w * c[kz]) / det;
-    if (!(t > aTMin && t < aTMax)) return false;
-    oT = t;
-    return true;
+    if (!(t > aTMin && t < aTMax)) return std::nullopt;
+    return t;
 }
 
-inline bool IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Ray& aRay,
-                              float aTMin, float aTMax, float& oT) {
-    return IntersectTriangle(aP0, aP1, aP2, aRay, WatertightRay(aRay.mDirection), aTMin, aTMax, oT);
+inline std::optional<float> IntersectTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, const Ray& aRay,
+                                              float aTMin, float aTMax) {
+    return IntersectTriangle(aP0, aP1, aP2, aRay, WatertightRay(aRay.mDirection), aTMin, aTMax);
 }
 
 struct Aabb {
@@ -1028,7 +1024,8 @@ private:
             sample.mDirectPdfW = 1.f;
             sample.mEmissionPdfW = ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
         } else {
-            sample.mDirToLight = SampleUniformSphereW(aRnd, &sample.mDirectPdfW);
+            sample.mDirToLight = SampleUniformSphereW(aRnd);
+            sample.mDirectPdfW = UniformSpherePdfW();
             sample.mEmissionPdfW = sample.mDirectPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
         }
         sample.mDistance = std::numeric_limits<float>::infinity();
@@ -1076,11 +1073,13 @@ private:
         emission.mDirectPdfA = 1.f;
         emission.mCosAtLight = 1.f;
         if (mType == LightType::kPoint) {
-            emission.mDirection = SampleUniformSphereW(aRndDirection, &emission.mEmissionPdfW);
+            emission.mDirection = SampleUniformSphereW(aRndDirection);
+            emission.mEmissionPdfW = UniformSpherePdfW();
             emission.mEnergy = mEmission;
             return emission;
         }
-        const Vec3 local = SampleUniformConeW(aRndDirection, mSpotCosOuter, &emission.mEmissionPdfW);
+        const Vec3 local = SampleUniformConeW(aRndDirection, mSpotCosOuter);
+        emission.mEmissionPdfW = UniformConePdfW(mSpotCosOuter);
         const float falloff = SpotFalloff(local.z);
         if (!(falloff > 0.f)) return std::nullopt;
         emission.mDirection = Frame(mDirection).ToWorld(local);
@@ -1095,7 +1094,10 @@ private:
                                                   const Vec2& aRndPosition) const {
         float directionPdfW = 1.f;
         Vec3 direction = mDirection;
-        if (mType == LightType::kBackground) direction = -SampleUniformSphereW(aRndDirection, &directionPdfW);
+        if (mType == LightType::kBackground) {
+            direction = -SampleUniformSphereW(aRndDirection);
+            directionPdfW = UniformSpherePdfW();
+        }
         const Vec2 disc = SampleConcentricDisc(aRndPosition);
         const Frame frame(direction);
         LightEmission emission;
@@ -1493,9 +1495,11 @@ private:
             Triangle& triangle = mTriangles[t];
             if (!IsFinite(triangle.mP0) || !IsFinite(triangle.mP1) || !IsFinite(triangle.mP2))
                 throw Error(aWhere + ": triangle " + std::to_string(t) + " has a non-finite vertex");
-            if (!TriangleNormal(triangle.mP0, triangle.mP1, triangle.mP2, triangle.mNormal))
+            const std::optional<Vec3> geometricNormal = TriangleNormal(triangle.mP0, triangle.mP1, triangle.mP2);
+            if (!geometricNormal)
                 throw Error(aWhere + ": triangle " + std::to_string(t) +
                             " is degenerate (zero area: its vertices coincide or lie on a line)");
+            triangle.mNormal = *geometricNormal;
             if (triangle.mHasVertexNormals)
                 for (Vec3* normal : {&triangle.mN0, &triangle.mN1, &triangle.mN2}) {
                     const double length = glm::length(glm::dvec3(*normal));
@@ -1799,14 +1803,28 @@ inline float AdjointShadingFactor(float aCosFixShading, float aCosFixGeometric, 
            (std::abs(aCosFixGeometric) * std::abs(aCosGenShading));
 }
 
-// The Bsdf towards one direction, as a technique that connects (or merges) a path at
-// its vertex needs it (Bsdf::EvaluateWithRoulette, EvaluatePathWithRoulette).
+// The Bsdf towards one direction (Bsdf::Evaluate), as a technique that connects (or
+// merges) a path at its vertex needs it (Bsdf::EvaluateWithRoulette,
+// EvaluatePathWithRoulette: the pdfs with Russian roulette included).
 struct BsdfEval {
     Vec3 mValue{0.f};          // f, without the cosine (f_path from EvaluatePathWithRoulette)
     float mCosThetaGen = 0.f;  // |cos| of the direction with the shading normal
-    float mDirPdfW = 0.f;      // pdf of sampling the direction, Russian roulette included
-    float mRevPdfW = 0.f;      // pdf of the reverse choice (the fixed direction given it), likewise
+    float mDirPdfW = 0.f;      // pdf of sampling the direction
+    float mRevPdfW = 0.f;      // pdf of the reverse choice (the fixed direction given it)
     bool IsBlack() const { return smallvcm::IsBlack(mValue); }
+};
+
+// One sampled direction of a Bsdf (Bsdf::Sample).
+struct ScatterSample {
+    Vec3 mDirection{0.f};
+    Vec3 mValue{0.f};       // f of what was sampled, without the cosine
+    Vec3 mWeight{0.f};      // f cos / pdf: what the path throughput is multiplied by
+    float mPdfW = 0.f;      // solid-angle pdf of mDirection (with SampleScatteringWithRoulette:
+                            // continuation probability included)
+    float mReversePdfW = 0.f;  // the pdf of the reverse choice (sampling fix given gen), likewise
+    float mCosThetaOut = 0.f;  // |cos| of mDirection with the shading normal
+    uint32_t mEvent = kEventNone;
+    bool IsSpecular() const { return (mEvent & kEventSpecular) != 0; }
 };
 
 // What a sub-path carries, which decides how a BSDF applies to it: radiance on camera
@@ -1904,7 +1922,10 @@ public:
             return;
         }
         mFresnel = FresnelDielectric(mLocalDirFix.z, aMaterial.mIor);
-        if (!NormalisedProbabilities(mReflectance, aMaterial.mIor, mLocalDirFix.z, mFresnel, mProbabilities)) return;
+        const std::optional<std::array<float, 4>> probabilities =
+            NormalisedProbabilities(mReflectance, aMaterial.mIor, mLocalDirFix.z, mFresnel);
+        if (!probabilities) return;
+        mProbabilities = *probabilities;
         mIsDelta = mProbabilities[kDiffuse] == 0.f && mProbabilities[kPhong] == 0.f;
         mContinuationProb = aConstants ? aConstants->mContinuationProb : aMaterial.ContinuationProbability();
         mValid = true;
@@ -1921,8 +1942,10 @@ public:
         const Reflectances& reflectance = constants.mReflectance;
         for (const float cosFix : {1.f, -1.f}) {  // only its sign matters without refraction
             MaterialConstants::Side& side = cosFix > 0.f ? constants.mFront : constants.mBack;
-            side.mValid = NormalisedProbabilities(reflectance, aMaterial.mIor, cosFix, FresnelDielectric(cosFix, aMaterial.mIor),
-                                                  side.mProbabilities);
+            const std::optional<std::array<float, 4>> probabilities =
+                NormalisedProbabilities(reflectance, aMaterial.mIor, cosFix, FresnelDielectric(cosFix, aMaterial.mIor));
+            side.mValid = probabilities.has_value();
+            if (probabilities) side.mProbabilities = *probabilities;
             side.mIsDelta = side.mValid && side.mProbabilities[kDiffuse] == 0.f && side.mProbabilities[kPhong] == 0.f;
         }
         return constants;
@@ -1953,25 +1976,20 @@ public:
     // pdfs of sampling gen given fix (direct) and fix given gen (reverse), solid angle.
     // Inlined, with EvaluateNonSpecular, into every connection and merge, which call it
     // more often than anything else.
-    SMALLVCM_ALWAYS_INLINE Vec3 Evaluate(const Vec3& aWorldDirGen, float& oCosThetaGen, float* oDirectPdfW = nullptr,
-                                         float* oReversePdfW = nullptr) const {
+    SMALLVCM_ALWAYS_INLINE BsdfEval Evaluate(const Vec3& aWorldDirGen) const {
         const Vec3 localDirGen = mFrame.ToLocal(aWorldDirGen);
-        oCosThetaGen = std::abs(localDirGen.z);
-        Vec3 f(0.f);
-        float directPdfW = 0.f, reversePdfW = 0.f;
-        EvaluateNonSpecular(localDirGen, f, directPdfW, reversePdfW);
-        if (mShaded && !IsBlack(f)) {
+        BsdfEval eval = EvaluateNonSpecular(localDirGen);
+        eval.mCosThetaGen = std::abs(localDirGen.z);
+        if (mShaded && !eval.IsBlack()) {
             const float cosGenGeometric = glm::dot(mGeometricNormal, aWorldDirGen);
             if (!SidesAgree(localDirGen.z, cosGenGeometric)) {  // a light leak: nothing
-                f = Vec3(0.f);
-                directPdfW = reversePdfW = 0.f;
+                eval.mValue = Vec3(0.f);
+                eval.mDirPdfW = eval.mRevPdfW = 0.f;
             } else if (mTransport == Transport::kImportance) {
-                f *= AdjointShadingFactor(mLocalDirFix.z, mCosFixGeometric, localDirGen.z, cosGenGeometric);
+                eval.mValue *= AdjointShadingFactor(mLocalDirFix.z, mCosFixGeometric, localDirGen.z, cosGenGeometric);
             }
         }
-        if (oDirectPdfW) *oDirectPdfW = directPdfW;
-        if (oReversePdfW) *oReversePdfW = reversePdfW;
-        return f;
+        return eval;
     }
 
     // f_path(wL -> wE) of the section's notes, for density estimation: what the flux of a
@@ -1979,21 +1997,18 @@ public:
     // came from). Flux is spread over geometric area, so the estimate needs f_path, which
     // is f |gen . Ns| / |gen . Ng| in both transport directions (for importance, f carries
     // the adjoint factor); on a flat surface it is f itself.
-    Vec3 EvaluatePath(const Vec3& aWorldDirGen, float* oDirectPdfW = nullptr, float* oReversePdfW = nullptr) const {
-        float cosThetaGen;
-        const Vec3 f = Evaluate(aWorldDirGen, cosThetaGen, oDirectPdfW, oReversePdfW);
-        return PathValue(f, aWorldDirGen, cosThetaGen);
+    Vec3 EvaluatePath(const Vec3& aWorldDirGen) const {
+        const BsdfEval eval = Evaluate(aWorldDirGen);
+        return PathValue(eval.mValue, aWorldDirGen, eval.mCosThetaGen);
     }
 
     // Evaluate towards aWorldDirGen with both pdfs as the path sees them (WithRoulette):
     // what a connection to another vertex, a light or the camera needs. Inlined too: a
     // caller that does not read the reverse pdf (the path tracer) then does not compute it.
     SMALLVCM_ALWAYS_INLINE BsdfEval EvaluateWithRoulette(const Vec3& aWorldDirGen) const {
-        BsdfEval eval;
-        float dirPdfW = 0.f, revPdfW = 0.f;
-        eval.mValue = Evaluate(aWorldDirGen, eval.mCosThetaGen, &dirPdfW, &revPdfW);
-        eval.mDirPdfW = WithRoulette(dirPdfW);
-        eval.mRevPdfW = WithRoulette(revPdfW);
+        BsdfEval eval = Evaluate(aWorldDirGen);
+        eval.mDirPdfW = WithRoulette(eval.mDirPdfW);
+        eval.mRevPdfW = WithRoulette(eval.mRevPdfW);
         return eval;
     }
     // The same with f_path (EvaluatePath): what a merge needs.
@@ -2006,33 +2021,28 @@ public:
     // The pdf of sampling aWorldDirGen (or, with aReverse, of sampling the fixed
     // direction when aWorldDirGen were fixed), non-specular components only.
     float Pdf(const Vec3& aWorldDirGen, bool aReverse = false) const {
-        Vec3 f(0.f);
-        float directPdfW = 0.f, reversePdfW = 0.f;
-        EvaluateNonSpecular(mFrame.ToLocal(aWorldDirGen), f, directPdfW, reversePdfW);
-        return aReverse ? reversePdfW : directPdfW;
+        const BsdfEval eval = EvaluateNonSpecular(mFrame.ToLocal(aWorldDirGen));
+        return aReverse ? eval.mRevPdfW : eval.mDirPdfW;
     }
 
     // Picks a component with aRnd.z and samples a direction with aRnd.xy. For a
-    // non-specular pick the returned f and pdf are those of all non-specular components
-    // together (one-sample MIS over them); for a specular pick they are the component's,
-    // with f / pdf * cos = its weight. Returns black when the sample is unusable.
-    // oReversePdfW: the pdf of the opposite choice, sampling fix given gen (what Pdf(gen,
+    // non-specular pick f and pdf are those of all non-specular components together
+    // (one-sample MIS over them); for a specular pick they are the component's, with
+    // f / pdf * cos = its weight. Nothing when the sample is unusable (black).
+    // mReversePdfW: the pdf of the opposite choice, sampling fix given gen (what Pdf(gen,
     // true) returns; for a specular pick the same selection probability). Evaluating the
     // non-specular components yields it anyway, and bidirectional methods need it.
-    // On a smooth surface a sampled direction that would leak (section notes) is black,
-    // and a Bsdf of a light sub-path multiplies the adjoint factor in.
-    Vec3 Sample(const Vec3& aRnd, Vec3& oWorldDirGen, float& oPdfW, float& oCosThetaGen,
-                uint32_t* oSampledEvent = nullptr, float* oReversePdfW = nullptr) const {
-        const Vec3 f = SampleInShadingFrame(aRnd, oWorldDirGen, oPdfW, oCosThetaGen, oSampledEvent, oReversePdfW);
-        if (!mShaded || IsBlack(f)) return f;
-        const float cosGenGeometric = glm::dot(mGeometricNormal, oWorldDirGen);
-        if (!SidesAgree(glm::dot(mFrame.mZ, oWorldDirGen), cosGenGeometric)) {
-            oPdfW = 0.f;
-            if (oSampledEvent) *oSampledEvent = kEventNone;
-            return Vec3(0.f);
-        }
-        if (mTransport == Transport::kRadiance) return f;
-        return f * AdjointShadingFactor(mLocalDirFix.z, mCosFixGeometric, oCosThetaGen, cosGenGeometric);
+    // On a smooth surface a sampled direction that would leak (section notes) is
+    // unusable, and a Bsdf of a light sub-path multiplies the adjoint factor in.
+    // (mWeight is left to SampleBsdf.)
+    std::optional<ScatterSample> Sample(const Vec3& aRnd) const {
+        std::optional<ScatterSample> sample = SampleInShadingFrame(aRnd);
+        if (!mShaded || !sample) return sample;
+        const float cosGenGeometric = glm::dot(mGeometricNormal, sample->mDirection);
+        if (!SidesAgree(glm::dot(mFrame.mZ, sample->mDirection), cosGenGeometric)) sample.reset();
+        else if (mTransport == Transport::kImportance)
+            sample->mValue *= AdjointShadingFactor(mLocalDirFix.z, mCosFixGeometric, sample->mCosThetaOut, cosGenGeometric);
+        return sample;
     }
 
 private:
@@ -2043,59 +2053,69 @@ private:
     }
 
     // Sample without the shading-normal rules: the components in the shading frame.
-    Vec3 SampleInShadingFrame(const Vec3& aRnd, Vec3& oWorldDirGen, float& oPdfW, float& oCosThetaGen,
-                              uint32_t* oSampledEvent, float* oReversePdfW) const {
-        if (oSampledEvent) *oSampledEvent = kEventNone;
-        oPdfW = 0.f;
+    // (Every return is of the one named sample, so that it is built in place.)
+    std::optional<ScatterSample> SampleInShadingFrame(const Vec3& aRnd) const {
+        std::optional<ScatterSample> sample(std::in_place);
+        ScatterSample& s = *sample;
         Vec3 localDirGen;
-        uint32_t event;
         const float* p = mProbabilities.data();
         if (aRnd.z < p[kDiffuse]) {
-            event = kEventDiffuse;
+            s.mEvent = kEventDiffuse;
             localDirGen = SampleCosHemisphereW(Vec2(aRnd));
-            if (mLocalDirFix.z < 0.f) return Vec3(0.f);
+            if (mLocalDirFix.z < 0.f) {
+                sample.reset();
+                return sample;
+            }
         } else if (aRnd.z < p[kDiffuse] + p[kPhong]) {
-            event = kEventPhong;
+            s.mEvent = kEventPhong;
             // BEGIN EXERCISE phong_bsdf/sample
             const Vec3 lobe = SamplePowerCosHemisphereW(Vec2(aRnd), mMaterial->mPhongExponent);
             localDirGen = Frame(ReflectLocal(mLocalDirFix)).ToWorld(lobe);
             // END EXERCISE phong_bsdf/sample
         } else if (aRnd.z < p[kDiffuse] + p[kPhong] + p[kReflect]) {
-            event = kEventReflect;
+            s.mEvent = kEventReflect;
             localDirGen = ReflectLocal(mLocalDirFix);
-            oPdfW = p[kReflect];
-            if (oReversePdfW) *oReversePdfW = oPdfW;
-            oCosThetaGen = std::abs(localDirGen.z);
-            oWorldDirGen = mFrame.ToWorld(localDirGen);
-            if (oSampledEvent) *oSampledEvent = event;
-            return mFresnel * mReflectance.mMirror / oCosThetaGen;
+            s.mPdfW = s.mReversePdfW = p[kReflect];
+            s.mCosThetaOut = std::abs(localDirGen.z);
+            s.mDirection = mFrame.ToWorld(localDirGen);
+            s.mValue = mFresnel * mReflectance.mMirror / s.mCosThetaOut;
+            if (IsBlack(s.mValue)) sample.reset();
+            return sample;
         } else {
-            event = kEventRefract;
-            float etaFixOverEtaGen;
-            if (!RefractLocal(mLocalDirFix, mMaterial->mIor, localDirGen, etaFixOverEtaGen) || !(p[kRefract] > 0.f))
-                return Vec3(0.f);
-            oPdfW = p[kRefract];
-            if (oReversePdfW) *oReversePdfW = oPdfW;
-            oCosThetaGen = std::abs(localDirGen.z);
-            oWorldDirGen = mFrame.ToWorld(localDirGen);
-            if (oSampledEvent) *oSampledEvent = event;
+            s.mEvent = kEventRefract;
+            const std::optional<Refraction> refraction = RefractLocal(mLocalDirFix, mMaterial->mIor);
+            if (!refraction || !(p[kRefract] > 0.f)) {
+                sample.reset();
+                return sample;
+            }
+            localDirGen = refraction->mLocalGen;
+            s.mPdfW = s.mReversePdfW = p[kRefract];
+            s.mCosThetaOut = std::abs(localDirGen.z);
+            s.mDirection = mFrame.ToWorld(localDirGen);
             // Radiance is not symmetric under refraction: L/eta^2 is what is conserved, so
             // camera paths carry (eta_fix / eta_gen)^2; light paths (importance) do not
             // (Veach 1997, sec. 5.2).
-            const float scale = mTransport == Transport::kImportance ? 1.f : Sqr(etaFixOverEtaGen);
-            return Vec3((1.f - mFresnel) * scale / oCosThetaGen);
+            const float scale = mTransport == Transport::kImportance ? 1.f : Sqr(refraction->mEtaFixOverEtaGen);
+            s.mValue = Vec3((1.f - mFresnel) * scale / s.mCosThetaOut);
+            if (IsBlack(s.mValue)) sample.reset();
+            return sample;
         }
         // Non-specular pick: evaluate every non-specular component for this direction.
-        if (localDirGen.z < kEpsCosine) return Vec3(0.f);
-        Vec3 f(0.f);
-        float reversePdfW;
-        EvaluateNonSpecular(localDirGen, f, oPdfW, reversePdfW);
-        if (!(oPdfW > 0.f)) return Vec3(0.f);
-        if (oReversePdfW) *oReversePdfW = reversePdfW;
-        oCosThetaGen = localDirGen.z;
-        oWorldDirGen = mFrame.ToWorld(localDirGen);
-        if (oSampledEvent) *oSampledEvent = event;
-        return f;
+        if (localDirGen.z < kEpsCosine) {
+            sample.reset();
+            return sample;
+        }
+        const BsdfEval eval = EvaluateNonSpecular(localDirGen);
+        if (!(eval.mDirPdfW > 0.f) || IsBlack(eval.mValue)) {
+            sample.reset();
+            return sample;
+        }
+        s.mValue = eval.mValue;
+        s.mPdfW = eval.mDirPdfW;
+        s.mReversePdfW = eval.mRevPdfW;
+        s.mCosThetaOut = localDirGen.z;
+        s.mDirection = mFrame.ToWorld(localDirGen);
+        return sample;
     }
 
     // A direction whose cosines with the shading and the geometric normal have one sign,
@@ -2111,16 +2131,18 @@ private:
 
     static Vec3 ReflectLocal(const Vec3& aLocal) { return Vec3(-aLocal.x, -aLocal.y, aLocal.z); }
 
-    // Snell's law in the local frame; false on total internal reflection.
-    static bool RefractLocal(const Vec3& aLocalFix, float aIor, Vec3& oLocalGen, float& oEtaFixOverEtaGen) {
+    // Snell's law in the local frame; nothing on total internal reflection.
+    struct Refraction {
+        Vec3 mLocalGen;
+        float mEtaFixOverEtaGen;
+    };
+    static std::optional<Refraction> RefractLocal(const Vec3& aLocalFix, float aIor) {
         const bool fromOutside = aLocalFix.z > 0.f;
-        oEtaFixOverEtaGen = fromOutside ? 1.f / aIor : aIor;
-        const float sinGen2 = Sqr(oEtaFixOverEtaGen) * (1.f - Sqr(aLocalFix.z));
-        if (sinGen2 >= 1.f) return false;
+        const float eta = fromOutside ? 1.f / aIor : aIor;  // eta_fix / eta_gen
+        const float sinGen2 = Sqr(eta) * (1.f - Sqr(aLocalFix.z));
+        if (sinGen2 >= 1.f) return std::nullopt;
         const float cosGen = std::sqrt(1.f - sinGen2);
-        oLocalGen = Vec3(-oEtaFixOverEtaGen * aLocalFix.x, -oEtaFixOverEtaGen * aLocalFix.y,
-                         fromOutside ? -cosGen : cosGen);
-        return true;
+        return Refraction{Vec3(-eta * aLocalFix.x, -eta * aLocalFix.y, fromOutside ? -cosGen : cosGen), eta};
     }
 
     // Un-normalised selection weights of the components for a fixed direction whose local
@@ -2137,23 +2159,22 @@ private:
         p[kRefract] = aIor > 0.f ? 1.f - aFresnel : 0.f;
         return p;
     }
-    // The same normalised to sum to 1 into oProbabilities; false (and them un-normalised)
-    // when they are all zero: a black material, or a one-sided one seen from behind.
-    static bool NormalisedProbabilities(const Reflectances& aReflectance, float aIor, float aCosFix, float aFresnel,
-                                        std::array<float, 4>& oProbabilities) {
-        oProbabilities = ComponentProbabilities(aReflectance, aIor, aCosFix, aFresnel);
-        const float total = oProbabilities[0] + oProbabilities[1] + oProbabilities[2] + oProbabilities[3];
-        if (!(total > 0.f)) return false;
-        for (float& p : oProbabilities) p /= total;
-        return true;
+    // The same normalised to sum to 1; nothing when they are all zero: a black material,
+    // or a one-sided one seen from behind.
+    static std::optional<std::array<float, 4>> NormalisedProbabilities(const Reflectances& aReflectance, float aIor,
+                                                                       float aCosFix, float aFresnel) {
+        std::array<float, 4> probabilities = ComponentProbabilities(aReflectance, aIor, aCosFix, aFresnel);
+        const float total = probabilities[0] + probabilities[1] + probabilities[2] + probabilities[3];
+        if (!(total > 0.f)) return std::nullopt;
+        for (float& p : probabilities) p /= total;
+        return probabilities;
     }
 
     // Lambert + Phong for (fix, gen) in local coordinates: both must lie on the front side.
-    SMALLVCM_ALWAYS_INLINE void EvaluateNonSpecular(const Vec3& aLocalDirGen, Vec3& oF, float& oDirectPdfW,
-                                                    float& oReversePdfW) const {
-        oF = Vec3(0.f);
-        oDirectPdfW = oReversePdfW = 0.f;
-        if (mIsDelta || mLocalDirFix.z < kEpsCosine || aLocalDirGen.z < kEpsCosine) return;
+    // (mCosThetaGen is left to the caller.)
+    SMALLVCM_ALWAYS_INLINE BsdfEval EvaluateNonSpecular(const Vec3& aLocalDirGen) const {
+        BsdfEval eval;
+        if (mIsDelta || mLocalDirFix.z < kEpsCosine || aLocalDirGen.z < kEpsCosine) return eval;
         // Selection probabilities when gen is the fixed direction: they differ from ours
         // only through the Fresnel term of glass, which then has to be recomputed.
         std::array<float, 4> reverse = mProbabilities;
@@ -2164,9 +2185,9 @@ private:
             for (float& p : reverse) p /= total;
         }
         if (mProbabilities[kDiffuse] > 0.f) {
-            oF += mReflectance.mDiffuse * kInvPi;
-            oDirectPdfW += mProbabilities[kDiffuse] * CosHemispherePdfW(aLocalDirGen);
-            oReversePdfW += reverse[kDiffuse] * CosHemispherePdfW(mLocalDirFix);
+            eval.mValue += mReflectance.mDiffuse * kInvPi;
+            eval.mDirPdfW += mProbabilities[kDiffuse] * CosHemispherePdfW(aLocalDirGen);
+            eval.mRevPdfW += reverse[kDiffuse] * CosHemispherePdfW(mLocalDirFix);
         }
         // BEGIN EXERCISE phong_bsdf/evaluate
         if (mProbabilities[kPhong] > 0.f) {
@@ -2176,13 +2197,14 @@ private:
             if (cosR > kEpsPhong) {
                 const float n = mMaterial->mPhongExponent;
                 const float lobe = std::pow(cosR, n);
-                oF += mReflectance.mPhong * ((n + 2.f) * 0.5f * kInvPi * lobe);
+                eval.mValue += mReflectance.mPhong * ((n + 2.f) * 0.5f * kInvPi * lobe);
                 const float lobePdfW = (n + 1.f) * 0.5f * kInvPi * lobe;
-                oDirectPdfW += mProbabilities[kPhong] * lobePdfW;
-                oReversePdfW += reverse[kPhong] * lobePdfW;
+                eval.mDirPdfW += mProbabilities[kPhong] * lobePdfW;
+                eval.mRevPdfW += reverse[kPhong] * lobePdfW;
             }
         }
         // END EXERCISE phong_bsdf/evaluate
+        return eval;
     }
 
     Frame mFrame;                 // around the shading normal (turned to the viewer if two-sided)
@@ -2202,27 +2224,12 @@ private:
 
 inline MaterialConstants ComputeMaterialConstants(const Material& aMaterial) { return Bsdf::ConstantsOf(aMaterial); }
 
-// One sampled direction of a Bsdf (Bsdf::Sample as a value).
-struct ScatterSample {
-    Vec3 mDirection{0.f};
-    Vec3 mValue{0.f};       // f of what was sampled, without the cosine
-    Vec3 mWeight{0.f};      // f cos / pdf: what the path throughput is multiplied by
-    float mPdfW = 0.f;      // solid-angle pdf of mDirection (with SampleScatteringWithRoulette:
-                            // continuation probability included)
-    float mReversePdfW = 0.f;  // the pdf of the reverse choice (Bsdf::Sample), likewise
-    float mCosThetaOut = 0.f;
-    uint32_t mEvent = kEventNone;
-    bool IsSpecular() const { return (mEvent & kEventSpecular) != 0; }
-};
-
-// A sample of the Bsdf with aRnd, no Russian roulette. Nothing when it is unusable (black).
-// (Built in place and returned by name, here and below: no copy of the sample is made.)
+// A sample of the Bsdf with aRnd, no Russian roulette, with its weight f cos / pdf.
+// Nothing when it is unusable. (Built in place and returned by name, here, in Bsdf::Sample
+// and below: no copy of the sample is made.)
 inline std::optional<ScatterSample> SampleBsdf(const Bsdf& aBsdf, const Vec3& aRnd) {
-    std::optional<ScatterSample> sample(std::in_place);
-    ScatterSample& s = *sample;
-    s.mValue = aBsdf.Sample(aRnd, s.mDirection, s.mPdfW, s.mCosThetaOut, &s.mEvent, &s.mReversePdfW);
-    if (IsBlack(s.mValue)) sample.reset();
-    else s.mWeight = s.mValue * (s.mCosThetaOut / s.mPdfW);
+    std::optional<ScatterSample> sample = aBsdf.Sample(aRnd);
+    if (sample) sample->mWeight = sample->mValue * (sample->mCosThetaOut / sample->mPdfW);
     return sample;
 }
 
@@ -2402,13 +2409,13 @@ inline const char* AlgorithmShortName(Algorithm aAlgorithm) {
     }
     return "?";
 }
-inline bool ParseAlgorithm(const std::string& aName, Algorithm& oAlgorithm) {
+inline std::optional<Algorithm> ParseAlgorithm(const std::string& aName) {
     for (Algorithm a : {Algorithm::kEyeLight, Algorithm::kPathTracing, Algorithm::kLightTracing,
                         Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
                         Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging,
                         Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather})
-        if (aName == AlgorithmShortName(a)) { oAlgorithm = a; return true; }
-    return false;
+        if (aName == AlgorithmShortName(a)) return a;
+    return std::nullopt;
 }
 
 enum class MisHeuristic { kBalance, kPower };
@@ -2730,19 +2737,17 @@ struct Photon {
     int mPathLength = 0;     // segments from the light
 };
 
-// A balanced kd-tree over points, built by recursive median splits on the axis of
-// largest extent (the photons are reordered in place: node = median of its range).
-// FindNearest returns the k nearest points within a maximum radius, exactly.
-//
-// The search is most of pm's time at k = 100, so it is kept cheap: candidates within
-// the current bound are only collected, and cut back to the k nearest by one
-// std::nth_element whenever there are 1.5 k of them (a max-heap of the best k would pay
-// log k steps for every candidate); small subtrees are scanned without recursion; and
-// the caller may pass the k-th distance of its previous query as a first bound
-// (neighbouring pixels see similar photon densities), widened only if fewer than k
-// points lie inside it.
-// None of it changes the result: the k nearest by distance, equal distances by index.
-class KdTree {
+// The k nearest points, by its contract; how it works is [SECTION] Appendix: range
+// search (a kd-tree), and a reader who skips it loses nothing needed to follow the
+// estimator. Build(count, positionOf) keeps the points and returns the order it keeps them
+// in: order[j] is the point kept at index j, and the caller reorders its own data the
+// same way, so that the indices the search reports are the caller's. FindNearest(point,
+// k, maxDistSqr, accept) returns the (up to) k nearest kept points within distance^2
+// maxDistSqr that accept(index) accepts -- the k nearest by distance, equal distances by
+// index -- in no particular order except that, when there are k of them, the k-th nearest
+// is last: all a density estimate needs (the set, and the radius). It is valid until the
+// next query. KNearest returns the same sorted by distance. Used by one thread.
+class NearestSearch {
 public:
     struct Neighbor {
         uint32_t mIndex;
@@ -2754,153 +2759,43 @@ public:
         }
     };
 
-    // Builds the tree over aCount points given by aPositionOf(i); oOrder[j] is the point
-    // stored at tree position j (the caller reorders its own data the same way).
-    // The median splits move compact (position, index) records, not indices into the
-    // caller's data: a comparison then reads the record itself, not a point somewhere in
-    // the caller's larger records (photons are 40 bytes). The build is mostly comparisons.
     template <class PositionOf>
-    void Build(size_t aCount, PositionOf&& aPositionOf, std::vector<uint32_t>& oOrder) {
-        std::vector<BuildRecord> records(aCount);
-        for (size_t i = 0; i < aCount; i++) records[i] = BuildRecord{aPositionOf(i), uint32_t(i)};
-        mAxes.assign(aCount, 0);
-        BuildRange(records, 0, aCount);
-        oOrder.resize(aCount);
-        mPositions.resize(aCount);
-        for (size_t i = 0; i < aCount; i++) {
-            mPositions[i] = records[i].mPosition;
-            oOrder[i] = records[i].mIndex;
-        }
-    }
-
-    size_t Size() const { return mPositions.size(); }
-    const Vec3& Position(size_t aIndex) const { return mPositions[aIndex]; }
-
-    // The (up to) aK nearest points with distance^2 <= aMaxDistSqr that aAccept(index)
-    // accepts, in no particular order except that, when there are aK of them, the k-th
-    // nearest is last. That is all a density estimate needs (the set, and the distance
-    // of the k-th); sorting them would cost about as much as finding them.
-    // ioHintSqr (optional): in, a first guess of the k-th distance^2 (0: none); out, the
-    // guess for the next query (the k-th distance^2 found here, with a margin).
+    std::vector<uint32_t> Build(size_t aCount, PositionOf&& aPositionOf);
     template <class Accept>
-    void FindNearest(const Vec3& aQuery, int aK, float aMaxDistSqr, Accept&& aAccept, std::vector<Neighbor>& oNeighbors,
-                     float* ioHintSqr = nullptr) const {
-        oNeighbors.clear();
-        if (mPositions.empty() || aK <= 0) return;
-        const size_t k = size_t(aK);
-        float bound = aMaxDistSqr;
-        if (ioHintSqr && *ioHintSqr > 0.f) bound = std::min(bound, *ioHintSqr);
-        for (;;) {
-            oNeighbors.clear();
-            float worst = bound;
-            Search(aQuery, k, worst, aAccept, oNeighbors, 0, mPositions.size());
-            if (oNeighbors.size() >= k || bound >= aMaxDistSqr) break;
-            bound = std::min(aMaxDistSqr, 4.f * bound);  // the guess was too small: twice the radius
-        }
-        if (oNeighbors.size() >= k) KeepNearest(oNeighbors, k);  // also when exactly k: puts the k-th last
-        if (ioHintSqr) *ioHintSqr = kHintMargin * (oNeighbors.size() == k ? oNeighbors.back().mDistSqr : bound);
-    }
-    // The same, sorted by distance (equal distances by index).
+    const std::vector<Neighbor>& FindNearest(const Vec3& aPoint, int aK, float aMaxDistSqr, Accept&& aAccept) const;
     template <class Accept>
-    void KNearest(const Vec3& aQuery, int aK, float aMaxDistSqr, Accept&& aAccept, std::vector<Neighbor>& oNeighbors) const {
-        FindNearest(aQuery, aK, aMaxDistSqr, aAccept, oNeighbors);
-        std::sort(oNeighbors.begin(), oNeighbors.end());
-    }
+    std::vector<Neighbor> KNearest(const Vec3& aPoint, int aK, float aMaxDistSqr, Accept&& aAccept) const;
+    size_t Size() const;
+    const Vec3& Position(size_t aIndex) const;  // of the point kept at aIndex
+
+    class KdTree;  // the appendix's structure (its tests use it directly)
 
 private:
-    struct BuildRecord { Vec3 mPosition; uint32_t mIndex; };
-
-    // Subtrees this small are scanned point by point: below it, recursing costs more than
-    // the distance tests it would skip.
-    static constexpr size_t kScanSize = 16;
-    // The next query's first bound: 1.5 x the k-th distance^2 found. A tighter guess is
-    // too often too small, and the search runs again wider; a looser one collects more
-    // candidates than it needs.
-    static constexpr float kHintMargin = 1.5f;
-
-    void BuildRange(std::vector<BuildRecord>& ioRecords, size_t aBegin, size_t aEnd) {
-        if (aEnd - aBegin <= 1) return;
-        Aabb box;
-        for (size_t i = aBegin; i < aEnd; i++) box.Extend(ioRecords[i].mPosition);
-        const Vec3 extent = box.mMax - box.mMin;
-        const int axis = (extent.x >= extent.y && extent.x >= extent.z) ? 0 : (extent.y >= extent.z ? 1 : 2);
-        const size_t middle = (aBegin + aEnd) / 2;
-        std::nth_element(ioRecords.begin() + long(aBegin), ioRecords.begin() + long(middle), ioRecords.begin() + long(aEnd),
-                         [axis](const BuildRecord& a, const BuildRecord& b) { return a.mPosition[axis] < b.mPosition[axis]; });
-        mAxes[middle] = uint8_t(axis);
-        BuildRange(ioRecords, aBegin, middle);
-        BuildRange(ioRecords, middle + 1, aEnd);
-    }
-
-    // Keeps the aK nearest candidates, the k-th nearest last.
-    static void KeepNearest(std::vector<Neighbor>& ioCandidates, size_t aK) {
-        std::nth_element(ioCandidates.begin(), ioCandidates.begin() + long(aK - 1), ioCandidates.end());
-        ioCandidates.resize(aK);
-    }
-
-    // Depth-first, nearer side first; a subtree is entered only if its splitting plane is
-    // within the current bound ioWorst, which shrinks to the k-th distance^2 so far each
-    // time the candidates are cut back.
-    template <class Accept>
-    void Search(const Vec3& aQuery, size_t aK, float& ioWorst, Accept& aAccept, std::vector<Neighbor>& ioCandidates,
-                size_t aBegin, size_t aEnd) const {
-        if (aEnd - aBegin <= kScanSize) {
-            for (size_t i = aBegin; i < aEnd; i++) Consider(aQuery, i, aK, ioWorst, aAccept, ioCandidates);
-            return;
-        }
-        const size_t middle = (aBegin + aEnd) / 2;
-        const int axis = mAxes[middle];
-        const float planeDistance = aQuery[axis] - mPositions[middle][axis];
-        const bool leftFirst = planeDistance < 0.f;
-        if (leftFirst) Search(aQuery, aK, ioWorst, aAccept, ioCandidates, aBegin, middle);
-        else Search(aQuery, aK, ioWorst, aAccept, ioCandidates, middle + 1, aEnd);
-        Consider(aQuery, middle, aK, ioWorst, aAccept, ioCandidates);
-        if (planeDistance * planeDistance <= ioWorst) {
-            if (leftFirst) Search(aQuery, aK, ioWorst, aAccept, ioCandidates, middle + 1, aEnd);
-            else Search(aQuery, aK, ioWorst, aAccept, ioCandidates, aBegin, middle);
-        }
-    }
-
-    template <class Accept>
-    void Consider(const Vec3& aQuery, size_t aPoint, size_t aK, float& ioWorst, Accept& aAccept,
-                  std::vector<Neighbor>& ioCandidates) const {
-        const Vec3 d = mPositions[aPoint] - aQuery;
-        const float distSqr = glm::dot(d, d);
-        if (distSqr <= ioWorst && aAccept(aPoint)) {
-            ioCandidates.push_back(Neighbor{uint32_t(aPoint), distSqr});
-            if (ioCandidates.size() == aK + aK / 2) {
-                KeepNearest(ioCandidates, aK);
-                ioWorst = ioCandidates.back().mDistSqr;
-            }
-        }
-    }
-
-    std::vector<Vec3> mPositions;
-    std::vector<uint8_t> mAxes;
+    struct State;
+    std::shared_ptr<State> mState;  // null until Build
 };
 
 // A photon map: photons in kd-tree order, and the radiance estimate over them.
 class PhotonMap {
 public:
     void Build(std::vector<Photon> aPhotons) {
-        std::vector<uint32_t> order;
-        mTree.Build(aPhotons.size(), [&](size_t i) { return aPhotons[i].mPosition; }, order);
+        const std::vector<uint32_t> order = mSearch.Build(aPhotons.size(), [&](size_t i) { return aPhotons[i].mPosition; });
         mPhotons.resize(aPhotons.size());
         for (size_t i = 0; i < order.size(); i++) mPhotons[i] = aPhotons[order[i]];
     }
     size_t Size() const { return mPhotons.size(); }
-    const KdTree& Tree() const { return mTree; }
+    const NearestSearch& Search() const { return mSearch; }
 
     // sum f dPhi / (pi r^2) over the aK nearest photons within aMaxRadius whose path
     // length is at most aMaxPhotonLength (so the full path stays within the limit).
-    Vec3 EstimateRadiance(const Vec3& aPoint, const Bsdf& aBsdf, int aK, float aMaxRadius, int aMaxPhotonLength,
-                          std::vector<KdTree::Neighbor>& aScratch, float* ioHintSqr = nullptr) const {
-        mTree.FindNearest(aPoint, aK, Sqr(aMaxRadius), [&](size_t i) { return mPhotons[i].mPathLength <= aMaxPhotonLength; }, aScratch, ioHintSqr);
-        if (aScratch.empty()) return Vec3(0.f);
-        const float radiusSqr = int(aScratch.size()) == aK ? aScratch.back().mDistSqr : Sqr(aMaxRadius);  // the k-th
+    Vec3 EstimateRadiance(const Vec3& aPoint, const Bsdf& aBsdf, int aK, float aMaxRadius, int aMaxPhotonLength) const {
+        const std::vector<NearestSearch::Neighbor>& nearest = mSearch.FindNearest(
+            aPoint, aK, Sqr(aMaxRadius), [&](size_t i) { return mPhotons[i].mPathLength <= aMaxPhotonLength; });
+        if (nearest.empty()) return Vec3(0.f);
+        const float radiusSqr = int(nearest.size()) == aK ? nearest.back().mDistSqr : Sqr(aMaxRadius);  // the k-th
         if (!(radiusSqr > 0.f)) return Vec3(0.f);
         Vec3 sum(0.f);
-        for (const KdTree::Neighbor& n : aScratch) {
+        for (const NearestSearch::Neighbor& n : nearest) {
             const Photon& photon = mPhotons[n.mIndex];
             // f_path, not f: the photons' flux is per unit of geometric area (Bsdf notes).
             sum += aBsdf.EvaluatePath(photon.mDirFix) * photon.mPower;
@@ -2909,13 +2804,16 @@ public:
     }
 
 private:
-    KdTree mTree;
+    NearestSearch mSearch;
     std::vector<Photon> mPhotons;
 };
 
+struct PhotonMaps {
+    PhotonMap mGlobal, mCaustic;
+};
+
 // Traces aPhotonCount photons and builds the global and caustic maps.
-inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLength, Rng& aRng,
-                         PhotonMap& oGlobal, PhotonMap& oCaustic) {
+inline PhotonMaps TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLength, Rng& aRng) {
     std::vector<Photon> global, caustic;
     for (int p = 0; p < aPhotonCount; p++) {
         const LightPick pick = aScene.PickLight(aRng.GetFloat());
@@ -2947,8 +2845,10 @@ inline void TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLeng
             ray = aScene.SpawnRay(hitPoint, scatter->mDirection);
         }
     }
-    oGlobal.Build(std::move(global));
-    oCaustic.Build(std::move(caustic));
+    PhotonMaps maps;
+    maps.mGlobal.Build(std::move(global));
+    maps.mCaustic.Build(std::move(caustic));
+    return maps;
 }
 
 class PhotonMapper : public AbstractRenderer {
@@ -2965,8 +2865,7 @@ public:
     // The estimator's two steps: the photon maps of this iteration, then one camera path
     // per pixel that reads them.
     void RunIteration(int /*aIteration*/, Rng& aRng) override {
-        TracePhotons(mScene, mOptions.mPhotonCount, mOptions.mMaxPathLength, aRng, mGlobal, mCaustic);
-        mGlobalHintSqr = mCausticHintSqr = 0.f;  // an iteration depends on its random numbers only
+        mMaps = TracePhotons(mScene, mOptions.mPhotonCount, mOptions.mMaxPathLength, aRng);
         const Camera& camera = mScene.mCamera;
         for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
             const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aRng.GetVec2();
@@ -3001,7 +2900,7 @@ private:
             if (!bsdf.IsValid()) return;
             if (!bsdf.IsDelta()) {
                 if (mFinalGather) EstimatePartitioned(aRng, aPixel, pathLength, hitPoint, bsdf, throughput, afterSpecular);
-                else Add(aPixel, kPhotons, throughput * Estimate(mGlobal, hitPoint, bsdf, pathLength));
+                else Add(aPixel, kPhotons, throughput * Estimate(mMaps.mGlobal, hitPoint, bsdf, pathLength));
             }
             // Only specular components carry the camera path on (by ray tracing).
             if (!ContinueSpecular(aRng, bsdf, hitPoint, throughput, aRay)) return;
@@ -3019,8 +2918,7 @@ private:
     Vec3 Estimate(const PhotonMap& aMap, const Vec3& aPoint, const Bsdf& aBsdf, int aPathLength) {
         if (aPathLength + 1 > mOptions.mMaxPathLength) return Vec3(0.f);
         return aMap.EstimateRadiance(aPoint, aBsdf, mOptions.mNearestPhotons, mMaxRadius,
-                                     mOptions.mMaxPathLength - aPathLength, mScratch,
-                                     &aMap == &mCaustic ? &mCausticHintSqr : &mGlobalHintSqr);
+                                     mOptions.mMaxPathLength - aPathLength);
     }
 
     // Samples the BSDF; continues (true) only if a specular component was picked.
@@ -3039,7 +2937,7 @@ private:
         auto layer = [&](Layer aPart) { return aAfterSpecular ? kSpecular : aPart; };
         AddDirectLight(aRng, aPixel, layer(kDirect), aPathLength, aHitPoint, aBsdf, aThroughput);
         // Caustics: the caustic map here.
-        Add(aPixel, layer(kCaustics), aThroughput * Estimate(mCaustic, aHitPoint, aBsdf, aPathLength));
+        Add(aPixel, layer(kCaustics), aThroughput * Estimate(mMaps.mCaustic, aHitPoint, aBsdf, aPathLength));
         FinalGather(aRng, aPixel, layer(kIndirect), aPathLength, aHitPoint, aBsdf, aThroughput);
     }
 
@@ -3055,11 +2953,10 @@ private:
         const Light& light = *mScene.PickLight(aRng.GetFloat()).mLight;
         const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2());
         if (!sample || IsBlack(sample->mRadiance)) return;
-        float cosToLight;
-        const Vec3 factor = aBsdf.Evaluate(sample->mDirToLight, cosToLight);
-        if (!IsBlack(factor) && !mScene.Occluded(aHitPoint, sample->mDirToLight, sample->mDistance))
-            Add(aPixel, aLayer, aThroughput * factor * sample->mRadiance *
-                                    (cosToLight * float(mScene.LightCount()) / sample->mDirectPdfW));
+        const BsdfEval bsdf = aBsdf.Evaluate(sample->mDirToLight);
+        if (!bsdf.IsBlack() && !mScene.Occluded(aHitPoint, sample->mDirToLight, sample->mDistance))
+            Add(aPixel, aLayer, aThroughput * bsdf.mValue * sample->mRadiance *
+                                    (bsdf.mCosThetaGen * float(mScene.LightCount()) / sample->mDirectPdfW));
     }
 
     // Indirect light by final gathering: one sample of x's non-specular part, followed
@@ -3078,7 +2975,7 @@ private:
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             if (!bsdf.IsDelta()) {
-                Add(aPixel, aLayer, gatherThroughput * Estimate(mGlobal, hitPoint, bsdf, length));
+                Add(aPixel, aLayer, gatherThroughput * Estimate(mMaps.mGlobal, hitPoint, bsdf, length));
                 return;
             }
             if (!ContinueSpecular(aRng, bsdf, hitPoint, gatherThroughput, ray)) return;
@@ -3087,11 +2984,7 @@ private:
 
     bool mFinalGather = false;
     float mMaxRadius = 0.f;
-    PhotonMap mGlobal, mCaustic;
-    std::vector<KdTree::Neighbor> mScratch;
-    // KdTree::FindNearest's first guesses of the k-th distance^2, one per map: the two
-    // maps' densities differ by orders of magnitude.
-    float mGlobalHintSqr = 0.f, mCausticHintSqr = 0.f;
+    PhotonMaps mMaps;
     int mLayers[kLayerCount] = {-1, -1, -1, -1, -1, -1};
 };
 
@@ -4646,10 +4539,10 @@ private:
                             float aTMax, FloatN& ioT, int& ioHits) {
         for (int lane = 0; lane < kWidth; lane++) {
             if (!(aLanes & (1 << lane))) continue;
-            float t;
-                if (IntersectTriangle(aBlock.Vertex(aBlock.mA, lane), aBlock.Vertex(aBlock.mB, lane),
-                                  aBlock.Vertex(aBlock.mC, lane), aRay, aData.mShear, aTMin, aTMax, t)) {
-                ioT.SetLane(lane, t);
+            const std::optional<float> t = IntersectTriangle(aBlock.Vertex(aBlock.mA, lane), aBlock.Vertex(aBlock.mB, lane),
+                                                             aBlock.Vertex(aBlock.mC, lane), aRay, aData.mShear, aTMin, aTMax);
+            if (t) {
+                ioT.SetLane(lane, *t);
                 ioHits |= 1 << lane;
             }
         }
@@ -4662,9 +4555,9 @@ private:
         int hits = 0;
         if (aBlock.IsSpheres()) {
             for (int lane = 0; lane < kWidth && !aBlock.IsCopy(lane); lane++) {
-                float t;
-                if (IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax, t)) {
-                    oT.SetLane(lane, t);
+                const std::optional<float> t = IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax);
+                if (t) {
+                    oT.SetLane(lane, *t);
                     hits |= 1 << lane;
                 }
             }
@@ -4704,10 +4597,8 @@ private:
     SMALLVCM_BVH_INLINE static bool OccludedByBlock(const Block& aBlock, const Ray& aRay, const BlockRay& aData, float aTMin,
                                                     float aTMax) {
         if (aBlock.IsSpheres()) {
-            for (int lane = 0; lane < kWidth && !aBlock.IsCopy(lane); lane++) {
-                float t;
-                if (IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax, t)) return true;
-            }
+            for (int lane = 0; lane < kWidth && !aBlock.IsCopy(lane); lane++)
+                if (IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax)) return true;
             return false;
         }
         FloatN t;
@@ -4972,8 +4863,9 @@ inline uint32_t Bvh::LargestLeaf() const { return mTree ? mTree->LargestLeaf() :
 // =====================================================================================
 // Provides: how RangeSearch meets the contract stated above its declaration in [SECTION]
 // Integrator: the VertexCM family (a reader who skips this appendix loses nothing the
-// renderer depends on), and HashGrid, the same search over bare point indices.
-// Relies on Vec3 and Sqr from [SECTION] Math.
+// renderer depends on), HashGrid, the same search over bare point indices, and how
+// NearestSearch ([SECTION] Integrator: photon mapping) finds the k nearest photons.
+// Relies on Vec3, Sqr and Aabb from [SECTION] Math and Geometry.
 //
 // The structure is SmallVCM's hashed grid: a uniform grid of cells of size 2r, hashed
 // into a table of buckets. A query visits the cells overlapping the query's bounding box
@@ -5251,6 +5143,185 @@ public:
         RangeSearch<uint32_t>::Build(aCount, aRadius, aPositionOf, [](size_t i) { return uint32_t(i); });
     }
 };
+
+// NearestSearch is a balanced kd-tree over the points, built by recursive median splits
+// on the axis of largest extent (the points are reordered: node = median of its range).
+// FindNearest returns the k nearest points within a maximum radius, exactly.
+//
+// The search is most of pm's time at k = 100, so it is kept cheap: candidates within
+// the current bound are only collected, and cut back to the k nearest by one
+// std::nth_element whenever there are 1.5 k of them (a max-heap of the best k would pay
+// log k steps for every candidate); small subtrees are scanned without recursion; and
+// the caller may pass the k-th distance of its previous query as a first bound
+// (neighbouring pixels see similar photon densities), widened only if fewer than k
+// points lie inside it.
+// None of it changes the result: the k nearest by distance, equal distances by index.
+// NearestSearch keeps the k-th distance of its last query as the next query's guess (one
+// per search: the global and caustic maps' densities differ by orders of magnitude),
+// none after a Build (an iteration depends on its random numbers only).
+class NearestSearch::KdTree {
+public:
+    using Neighbor = NearestSearch::Neighbor;
+
+    // Builds the tree over aCount points given by aPositionOf(i); oOrder[j] is the point
+    // stored at tree position j (the caller reorders its own data the same way).
+    // The median splits move compact (position, index) records, not indices into the
+    // caller's data: a comparison then reads the record itself, not a point somewhere in
+    // the caller's larger records (photons are 40 bytes). The build is mostly comparisons.
+    template <class PositionOf>
+    void Build(size_t aCount, PositionOf&& aPositionOf, std::vector<uint32_t>& oOrder) {
+        std::vector<BuildRecord> records(aCount);
+        for (size_t i = 0; i < aCount; i++) records[i] = BuildRecord{aPositionOf(i), uint32_t(i)};
+        mAxes.assign(aCount, 0);
+        BuildRange(records, 0, aCount);
+        oOrder.resize(aCount);
+        mPositions.resize(aCount);
+        for (size_t i = 0; i < aCount; i++) {
+            mPositions[i] = records[i].mPosition;
+            oOrder[i] = records[i].mIndex;
+        }
+    }
+
+    size_t Size() const { return mPositions.size(); }
+    const Vec3& Position(size_t aIndex) const { return mPositions[aIndex]; }
+
+    // The (up to) aK nearest points with distance^2 <= aMaxDistSqr that aAccept(index)
+    // accepts, in no particular order except that, when there are aK of them, the k-th
+    // nearest is last. That is all a density estimate needs (the set, and the distance
+    // of the k-th); sorting them would cost about as much as finding them.
+    // ioHintSqr (optional): in, a first guess of the k-th distance^2 (0: none); out, the
+    // guess for the next query (the k-th distance^2 found here, with a margin).
+    template <class Accept>
+    void FindNearest(const Vec3& aQuery, int aK, float aMaxDistSqr, Accept&& aAccept, std::vector<Neighbor>& oNeighbors,
+                     float* ioHintSqr = nullptr) const {
+        oNeighbors.clear();
+        if (mPositions.empty() || aK <= 0) return;
+        const size_t k = size_t(aK);
+        float bound = aMaxDistSqr;
+        if (ioHintSqr && *ioHintSqr > 0.f) bound = std::min(bound, *ioHintSqr);
+        for (;;) {
+            oNeighbors.clear();
+            float worst = bound;
+            Search(aQuery, k, worst, aAccept, oNeighbors, 0, mPositions.size());
+            if (oNeighbors.size() >= k || bound >= aMaxDistSqr) break;
+            bound = std::min(aMaxDistSqr, 4.f * bound);  // the guess was too small: twice the radius
+        }
+        if (oNeighbors.size() >= k) KeepNearest(oNeighbors, k);  // also when exactly k: puts the k-th last
+        if (ioHintSqr) *ioHintSqr = kHintMargin * (oNeighbors.size() == k ? oNeighbors.back().mDistSqr : bound);
+    }
+    // The same, sorted by distance (equal distances by index).
+    template <class Accept>
+    void KNearest(const Vec3& aQuery, int aK, float aMaxDistSqr, Accept&& aAccept, std::vector<Neighbor>& oNeighbors) const {
+        FindNearest(aQuery, aK, aMaxDistSqr, aAccept, oNeighbors);
+        std::sort(oNeighbors.begin(), oNeighbors.end());
+    }
+
+private:
+    struct BuildRecord { Vec3 mPosition; uint32_t mIndex; };
+
+    // Subtrees this small are scanned point by point: below it, recursing costs more than
+    // the distance tests it would skip.
+    static constexpr size_t kScanSize = 16;
+    // The next query's first bound: 1.5 x the k-th distance^2 found. A tighter guess is
+    // too often too small, and the search runs again wider; a looser one collects more
+    // candidates than it needs.
+    static constexpr float kHintMargin = 1.5f;
+
+    void BuildRange(std::vector<BuildRecord>& ioRecords, size_t aBegin, size_t aEnd) {
+        if (aEnd - aBegin <= 1) return;
+        Aabb box;
+        for (size_t i = aBegin; i < aEnd; i++) box.Extend(ioRecords[i].mPosition);
+        const Vec3 extent = box.mMax - box.mMin;
+        const int axis = (extent.x >= extent.y && extent.x >= extent.z) ? 0 : (extent.y >= extent.z ? 1 : 2);
+        const size_t middle = (aBegin + aEnd) / 2;
+        std::nth_element(ioRecords.begin() + long(aBegin), ioRecords.begin() + long(middle), ioRecords.begin() + long(aEnd),
+                         [axis](const BuildRecord& a, const BuildRecord& b) { return a.mPosition[axis] < b.mPosition[axis]; });
+        mAxes[middle] = uint8_t(axis);
+        BuildRange(ioRecords, aBegin, middle);
+        BuildRange(ioRecords, middle + 1, aEnd);
+    }
+
+    // Keeps the aK nearest candidates, the k-th nearest last.
+    static void KeepNearest(std::vector<Neighbor>& ioCandidates, size_t aK) {
+        std::nth_element(ioCandidates.begin(), ioCandidates.begin() + long(aK - 1), ioCandidates.end());
+        ioCandidates.resize(aK);
+    }
+
+    // Depth-first, nearer side first; a subtree is entered only if its splitting plane is
+    // within the current bound ioWorst, which shrinks to the k-th distance^2 so far each
+    // time the candidates are cut back.
+    template <class Accept>
+    void Search(const Vec3& aQuery, size_t aK, float& ioWorst, Accept& aAccept, std::vector<Neighbor>& ioCandidates,
+                size_t aBegin, size_t aEnd) const {
+        if (aEnd - aBegin <= kScanSize) {
+            for (size_t i = aBegin; i < aEnd; i++) Consider(aQuery, i, aK, ioWorst, aAccept, ioCandidates);
+            return;
+        }
+        const size_t middle = (aBegin + aEnd) / 2;
+        const int axis = mAxes[middle];
+        const float planeDistance = aQuery[axis] - mPositions[middle][axis];
+        const bool leftFirst = planeDistance < 0.f;
+        if (leftFirst) Search(aQuery, aK, ioWorst, aAccept, ioCandidates, aBegin, middle);
+        else Search(aQuery, aK, ioWorst, aAccept, ioCandidates, middle + 1, aEnd);
+        Consider(aQuery, middle, aK, ioWorst, aAccept, ioCandidates);
+        if (planeDistance * planeDistance <= ioWorst) {
+            if (leftFirst) Search(aQuery, aK, ioWorst, aAccept, ioCandidates, middle + 1, aEnd);
+            else Search(aQuery, aK, ioWorst, aAccept, ioCandidates, aBegin, middle);
+        }
+    }
+
+    template <class Accept>
+    void Consider(const Vec3& aQuery, size_t aPoint, size_t aK, float& ioWorst, Accept& aAccept,
+                  std::vector<Neighbor>& ioCandidates) const {
+        const Vec3 d = mPositions[aPoint] - aQuery;
+        const float distSqr = glm::dot(d, d);
+        if (distSqr <= ioWorst && aAccept(aPoint)) {
+            ioCandidates.push_back(Neighbor{uint32_t(aPoint), distSqr});
+            if (ioCandidates.size() == aK + aK / 2) {
+                KeepNearest(ioCandidates, aK);
+                ioWorst = ioCandidates.back().mDistSqr;
+            }
+        }
+    }
+
+    std::vector<Vec3> mPositions;
+    std::vector<uint8_t> mAxes;
+};
+
+struct NearestSearch::State {
+    KdTree mTree;
+    std::vector<Neighbor> mFound;  // the last query's answer
+    float mHintSqr = 0.f;          // the next query's first guess of the k-th distance^2
+};
+
+template <class PositionOf>
+std::vector<uint32_t> NearestSearch::Build(size_t aCount, PositionOf&& aPositionOf) {
+    if (!mState) mState = std::make_shared<State>();
+    std::vector<uint32_t> order;
+    mState->mTree.Build(aCount, aPositionOf, order);
+    mState->mHintSqr = 0.f;
+    return order;
+}
+
+template <class Accept>
+const std::vector<NearestSearch::Neighbor>& NearestSearch::FindNearest(const Vec3& aPoint, int aK, float aMaxDistSqr,
+                                                                       Accept&& aAccept) const {
+    static const std::vector<Neighbor> kNone;
+    if (!mState) return kNone;
+    mState->mTree.FindNearest(aPoint, aK, aMaxDistSqr, aAccept, mState->mFound, &mState->mHintSqr);
+    return mState->mFound;
+}
+
+template <class Accept>
+std::vector<NearestSearch::Neighbor> NearestSearch::KNearest(const Vec3& aPoint, int aK, float aMaxDistSqr,
+                                                             Accept&& aAccept) const {
+    std::vector<Neighbor> nearest;
+    if (mState) mState->mTree.KNearest(aPoint, aK, aMaxDistSqr, aAccept, nearest);
+    return nearest;
+}
+
+inline size_t NearestSearch::Size() const { return mState ? mState->mTree.Size() : 0; }
+inline const Vec3& NearestSearch::Position(size_t aIndex) const { return mState->mTree.Position(aIndex); }
 
 // =====================================================================================
 // [SECTION] Render loop
@@ -6989,8 +7060,8 @@ private:
                 if (i0 >= vertexCount || i1 >= vertexCount || i2 >= vertexCount)
                     Fail(what + ": index out of range in triangle " + std::to_string(t / 3) + " (vertex count " + std::to_string(vertexCount) + ")");
                 if (flip) std::swap(i1, i2);
-                Vec3 normal;
-                if (!TriangleNormal(world[i0], world[i1], world[i2], normal)) { mSkippedTriangles++; continue; }
+                const std::optional<Vec3> normal = TriangleNormal(world[i0], world[i1], world[i2]);
+                if (!normal) { mSkippedTriangles++; continue; }
                 triangleIds.push_back(mScene.AddTriangle(world[i0], world[i1], world[i2], material));
                 if (!uvs.empty()) {
                     Triangle& added = mScene.mTriangles.back();
@@ -7005,7 +7076,7 @@ private:
                     added.mN0 = normals[i0];
                     added.mN1 = normals[i1];
                     added.mN2 = normals[i2];
-                    if (glm::dot(normals[i0] + normals[i1] + normals[i2], normal) < 0.f) againstWinding++;
+                    if (glm::dot(normals[i0] + normals[i1] + normals[i2], *normal) < 0.f) againstWinding++;
                 }
             }
             if (againstWinding > 0 && mReport.mNotes.size() < 64)

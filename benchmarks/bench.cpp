@@ -214,10 +214,9 @@ Options ParseOptions(int argc, char** argv) {
         } else if (arg == "--algorithms") {
             o.mAlgorithms.clear();
             for (const std::string& name : SplitList(value(i))) {
-                Algorithm a;
-                if (!smallvcm::ParseAlgorithm(name, a))
-                    throw Error(arg + ": unknown algorithm '" + name + "' (pt, lt, ppm, bpm, bpt, vcm, pm, pmfg, el)");
-                o.mAlgorithms.push_back(a);
+                const std::optional<Algorithm> a = smallvcm::ParseAlgorithm(name);
+                if (!a) throw Error(arg + ": unknown algorithm '" + name + "' (pt, lt, ppm, bpm, bpt, vcm, pm, pmfg, el)");
+                o.mAlgorithms.push_back(*a);
             }
             if (o.mAlgorithms.empty()) throw Error(arg + ": no algorithm given");
         } else if (arg == "--threads") {
@@ -351,8 +350,9 @@ int RunChild(int argc, char** argv) {
     if (argc != 11) { std::fprintf(stderr, "bench --child: wrong arguments\n"); return 2; }
     try {
         const std::string scenePath = argv[2];
-        Algorithm algorithm;
-        if (!smallvcm::ParseAlgorithm(argv[3], algorithm)) throw Error(std::string("unknown algorithm ") + argv[3]);
+        const std::optional<Algorithm> parsed = smallvcm::ParseAlgorithm(argv[3]);
+        if (!parsed) throw Error(std::string("unknown algorithm ") + argv[3]);
+        const Algorithm algorithm = *parsed;
         const int threads = std::atoi(argv[4]);
         const int width = std::atoi(argv[5]), height = std::atoi(argv[6]);
         const double minSeconds = std::atof(argv[7]);

@@ -187,8 +187,7 @@ Mesh RandomSoup(size_t aTriangles) {
         const Vec3 a = c + 0.06f * (rng.GetVec3() - Vec3(0.5f));
         const Vec3 b = c + 0.06f * (rng.GetVec3() - Vec3(0.5f));
         const Vec3 d = c + 0.06f * (rng.GetVec3() - Vec3(0.5f));
-        Vec3 normal;
-        if (smallvcm::TriangleNormal(a, b, d, normal)) m.AddTriangle(a, b, d);
+        if (smallvcm::TriangleNormal(a, b, d)) m.AddTriangle(a, b, d);
     }
     m.mEye = Vec3(0.5f, 0.6f, 2.4f);
     m.mTarget = Vec3(0.5f);

@@ -226,9 +226,10 @@ CommandLine Parse(int argc, char** argv) {
         cl.mScenes.push_back(index);
     }
     for (const std::string& item : SplitList("--algorithms", algorithms)) {
-        Algorithm algorithm;
-        if (!smallvcm::ParseAlgorithm(item, algorithm) || algorithm == Algorithm::kEyeLight)
+        const std::optional<Algorithm> parsed = smallvcm::ParseAlgorithm(item);
+        if (!parsed || *parsed == Algorithm::kEyeLight)
             throw Error("--algorithms: '" + item + "' is not an estimator (" + kAllEstimators + ")");
+        const Algorithm algorithm = *parsed;
         if (std::find(cl.mAlgorithms.begin(), cl.mAlgorithms.end(), algorithm) != cl.mAlgorithms.end())
             throw Error("--algorithms: '" + item + "' is listed twice");
         cl.mAlgorithms.push_back(algorithm);

@@ -228,7 +228,7 @@ CommandLine Parse(int argc, char** argv) {
             cl.mIntegrator = smallvcm::FindIntegrator(name);
             if (!cl.mIntegrator) throw Error("-a: unknown algorithm '" + name + "' (" + IntegratorNames() + ")");
             // A built-in's name also sets the Algorithm, so the options read as they would in code.
-            smallvcm::ParseAlgorithm(name, cl.mOptions.mAlgorithm);
+            if (const auto algorithm = smallvcm::ParseAlgorithm(name)) cl.mOptions.mAlgorithm = *algorithm;
         }
         else if (arg == "-i") { cl.mOptions.mIterations = ParseNumber<int>(arg, value(i), 1, 100000000, "an integer in [1, 1e8]"); cl.mIterationsGiven = true; }
         else if (arg == "-t") cl.mOptions.mSeconds = ParseNumber<double>(arg, value(i), 1e-3, 1e7, "a number of seconds in [0.001, 1e7]");

@@ -642,22 +642,20 @@ Curve PhotonMappingCurve(const Kit& aKit, const Setup& aSetup, const std::string
 // one photon per iteration here, and ppm's curve would start ~20x above pm's).
 float MatchedRadiusFactor(const Setup& aSetup, int aPhotonCount, int aNearest, float aMaxRadiusFactor) {
     const Scene& scene = aSetup.mScene;
-    smallvcm::PhotonMap global, caustic;
     smallvcm::Rng rng = smallvcm::IterationRng(129101, 0);
-    smallvcm::TracePhotons(scene, aPhotonCount, RenderOptions().mMaxPathLength, rng, global, caustic);
+    const smallvcm::PhotonMaps maps = smallvcm::TracePhotons(scene, aPhotonCount, RenderOptions().mMaxPathLength, rng);
     const float sceneRadius = scene.GetSceneSphere().mRadius;
     const float maxRadius = aMaxRadiusFactor * sceneRadius;
     const smallvcm::Camera& camera = scene.mCamera;
     std::vector<float> radii;
-    std::vector<smallvcm::KdTree::Neighbor> neighbors;
     for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
         if (!aSetup.mDiffuse[size_t(pixel)]) continue;
         const smallvcm::Ray ray = camera.GenerateRay(
             smallvcm::Vec2(float(pixel % camera.Width()) + 0.5f, float(pixel / camera.Width()) + 0.5f));
         const smallvcm::SurfacePoint hit = scene.Intersect(ray);
         if (!hit.IsValid()) continue;
-        global.Tree().KNearest(ray.mOrigin + ray.mDirection * hit.mDist, aNearest, maxRadius * maxRadius,
-                               [](size_t) { return true; }, neighbors);
+        const std::vector<smallvcm::NearestSearch::Neighbor> neighbors = maps.mGlobal.Search().KNearest(
+            ray.mOrigin + ray.mDirection * hit.mDist, aNearest, maxRadius * maxRadius, [](size_t) { return true; });
         radii.push_back(int(neighbors.size()) == aNearest ? std::sqrt(neighbors.back().mDistSqr) : maxRadius);
     }
     if (radii.empty()) throw Error("MatchedRadiusFactor: no diffuse pixel");

@@ -149,17 +149,14 @@ inline bool SetupBsdfs(const Scene& aScene, const FullPath& aPath, PathBsdfs& oB
 }
 
 // The discrete probability with which aBsdf picks the specular component aEvent (what
-// Bsdf::Sample returns as oPdfW for it), excluding Russian roulette; 0 if it cannot.
+// Bsdf::Sample returns as mPdfW for it), excluding Russian roulette; 0 if it cannot.
 // Valid for purely specular materials (all specular vertices of the Cornell scenes): the
 // reflection interval of the component pick starts at 0, refraction's ends at 1.
 inline float SpecularSelectionProbability(const Bsdf& aBsdf, uint32_t aEvent, Vec3* oDirection = nullptr) {
-    Vec3 direction(0.f);
-    float pdf = 0.f, cosGen = 0.f;
-    uint32_t event = kEventNone;
     const float z = aEvent == kEventReflect ? 0.f : 0.99999994f;
-    aBsdf.Sample(Vec3(0.5f, 0.5f, z), direction, pdf, cosGen, &event);
-    if (oDirection) *oDirection = direction;
-    return event == aEvent ? pdf : 0.f;
+    const std::optional<ScatterSample> sample = aBsdf.Sample(Vec3(0.5f, 0.5f, z));
+    if (oDirection) *oDirection = sample ? sample->mDirection : Vec3(0.f);
+    return sample && sample->mEvent == aEvent ? sample->mPdfW : 0.f;
 }
 
 struct GeneratorStats {
@@ -264,8 +261,7 @@ inline bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
             const std::optional<LightSample> lightSample = light.Illuminate(aScene.GetSceneSphere(), hitPoint, aRng.GetVec2());
             if (!lightSample) return false;
             const LightSample& sample = *lightSample;
-            float cosToLight;
-            if (IsBlack(bsdf.Evaluate(sample.mDirToLight, cosToLight))) return false;
+            if (bsdf.Evaluate(sample.mDirToLight).IsBlack()) return false;
             oPath = FullPath();
             oPath.closedByLightSample = true;
             const Ray shadow = aScene.SpawnRay(hitPoint, sample.mDirToLight);
@@ -304,14 +300,13 @@ inline bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
         }
         if (segments + 1 >= kMaxSegments) return false;  // a specular vertex cannot close the path
 
-        Vec3 direction;
-        float pdfW, cosOut;
-        uint32_t event = kEventNone;
-        if (IsBlack(bsdf.Sample(aRng.GetVec3(), direction, pdfW, cosOut, &event))) return false;
+        const std::optional<ScatterSample> scattered = bsdf.Sample(aRng.GetVec3());
+        if (!scattered) return false;
+        const uint32_t event = scattered->mEvent;
         const bool specular = (event & kEventSpecular) != 0;
         if (specular != bsdf.IsDelta()) return false;  // mixed materials are not in these scenes
         events.back() = specular ? event : 0u;
-        ray = aScene.SpawnRay(hitPoint, direction);
+        ray = aScene.SpawnRay(hitPoint, scattered->mDirection);
     }
 }
 
@@ -517,10 +512,10 @@ public:
             // ConnectToLight at x_1 with the light sample that Illuminate gives for x_0.
             const LightSample sample = NextEventSample();
             const Bsdf& bsdf = mBsdfs.camera[1];
-            float cosToLight, bsdfDirPdfW, bsdfRevPdfW;
-            bsdf.Evaluate(sample.mDirToLight, cosToLight, &bsdfDirPdfW, &bsdfRevPdfW);
-            bsdfDirPdfW *= bsdf.ContinuationProb();
-            bsdfRevPdfW *= bsdf.ContinuationProb();
+            const BsdfEval eval = bsdf.Evaluate(sample.mDirToLight);
+            const float cosToLight = eval.mCosThetaGen;
+            const float bsdfDirPdfW = eval.mDirPdfW * bsdf.ContinuationProb();
+            const float bsdfRevPdfW = eval.mRevPdfW * bsdf.ContinuationProb();
             return VcmMis::WeightNextEvent(mMis, mCameraMis[1], bsdfDirPdfW, bsdfRevPdfW, sample.mDirectPdfW * mPick,
                                            sample.mEmissionPdfW * mPick, cosToLight, sample.mCosAtLight, mLight.IsDelta());
         }
@@ -532,13 +527,12 @@ public:
             direction /= distance;
             const Bsdf& cameraBsdf = mBsdfs.camera[size_t(z)];
             const Bsdf& lightBsdf = mBsdfs.light[size_t(y)];
-            float cosCamera, cameraDirPdfW, cameraRevPdfW, cosLight, lightDirPdfW, lightRevPdfW;
-            cameraBsdf.Evaluate(direction, cosCamera, &cameraDirPdfW, &cameraRevPdfW);
-            lightBsdf.Evaluate(-direction, cosLight, &lightDirPdfW, &lightRevPdfW);
-            cameraDirPdfW *= cameraBsdf.ContinuationProb();
-            cameraRevPdfW *= cameraBsdf.ContinuationProb();
-            lightDirPdfW *= lightBsdf.ContinuationProb();
-            lightRevPdfW *= lightBsdf.ContinuationProb();
+            const BsdfEval cameraEval = cameraBsdf.Evaluate(direction), lightEval = lightBsdf.Evaluate(-direction);
+            const float cosCamera = cameraEval.mCosThetaGen, cosLight = lightEval.mCosThetaGen;
+            const float cameraDirPdfW = cameraEval.mDirPdfW * cameraBsdf.ContinuationProb();
+            const float cameraRevPdfW = cameraEval.mRevPdfW * cameraBsdf.ContinuationProb();
+            const float lightDirPdfW = lightEval.mDirPdfW * lightBsdf.ContinuationProb();
+            const float lightRevPdfW = lightEval.mRevPdfW * lightBsdf.ContinuationProb();
             return VcmMis::WeightConnection(mMis, mLightMis[size_t(y)], mCameraMis[size_t(z)],
                                             PdfWtoA(cameraDirPdfW, distance, cosLight), cameraRevPdfW,
                                             PdfWtoA(lightDirPdfW, distance, cosCamera), lightRevPdfW);
@@ -550,9 +544,9 @@ public:
             const float distance = glm::length(dirToCamera);
             dirToCamera /= distance;
             const Bsdf& bsdf = mBsdfs.light[size_t(y)];
-            float cosToCamera, bsdfDirPdfW, bsdfRevPdfW;
-            bsdf.Evaluate(dirToCamera, cosToCamera, &bsdfDirPdfW, &bsdfRevPdfW);
-            bsdfRevPdfW *= bsdf.ContinuationProb();
+            const BsdfEval eval = bsdf.Evaluate(dirToCamera);
+            const float cosToCamera = eval.mCosThetaGen;
+            const float bsdfRevPdfW = eval.mRevPdfW * bsdf.ContinuationProb();
             const float cameraPdfA = CameraPdfW(mScene.mCamera, -dirToCamera) * std::abs(cosToCamera) / Sqr(distance);
             return VcmMis::WeightLightTracing(mMis, mLightMis[size_t(y)], cameraPdfA, bsdfRevPdfW);
         }
@@ -560,10 +554,9 @@ public:
             // MergeWithLightVertices: the light vertex stored at x_i meets the camera vertex x_i.
             const int i = aTechnique.index;
             const Bsdf& cameraBsdf = mBsdfs.camera[size_t(i)];
-            float cosCamera, cameraDirPdfW, cameraRevPdfW;
-            cameraBsdf.Evaluate(mBsdfs.light[size_t(i)].WorldDirFix(), cosCamera, &cameraDirPdfW, &cameraRevPdfW);
-            cameraDirPdfW *= cameraBsdf.ContinuationProb();
-            cameraRevPdfW *= cameraBsdf.ContinuationProb();
+            const BsdfEval cameraEval = cameraBsdf.Evaluate(mBsdfs.light[size_t(i)].WorldDirFix());
+            const float cameraDirPdfW = cameraEval.mDirPdfW * cameraBsdf.ContinuationProb();
+            const float cameraRevPdfW = cameraEval.mRevPdfW * cameraBsdf.ContinuationProb();
             return VcmMis::WeightMerge(mMis, mLightMis[size_t(i)], mCameraMis[size_t(i)], cameraDirPdfW, cameraRevPdfW);
         }
         }
@@ -612,8 +605,7 @@ private:
     // AfterScatter at x_aAt towards x_aTo with a sub-path's BSDF there (SampleScattering).
     void Scatter(SubpathMis& ioMis, const Bsdf& aBsdf, int aAt, int aTo) const {
         const Vec3 direction = Dir(mPath, aAt, aTo);
-        float cosOut;
-        aBsdf.Evaluate(direction, cosOut);
+        const float cosOut = aBsdf.Evaluate(direction).mCosThetaGen;
         const bool specular = mPath.Specular(aAt);
         float dirPdfW, revPdfW;
         if (specular) {

@@ -118,10 +118,8 @@ MeanAndError Albedo(const Bsdf& aBsdf, int aSamples, uint64_t aSeed, int aChanne
     Rng rng(aSeed, 0);
     std::vector<double> weights(size_t(aSamples), 0.0);
     for (double& w : weights) {
-        Vec3 direction;
-        float pdf = 0.f, cosine = 0.f;
-        const Vec3 f = aBsdf.Sample(rng.GetVec3(), direction, pdf, cosine);
-        if (pdf > 0.f && !IsBlack(f)) w = double(f[aChannel]) * cosine / pdf;
+        const std::optional<ScatterSample> sample = aBsdf.Sample(rng.GetVec3());
+        if (sample && sample->mPdfW > 0.f) w = double(sample->mValue[aChannel]) * sample->mCosThetaOut / sample->mPdfW;
     }
     return MeanOf(weights);
 }
@@ -154,9 +152,10 @@ TEST_CASE("Non-specular BSDFs are reciprocal: f(a, b) = f(b, a)", "[bsdf]") {
         for (int i = 0; i < 2000; i++) {
             const Vec3 a = RandomUpper(rng), b = RandomUpper(rng);
             for (const Transport transport : {Transport::kRadiance, Transport::kImportance}) {
-                float cosAB, cosBA;
-                const Vec3 fab = Make(a, material, transport).Evaluate(b, cosAB);
-                const Vec3 fba = Make(b, material, transport).Evaluate(a, cosBA);
+                const BsdfEval evalAB = Make(a, material, transport).Evaluate(b);
+                const BsdfEval evalBA = Make(b, material, transport).Evaluate(a);
+                const Vec3 fab = evalAB.mValue, fba = evalBA.mValue;
+                const float cosAB = evalAB.mCosThetaGen, cosBA = evalBA.mCosThetaGen;
                 for (int c = 0; c < 3; c++) REQUIRE(fab[c] == Approx(fba[c]).epsilon(1e-4).margin(1e-12));
                 REQUIRE(cosAB == Approx(glm::dot(b, kNormal)).epsilon(1e-5));
                 REQUIRE(cosBA == Approx(glm::dot(a, kNormal)).epsilon(1e-5));
@@ -175,9 +174,9 @@ TEST_CASE("The reverse pdf of Evaluate(b) set up at a equals the direct pdf of E
         for (int i = 0; i < 2000; i++) {
             const Vec3 a = RandomUpper(rng), b = RandomUpper(rng);
             const Bsdf atA = Make(a, material), atB = Make(b, material);
-            float cosine, directA, reverseA, directB, reverseB;
-            atA.Evaluate(b, cosine, &directA, &reverseA);
-            atB.Evaluate(a, cosine, &directB, &reverseB);
+            const BsdfEval evalA = atA.Evaluate(b), evalB = atB.Evaluate(a);
+            const float directA = evalA.mDirPdfW, reverseA = evalA.mRevPdfW;
+            const float directB = evalB.mDirPdfW, reverseB = evalB.mRevPdfW;
             REQUIRE(reverseA == Approx(directB).epsilon(1e-4).margin(1e-12));
             REQUIRE(reverseB == Approx(directA).epsilon(1e-4).margin(1e-12));
             // Pdf() gives the same two numbers as Evaluate.
@@ -197,8 +196,8 @@ TEST_CASE("For diffuse under glass the reverse pdf uses the Fresnel term of the 
         const double f = FresnelReference(aCos, 1.0, 1.5);
         return lumD / (lumD + f * lumM + (1.0 - f));
     };
-    float cosine, direct, reverse;
-    Make(a, material).Evaluate(b, cosine, &direct, &reverse);
+    const BsdfEval eval = Make(a, material).Evaluate(b);
+    const float direct = eval.mDirPdfW, reverse = eval.mRevPdfW;
     const float cosA = glm::dot(a, kNormal), cosB = glm::dot(b, kNormal);
     REQUIRE(direct == Approx(diffuseProbability(cosA) * cosB / kPi).epsilon(1e-4));
     REQUIRE(reverse == Approx(diffuseProbability(cosB) * cosA / kPi).epsilon(1e-4));
@@ -226,10 +225,10 @@ TEST_CASE("Lambert's albedo is its reflectance for every incident direction", "[
         REQUIRE(bsdf.IsValid());
         Rng rng(311, 0);
         for (int i = 0; i < 2000; i++) {
-            Vec3 direction;
-            float pdf, cosine;
-            const Vec3 f = bsdf.Sample(rng.GetVec3(), direction, pdf, cosine);
-            for (int c = 0; c < 3; c++) REQUIRE(f[c] * cosine / pdf == Approx(rho[c]).epsilon(1e-5));
+            const std::optional<ScatterSample> sample = bsdf.Sample(rng.GetVec3());
+            REQUIRE(sample);  // every Lambert sample is usable
+            for (int c = 0; c < 3; c++)
+                REQUIRE(sample->mValue[c] * sample->mCosThetaOut / sample->mPdfW == Approx(rho[c]).epsilon(1e-5));
         }
         for (int c = 0; c < 3; c++) {
             const MeanAndError albedo = Albedo(bsdf, 20000, 312, c);
@@ -310,16 +309,18 @@ TEST_CASE("A non-specular sample's f, pdf and reverse pdf are what Evaluate and 
             Rng rng(321, 0);
             int checked = 0;
             for (int i = 0; i < 2000; i++) {
-                Vec3 direction;
-                float pdf = 0.f, cosine = 0.f, reversePdf = -1.f;
-                uint32_t event = kEventNone;
-                const Vec3 f = bsdf.Sample(rng.GetVec3(), direction, pdf, cosine, &event, &reversePdf);
+                const std::optional<ScatterSample> sample = bsdf.Sample(rng.GetVec3());
+                if (!sample) continue;  // nothing sampled: no event to check
+                const Vec3 direction = sample->mDirection, f = sample->mValue;
+                const float pdf = sample->mPdfW, cosine = sample->mCosThetaOut, reversePdf = sample->mReversePdfW;
+                const uint32_t event = sample->mEvent;
                 if (event & kEventSpecular) REQUIRE(reversePdf == pdf);  // a selection probability, both ways
                 if (!(event == kEventDiffuse || event == kEventPhong)) continue;
                 checked++;
                 REQUIRE(reversePdf == Approx(bsdf.Pdf(direction, true)).epsilon(1e-4).margin(1e-6));
-                float evalCosine, evalPdf;
-                const Vec3 evaluated = bsdf.Evaluate(direction, evalCosine, &evalPdf);
+                const BsdfEval eval = bsdf.Evaluate(direction);
+                const Vec3 evaluated = eval.mValue;
+                const float evalCosine = eval.mCosThetaGen, evalPdf = eval.mDirPdfW;
                 REQUIRE(glm::length(direction) == Approx(1.f).epsilon(1e-5));
                 REQUIRE(glm::dot(direction, kNormal) > 0.f);
                 for (int c = 0; c < 3; c++) REQUIRE(f[c] == Approx(evaluated[c]).epsilon(1e-4).margin(1e-6));
@@ -376,15 +377,12 @@ ChiSquare SampleDirectionChiSquare(const Bsdf& aBsdf, int aSamples, double aRefl
 
     Rng rng(aSeed, 0);
     for (int i = 0; i < aSamples; i++) {
-        Vec3 direction;
-        float pdf, cosine;
-        uint32_t event = kEventNone;
-        const Vec3 f = aBsdf.Sample(rng.GetVec3(), direction, pdf, cosine, &event);
+        const std::optional<ScatterSample> sample = aBsdf.Sample(rng.GetVec3());
         int cell = noneCell;
-        if (IsBlack(f) || event == kEventNone) cell = noneCell;
-        else if (event == kEventReflect) cell = reflectCell;
-        else if (event == kEventRefract) cell = refractCell;
-        else cell = cellOf(direction);
+        if (!sample || sample->mEvent == kEventNone) cell = noneCell;
+        else if (sample->mEvent == kEventReflect) cell = reflectCell;
+        else if (sample->mEvent == kEventRefract) cell = refractCell;
+        else cell = cellOf(sample->mDirection);
         observed[size_t(cell)] += 1.0;
     }
     return ComputeChiSquare(observed, expected);
@@ -490,12 +488,10 @@ TEST_CASE("A refracted direction obeys Snell's law and lies in the plane of inci
         // From inside, stay within the critical angle so that refraction exists.
         if (fromInside) fix = -DirectionAt(0.8f + 0.2f * rng.GetFloat(), float(kTwoPi) * rng.GetFloat());
         const Bsdf bsdf = Make(fix, glass, Transport::kImportance);
-        Vec3 gen;
-        float pdf, cosine;
-        uint32_t event;
-        const Vec3 f = bsdf.Sample(Vec3(rng.GetFloat(), rng.GetFloat(), 0.99999f), gen, pdf, cosine, &event);
-        REQUIRE(event == kEventRefract);
-        REQUIRE_FALSE(IsBlack(f));
+        const std::optional<ScatterSample> sample = bsdf.Sample(Vec3(rng.GetFloat(), rng.GetFloat(), 0.99999f));
+        REQUIRE(sample);  // not black
+        REQUIRE(sample->mEvent == kEventRefract);
+        const Vec3 gen = sample->mDirection;
         refracted++;
         const double etaFix = fromInside ? 1.6 : 1.0, etaGen = fromInside ? 1.0 : 1.6;
         const double cosFix = glm::dot(fix, kNormal), cosGen = glm::dot(gen, kNormal);
@@ -524,13 +520,15 @@ TEST_CASE("Glass splits importance into F reflected and 1 - F refracted, and rad
             const Bsdf bsdf = Make(fix, glass, transport);
             REQUIRE(bsdf.IsValid());
             REQUIRE(bsdf.IsDelta());
-            Vec3 reflectDir, refractDir;
-            float reflectPdf, refractPdf, reflectCos, refractCos;
-            uint32_t reflectEvent, refractEvent;
-            const Vec3 fr = bsdf.Sample(Vec3(0.3f, 0.3f, 0.f), reflectDir, reflectPdf, reflectCos, &reflectEvent);
-            const Vec3 ft = bsdf.Sample(Vec3(0.3f, 0.3f, 0.99999f), refractDir, refractPdf, refractCos, &refractEvent);
-            REQUIRE(reflectEvent == kEventReflect);
-            REQUIRE(refractEvent == kEventRefract);
+            const std::optional<ScatterSample> reflectSample = bsdf.Sample(Vec3(0.3f, 0.3f, 0.f));
+            const std::optional<ScatterSample> refractSample = bsdf.Sample(Vec3(0.3f, 0.3f, 0.99999f));
+            REQUIRE(reflectSample);
+            REQUIRE(refractSample);
+            REQUIRE(reflectSample->mEvent == kEventReflect);
+            REQUIRE(refractSample->mEvent == kEventRefract);
+            const Vec3 reflectDir = reflectSample->mDirection, fr = reflectSample->mValue, ft = refractSample->mValue;
+            const float reflectPdf = reflectSample->mPdfW, refractPdf = refractSample->mPdfW;
+            const float reflectCos = reflectSample->mCosThetaOut, refractCos = refractSample->mCosThetaOut;
             // The selection probabilities are F and 1 - F (mirror reflectance 1).
             REQUIRE(reflectPdf == Approx(fresnel).epsilon(1e-5));
             REQUIRE(refractPdf == Approx(1.f - fresnel).epsilon(1e-5));
@@ -547,9 +545,9 @@ TEST_CASE("Glass splits importance into F reflected and 1 - F refracted, and rad
             const Vec3 mirror = 2.f * glm::dot(fix, kNormal) * kNormal - fix;
             REQUIRE(glm::length(reflectDir - mirror) <= 1e-5f);
             // A delta BSDF has nothing to evaluate.
-            float cosine, pdf;
-            REQUIRE(IsBlack(bsdf.Evaluate(reflectDir, cosine, &pdf)));
-            REQUIRE(pdf == 0.f);
+            const BsdfEval eval = bsdf.Evaluate(reflectDir);
+            REQUIRE(IsBlack(eval.mValue));
+            REQUIRE(eval.mDirPdfW == 0.f);
         }
     }
     // Under total internal reflection every sample reflects with weight 1.
@@ -557,12 +555,10 @@ TEST_CASE("Glass splits importance into F reflected and 1 - F refracted, and rad
     REQUIRE(tir.IsValid());
     Rng rng(332, 0);
     for (int i = 0; i < 100; i++) {
-        Vec3 dir;
-        float pdf, cosine;
-        uint32_t event;
-        const Vec3 f = tir.Sample(rng.GetVec3(), dir, pdf, cosine, &event);
-        REQUIRE(event == kEventReflect);
-        REQUIRE(f.x * cosine / pdf == Approx(1.f).epsilon(1e-5));
+        const std::optional<ScatterSample> sample = tir.Sample(rng.GetVec3());
+        REQUIRE(sample);
+        REQUIRE(sample->mEvent == kEventReflect);
+        REQUIRE(sample->mValue.x * sample->mCosThetaOut / sample->mPdfW == Approx(1.f).epsilon(1e-5));
     }
 }
 
@@ -575,17 +571,15 @@ TEST_CASE("A mirror reflects about the normal with weight 1 from either side and
         REQUIRE(bsdf.IsDelta());
         Rng rng(341, 0);
         for (int i = 0; i < 100; i++) {
-            Vec3 dir;
-            float pdf, cosine;
-            uint32_t event;
-            const Vec3 f = bsdf.Sample(rng.GetVec3(), dir, pdf, cosine, &event);
-            REQUIRE(event == kEventReflect);
-            REQUIRE(glm::length(dir - (2.f * glm::dot(fix, kNormal) * kNormal - fix)) <= 1e-5f);
-            REQUIRE(f.x * cosine / pdf == Approx(1.f).epsilon(1e-5));
+            const std::optional<ScatterSample> sample = bsdf.Sample(rng.GetVec3());
+            REQUIRE(sample);
+            REQUIRE(sample->mEvent == kEventReflect);
+            REQUIRE(glm::length(sample->mDirection - (2.f * glm::dot(fix, kNormal) * kNormal - fix)) <= 1e-5f);
+            REQUIRE(sample->mValue.x * sample->mCosThetaOut / sample->mPdfW == Approx(1.f).epsilon(1e-5));
         }
-        float cosine, pdf;
-        REQUIRE(IsBlack(bsdf.Evaluate(side * kNormal, cosine, &pdf)));
-        REQUIRE(pdf == 0.f);
+        const BsdfEval eval = bsdf.Evaluate(side * kNormal);
+        REQUIRE(IsBlack(eval.mValue));
+        REQUIRE(eval.mDirPdfW == 0.f);
         REQUIRE(bsdf.Pdf(side * kNormal) == 0.f);
     }
 }
@@ -601,9 +595,9 @@ TEST_CASE("Lambert and Phong seen from behind are invalid unless the material is
         REQUIRE_FALSE(Make(-DirectionAt(0.7f, 1.f), material, Transport::kImportance).IsValid());
         REQUIRE(Make(DirectionAt(0.7f, 1.f), material).IsValid());
         // From the front, nothing is transmitted to the back.
-        float cosine, pdf;
-        REQUIRE(IsBlack(Make(DirectionAt(0.7f, 1.f), material).Evaluate(-DirectionAt(0.5f, 3.f), cosine, &pdf)));
-        REQUIRE(pdf == 0.f);
+        const BsdfEval eval = Make(DirectionAt(0.7f, 1.f), material).Evaluate(-DirectionAt(0.5f, 3.f));
+        REQUIRE(IsBlack(eval.mValue));
+        REQUIRE(eval.mDirPdfW == 0.f);
     }
 }
 
@@ -614,22 +608,20 @@ TEST_CASE("A two-sided Lambert surface reflects on the side it is seen from", "[
     const Bsdf bsdf = Make(fix, material);
     REQUIRE(bsdf.IsValid());
     REQUIRE(bsdf.CosThetaFix() == Approx(0.7f).epsilon(1e-5));
-    float cosine, pdf;
     const Vec3 back = -DirectionAt(0.5f, 3.f), front = DirectionAt(0.5f, 3.f);
-    REQUIRE(bsdf.Evaluate(back, cosine, &pdf).x == Approx(0.6 / kPi).epsilon(1e-5));
-    REQUIRE(pdf == Approx(0.5 / kPi).epsilon(1e-4));
-    REQUIRE(IsBlack(bsdf.Evaluate(front, cosine)));
+    const BsdfEval eval = bsdf.Evaluate(back);
+    REQUIRE(eval.mValue.x == Approx(0.6 / kPi).epsilon(1e-5));
+    REQUIRE(eval.mDirPdfW == Approx(0.5 / kPi).epsilon(1e-4));
+    REQUIRE(IsBlack(bsdf.Evaluate(front).mValue));
     Rng rng(351, 0);
     for (int i = 0; i < 1000; i++) {
-        Vec3 dir;
-        float samplePdf, sampleCos;
-        const Vec3 f = bsdf.Sample(rng.GetVec3(), dir, samplePdf, sampleCos);
-        if (IsBlack(f)) continue;
-        REQUIRE(glm::dot(dir, kNormal) < 0.f);
-        REQUIRE(f.x * sampleCos / samplePdf == Approx(0.6f).epsilon(1e-5));
+        const std::optional<ScatterSample> sample = bsdf.Sample(rng.GetVec3());
+        if (!sample) continue;
+        REQUIRE(glm::dot(sample->mDirection, kNormal) < 0.f);
+        REQUIRE(sample->mValue.x * sample->mCosThetaOut / sample->mPdfW == Approx(0.6f).epsilon(1e-5));
     }
     // From the front it behaves like the one-sided material.
-    REQUIRE(Make(-fix, material).Evaluate(front, cosine).x == Approx(0.6 / kPi).epsilon(1e-5));
+    REQUIRE(Make(-fix, material).Evaluate(front).mValue.x == Approx(0.6 / kPi).epsilon(1e-5));
 }
 
 // ---------------------------------------------------------------------------------

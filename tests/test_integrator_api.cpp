@@ -99,9 +99,9 @@ TEST_CASE("The built-in estimators are registered under their short names, in te
     for (size_t i = 0; i < expected.size(); i++) {
         CHECK(all[i]->mName == expected[i]);
         CHECK_FALSE(all[i]->mDescription.empty());
-        Algorithm algorithm = Algorithm::kEyeLight;
-        REQUIRE(ParseAlgorithm(expected[i], algorithm));
-        CHECK(&BuiltInIntegrator(algorithm) == all[i]);
+        const std::optional<Algorithm> algorithm = ParseAlgorithm(expected[i]);
+        REQUIRE(algorithm);
+        CHECK(&BuiltInIntegrator(*algorithm) == all[i]);
         CHECK(FindIntegrator(expected[i]) == all[i]);
     }
     CHECK(FindIntegrator("no-such-integrator") == nullptr);
@@ -117,7 +117,9 @@ TEST_CASE("Render with a built-in's Integrator is Render with its Algorithm, bit
         options.mThreads = 2;
         options.mProgress = false;
         options.mPhotonCount = 2000;
-        REQUIRE(ParseAlgorithm(name, options.mAlgorithm));
+        const std::optional<Algorithm> algorithm = ParseAlgorithm(name);
+        REQUIRE(algorithm);
+        options.mAlgorithm = *algorithm;
         const RenderResult byAlgorithm = Render(scene, options);
         options.mAlgorithm = Algorithm::kEyeLight;  // ignored: the Integrator decides
         const RenderResult byIntegrator = Render(scene, options, *FindIntegrator(name));

@@ -62,11 +62,11 @@ TEST_CASE("The kd-tree's k nearest neighbours equal brute force, with ties and a
         for (int i = 0; i < 3000; i++) points.push_back(rng.GetVec3() * 4.f - 2.f);
         for (int x = -3; x <= 3; x++) for (int y = -3; y <= 3; y++) for (int z = -3; z <= 3; z++) points.push_back(Vec3(float(x), float(y), float(z)) * 0.25f);
         points.push_back(points[17]);  // an exact duplicate
-        KdTree tree;
+        NearestSearch::KdTree tree;
         std::vector<uint32_t> order;
         tree.Build(points.size(), [&](size_t i) { return points[i]; }, order);
         REQUIRE(tree.Size() == points.size());
-        std::vector<KdTree::Neighbor> neighbors;
+        std::vector<NearestSearch::Neighbor> neighbors;
         for (int q = 0; q < 300; q++) {
             const Vec3 query = q % 3 == 0 ? Vec3(0.f) : (q % 3 == 1 ? points[size_t(q)] : rng.GetVec3() * 4.f - 2.f);
             const int k = 1 + q % 40;
@@ -96,22 +96,22 @@ TEST_CASE("FindNearest returns the k nearest by (distance, index), the k-th last
     std::vector<Vec3> points;
     for (int i = 0; i < 5000; i++) points.push_back(rng.GetVec3() * 2.f - 1.f);
     for (int x = -4; x <= 4; x++) for (int y = -4; y <= 4; y++) points.push_back(Vec3(float(x), float(y), 0.f) * 0.125f);
-    KdTree tree;
+    NearestSearch::KdTree tree;
     std::vector<uint32_t> order;
     tree.Build(points.size(), [&](size_t i) { return points[i]; }, order);
     auto accept = [&](size_t aIndex) { return order[aIndex] % 7 != 3; };  // drops one point in seven
-    std::vector<KdTree::Neighbor> found;
+    std::vector<NearestSearch::Neighbor> found;
     float hint = 0.f;
     for (int q = 0; q < 400; q++) {
         const Vec3 query = q % 4 == 0 ? Vec3(0.f) : rng.GetVec3() * 2.f - 1.f;
         const int k = 1 + (q * 37) % 150;
         const float maxDistSqr = q % 6 == 0 ? 0.002f : 10.f;
         // The brute-force answer: every accepted point within the radius, in the total order.
-        std::vector<KdTree::Neighbor> all;
+        std::vector<NearestSearch::Neighbor> all;
         for (size_t i = 0; i < tree.Size(); i++) {
             const Vec3 d = tree.Position(i) - query;
             const float distSqr = glm::dot(d, d);
-            if (distSqr <= maxDistSqr && accept(i)) all.push_back(KdTree::Neighbor{uint32_t(i), distSqr});
+            if (distSqr <= maxDistSqr && accept(i)) all.push_back(NearestSearch::Neighbor{uint32_t(i), distSqr});
         }
         std::sort(all.begin(), all.end());
         if (all.size() > size_t(k)) all.resize(size_t(k));
@@ -128,6 +128,67 @@ TEST_CASE("FindNearest returns the k nearest by (distance, index), the k-th last
         std::sort(found.begin(), found.end());
         for (size_t i = 0; i < found.size(); i++) CHECK(found[i].mIndex == all[i].mIndex);
         hint = ioHint;  // 0 (no guess) when the k-th nearest lies on the query point
+    }
+}
+
+TEST_CASE("NearestSearch finds the same k nearest as its kd-tree's KNearest, query after query, and Build returns a permutation",
+          "[photon_mapping]") {
+    // The contract (NearestSearch) keeps its own guess of the k-th distance from one query
+    // to the next; whatever it guesses, each answer must be the set KdTree::KNearest (no
+    // guess) gives for the same points, with the k-th nearest last.
+    Rng rng(13, 3);
+    std::vector<Vec3> points;
+    for (int i = 0; i < 4000; i++) points.push_back(rng.GetVec3() * 2.f - 1.f);
+    for (int x = -4; x <= 4; x++) for (int y = -4; y <= 4; y++) points.push_back(Vec3(float(x), float(y), 0.f) * 0.125f);
+    points.push_back(points[5]);  // an exact duplicate
+    const auto positionOf = [&](size_t i) { return points[i]; };
+    const auto acceptAll = [](size_t) { return true; };
+
+    NearestSearch search;
+    CHECK(search.Size() == 0);  // nothing built yet: nothing found
+    CHECK(search.FindNearest(Vec3(0.f), 5, 1.f, acceptAll).empty());
+    CHECK(search.KNearest(Vec3(0.f), 5, 1.f, acceptAll).empty());
+    const std::vector<uint32_t> order = search.Build(points.size(), positionOf);
+    REQUIRE(order.size() == points.size());
+    REQUIRE(search.Size() == points.size());
+    std::vector<uint32_t> sortedOrder = order;
+    std::sort(sortedOrder.begin(), sortedOrder.end());
+    for (size_t i = 0; i < sortedOrder.size(); i++) REQUIRE(sortedOrder[i] == uint32_t(i));  // each point once
+    for (size_t i = 0; i < order.size(); i++) REQUIRE(search.Position(i) == points[order[i]]);
+
+    NearestSearch::KdTree tree;
+    std::vector<uint32_t> treeOrder;
+    tree.Build(points.size(), positionOf, treeOrder);
+    REQUIRE(treeOrder == order);
+    const auto accept = [&](size_t aIndex) { return order[aIndex] % 5 != 2; };  // drops one point in five
+    std::vector<NearestSearch::Neighbor> expected;
+    for (int q = 0; q < 400; q++) {
+        // Queries near the last one (the kept guess fits), far jumps, changing k and radius.
+        const Vec3 query = q % 5 == 4 ? Vec3(0.f)
+                           : q % 2    ? rng.GetVec3() * 2.f - 1.f
+                                      : points[size_t(q * 7)] + 0.01f * rng.GetVec3();
+        const int k = 1 + (q * 29) % 120;
+        const float maxDistSqr = q % 7 == 0 ? 0.003f : 10.f;
+        tree.KNearest(query, k, maxDistSqr, accept, expected);
+        std::vector<NearestSearch::Neighbor> found = search.FindNearest(query, k, maxDistSqr, accept);
+        INFO("query " << q << ", k " << k << ", found " << found.size() << " of " << expected.size());
+        REQUIRE(found.size() == expected.size());
+        if (found.size() == size_t(k)) {  // the k-th nearest is last
+            CHECK(found.back().mIndex == expected.back().mIndex);
+            CHECK(found.back().mDistSqr == expected.back().mDistSqr);
+        }
+        std::sort(found.begin(), found.end());
+        for (size_t i = 0; i < found.size(); i++) {
+            CHECK(found[i].mIndex == expected[i].mIndex);
+            CHECK(found[i].mDistSqr == expected[i].mDistSqr);
+        }
+        // KNearest: the same, sorted.
+        const std::vector<NearestSearch::Neighbor> sorted = search.KNearest(query, k, maxDistSqr, accept);
+        REQUIRE(sorted.size() == expected.size());
+        for (size_t i = 0; i < sorted.size(); i++) {
+            CHECK(sorted[i].mIndex == expected[i].mIndex);
+            CHECK(sorted[i].mDistSqr == expected[i].mDistSqr);
+        }
     }
 }
 
@@ -151,16 +212,14 @@ TEST_CASE("The density estimate on a plane under a point light converges to the 
     const double expected = 0.5 / kPi;
     Bsdf bsdf;
     bsdf.Setup(Vec3(0, 0, 1), Vec3(0, 0, 1), scene.GetMaterial(m), Transport::kRadiance);
-    std::vector<KdTree::Neighbor> scratch;
     double previousBias = 1e30;
     for (int photons : {4000, 16000, 64000}) {
         double sum = 0.0;
         const int maps = 32;
         for (int i = 0; i < maps; i++) {
             Rng rng(77, uint64_t(photons + i));
-            PhotonMap global, caustic;
-            TracePhotons(scene, photons, 10, rng, global, caustic);
-            sum += double(Luminance(global.EstimateRadiance(Vec3(0.f), bsdf, 400, 100.f, 10, scratch)));
+            const PhotonMaps photonMaps = TracePhotons(scene, photons, 10, rng);
+            sum += double(Luminance(photonMaps.mGlobal.EstimateRadiance(Vec3(0.f), bsdf, 400, 100.f, 10)));
         }
         const double bias = sum / maps / expected - 1.0;
         UNSCOPED_INFO(photons << " photons: relative bias " << bias);

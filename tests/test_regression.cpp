@@ -16,7 +16,9 @@ TEST_CASE("Every algorithm renders exactly its golden image on a fixed seed", "[
         const Scene scene = LoadCornell(sceneIndex, 16, 16);
         for (const char* name : {"el", "pt", "lt", "ppm", "bpm", "bpt", "vcm", "pm", "pmfg"}) {
             RenderOptions options;
-            REQUIRE(ParseAlgorithm(name, options.mAlgorithm));
+            const std::optional<Algorithm> algorithm = ParseAlgorithm(name);
+            REQUIRE(algorithm);
+            options.mAlgorithm = *algorithm;
             options.mIterations = 2;
             options.mThreads = 1;
             options.mSeed = 5;

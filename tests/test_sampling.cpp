@@ -83,27 +83,28 @@ const float kPowers[] = {0.f, 1.f, 10.f, 90.f};
 TEST_CASE("The cosine hemisphere sampler returns unit directions in the upper hemisphere with the pdf CosHemispherePdfW gives", "[sampling]") {
     Rng rng(11, 0);
     for (int i = 0; i < 10000; i++) {
-        float pdf = -1.f;
-        const Vec3 w = SampleCosHemisphereW(rng.GetVec2(), &pdf);
+        const Vec3 w = SampleCosHemisphereW(rng.GetVec2());
         REQUIRE(glm::length(w) == Approx(1.f).epsilon(1e-5));
         REQUIRE(w.z >= 0.f);
-        REQUIRE(pdf == Approx(CosHemispherePdfW(w)).epsilon(1e-5));
+        // The sampler's density at the direction it returned: cos(theta) / pi.
+        REQUIRE(CosHemispherePdfW(w) == Approx(w.z * kInvPi).epsilon(1e-5));
     }
     // Known values: straight up has pdf 1/pi, below the horizon 0.
     REQUIRE(CosHemispherePdfW(Vec3(0.f, 0.f, 1.f)) == Approx(1.0 / kPi).epsilon(1e-6));
     REQUIRE(CosHemispherePdfW(Vec3(0.f, 0.6f, -0.8f)) == 0.f);
 }
 
-TEST_CASE("The power-cosine sampler returns the pdf PowerCosHemispherePdfW gives, for exponents 0, 1, 10 and 90", "[sampling]") {
+TEST_CASE("The power-cosine sampler's directions have the pdf PowerCosHemispherePdfW gives, for exponents 0, 1, 10 and 90", "[sampling]") {
     Rng rng(12, 0);
     for (float power : kPowers) {
         INFO("exponent " << power);
         for (int i = 0; i < 10000; i++) {
-            float pdf = -1.f;
-            const Vec3 w = SamplePowerCosHemisphereW(rng.GetVec2(), power, &pdf);
+            const Vec3 w = SamplePowerCosHemisphereW(rng.GetVec2(), power);
             REQUIRE(glm::length(w) == Approx(1.f).epsilon(1e-5));
             REQUIRE(w.z >= 0.f);
-            REQUIRE(pdf == Approx(PowerCosHemispherePdfW(w, power)).epsilon(1e-5));
+            // The sampler's density at the direction it returned: (n+1)/(2 pi) cos^n(theta).
+            REQUIRE(PowerCosHemispherePdfW(w, power) ==
+                    Approx((power + 1.f) * std::pow(w.z, power) * (0.5f * kInvPi)).epsilon(1e-5));
         }
         // At the pole the pdf is (n+1)/(2 pi); below the horizon the lobe has no mass.
         REQUIRE(PowerCosHemispherePdfW(Vec3(0.f, 0.f, 1.f), power) == Approx((power + 1.0) / kTwoPi).epsilon(1e-6));
@@ -117,24 +118,24 @@ TEST_CASE("The power-cosine sampler returns the pdf PowerCosHemispherePdfW gives
 TEST_CASE("The uniform sphere sampler returns unit directions with pdf 1/(4 pi)", "[sampling]") {
     Rng rng(13, 0);
     for (int i = 0; i < 10000; i++) {
-        float pdf = -1.f;
-        const Vec3 w = SampleUniformSphereW(rng.GetVec2(), &pdf);
+        const Vec3 w = SampleUniformSphereW(rng.GetVec2());
         REQUIRE(glm::length(w) == Approx(1.f).epsilon(1e-5));
-        REQUIRE(pdf == Approx(UniformSpherePdfW()).epsilon(1e-5));
+        // The sampler's density at the direction it returned (the same everywhere).
+        REQUIRE(UniformSpherePdfW() == Approx(0.25f * kInvPi).epsilon(1e-5));
     }
     REQUIRE(UniformSpherePdfW() == Approx(1.0 / (2.0 * kTwoPi)).epsilon(1e-6));
 }
 
-TEST_CASE("The uniform cone sampler stays inside the cone and returns the pdf UniformConePdfW gives", "[sampling]") {
+TEST_CASE("The uniform cone sampler stays inside the cone, where its pdf is the one UniformConePdfW gives", "[sampling]") {
     Rng rng(14, 0);
     for (float cosMax : {-0.5f, 0.f, 0.3f, 0.95f, 0.9999f}) {
         INFO("cos max " << cosMax);
         for (int i = 0; i < 10000; i++) {
-            float pdf = -1.f;
-            const Vec3 w = SampleUniformConeW(rng.GetVec2(), cosMax, &pdf);
+            const Vec3 w = SampleUniformConeW(rng.GetVec2(), cosMax);
             REQUIRE(glm::length(w) == Approx(1.f).epsilon(1e-5));
             REQUIRE(w.z >= cosMax - 1e-6f);
-            REQUIRE(pdf == Approx(UniformConePdfW(cosMax)).epsilon(1e-5));
+            // The sampler's density at the direction it returned (the same inside the cone).
+            REQUIRE(UniformConePdfW(cosMax) == Approx(1.f / (2.f * kPi * (1.f - cosMax))).epsilon(1e-5));
         }
         REQUIRE(UniformConePdfW(cosMax) == Approx(1.0 / (kTwoPi * (1.0 - cosMax))).epsilon(1e-5));
     }

@@ -155,13 +155,11 @@ TEST_CASE("A surface point carries unit geometric and shading normals with ortho
             Rng rng(7);
             for (int i = 0; i < 64; i++) {
                 const Vec3 gen = SampleUniformSphereW(rng.GetVec2());
-                float cosA = 0.f, cosB = 0.f, directA = 0.f, directB = 0.f, reverseA = 0.f, reverseB = 0.f;
-                const Vec3 fA = fromPoint.Evaluate(gen, cosA, &directA, &reverseA);
-                const Vec3 fB = fromNormals.Evaluate(gen, cosB, &directB, &reverseB);
-                CHECK(fA == fB);
-                CHECK(cosA == cosB);
-                CHECK(directA == directB);
-                CHECK(reverseA == reverseB);
+                const BsdfEval evalA = fromPoint.Evaluate(gen), evalB = fromNormals.Evaluate(gen);
+                CHECK(evalA.mValue == evalB.mValue);
+                CHECK(evalA.mCosThetaGen == evalB.mCosThetaGen);
+                CHECK(evalA.mDirPdfW == evalB.mDirPdfW);
+                CHECK(evalA.mRevPdfW == evalB.mRevPdfW);
             }
         }
     }
@@ -206,9 +204,8 @@ TEST_CASE("A double-sided smooth mesh wound against its normals still reflects f
         Bsdf bsdf;
         bsdf.Setup(ray, hit, scene, transport);
         REQUIRE(bsdf.IsValid());
-        float cos;
-        CHECK(!IsBlack(bsdf.Evaluate(glm::normalize(Vec3(0.3f, 0.1f, 1.f)), cos)));
-        CHECK(IsBlack(bsdf.Evaluate(glm::normalize(Vec3(0.3f, 0.1f, -1.f)), cos)));
+        CHECK(!IsBlack(bsdf.Evaluate(glm::normalize(Vec3(0.3f, 0.1f, 1.f))).mValue));
+        CHECK(IsBlack(bsdf.Evaluate(glm::normalize(Vec3(0.3f, 0.1f, -1.f))).mValue));
     }
 }
 
@@ -250,8 +247,9 @@ TEST_CASE("The adjoint shading factor and the Bsdf of both transport directions"
         Bsdf camera, light;
         camera.Setup(b, ng, ns, lambert, Transport::kRadiance);
         light.Setup(a, ng, ns, lambert, Transport::kImportance);
-        float cosCamera, cosLight;
-        const Vec3 fCamera = camera.Evaluate(a, cosCamera), fLight = light.Evaluate(b, cosLight);
+        const BsdfEval evalCamera = camera.Evaluate(a), evalLight = light.Evaluate(b);
+        const Vec3 fCamera = evalCamera.mValue, fLight = evalLight.mValue;
+        const float cosCamera = evalCamera.mCosThetaGen, cosLight = evalLight.mCosThetaGen;
         if (!valid) continue;
         compared++;
         // f_path(a -> b) = f_s |a.Ns| / |a.Ng|; each side's f cos must be f_path times the
@@ -264,13 +262,10 @@ TEST_CASE("The adjoint shading factor and the Bsdf of both transport directions"
         REQUIRE(camera.GeometricCos(a, cosCamera) == Approx(glm::dot(a, ng)).epsilon(1e-5));
         REQUIRE(light.CosThetaFixGeometric() == Approx(glm::dot(a, ng)).epsilon(1e-5));
         // Sample returns the same f as Evaluate for the direction it picks.
-        Vec3 sampled;
-        float pdfW, cosSampled;
-        const Vec3 fSampled = light.Sample(rng.GetVec3(), sampled, pdfW, cosSampled);
-        if (IsBlack(fSampled)) continue;
-        float cosEvaluated;
-        REQUIRE(fSampled.x == Approx(light.Evaluate(sampled, cosEvaluated).x).epsilon(1e-4));
-        REQUIRE(pdfW == Approx(light.Pdf(sampled)).epsilon(1e-4));
+        const std::optional<ScatterSample> sample = light.Sample(rng.GetVec3());
+        if (!sample) continue;
+        REQUIRE(sample->mValue.x == Approx(light.Evaluate(sample->mDirection).mValue.x).epsilon(1e-4));
+        REQUIRE(sample->mPdfW == Approx(light.Pdf(sample->mDirection)).epsilon(1e-4));
     }
     REQUIRE(compared > 250);  // about a fifth of the pairs are on the front of both normals
 }
@@ -288,20 +283,18 @@ TEST_CASE("No light leaks: a direction on different sides of the shading and the
         Bsdf bsdf;
         bsdf.Setup(up, ng, ns, lambert, transport);
         REQUIRE(bsdf.IsValid());
-        float cos, directPdfW = 1.f, reversePdfW = 1.f;
-        REQUIRE(IsBlack(bsdf.Evaluate(wedge, cos, &directPdfW, &reversePdfW)));
-        REQUIRE(directPdfW == 0.f);
-        REQUIRE(reversePdfW == 0.f);
-        REQUIRE(!IsBlack(bsdf.Evaluate(up, cos)));
+        const BsdfEval eval = bsdf.Evaluate(wedge);
+        REQUIRE(IsBlack(eval.mValue));
+        REQUIRE(eval.mDirPdfW == 0.f);
+        REQUIRE(eval.mRevPdfW == 0.f);
+        REQUIRE(!IsBlack(bsdf.Evaluate(up).mValue));
         // Sample never returns a direction below the geometric surface (some fall in the wedge).
         Rng rng(11, 0);
         int black = 0;
         for (int i = 0; i < 20000; i++) {
-            Vec3 direction;
-            float pdfW, cosGen;
-            const Vec3 f = bsdf.Sample(rng.GetVec3(), direction, pdfW, cosGen);
-            if (IsBlack(f)) { black++; continue; }
-            REQUIRE(glm::dot(direction, ng) > 0.f);
+            const std::optional<ScatterSample> sample = bsdf.Sample(rng.GetVec3());
+            if (!sample) { black++; continue; }
+            REQUIRE(glm::dot(sample->mDirection, ng) > 0.f);
         }
         REQUIRE(black > 0);
         // Arriving from the wedge: nothing (the one-sided Lambert's back, seen by Ng).
@@ -326,14 +319,14 @@ TEST_CASE("A two-sided smooth surface seen from behind turns both normals; a one
         REQUIRE(twoSided.IsValid());
         REQUIRE(twoSided.CosThetaFix() == Approx(glm::dot(behind, -ns)).epsilon(1e-5));
         REQUIRE(twoSided.CosThetaFixGeometric() == Approx(glm::dot(behind, -ng)).epsilon(1e-5));
-        float cos;
-        const Vec3 f = twoSided.Evaluate(alsoBehind, cos);
-        REQUIRE(cos == Approx(glm::dot(alsoBehind, -ns)).epsilon(1e-5));
+        const BsdfEval eval = twoSided.Evaluate(alsoBehind);
+        const Vec3 f = eval.mValue;
+        REQUIRE(eval.mCosThetaGen == Approx(glm::dot(alsoBehind, -ns)).epsilon(1e-5));
         const float adjoint = transport == Transport::kImportance ? AdjointShadingFactor(glm::dot(behind, ns), glm::dot(behind, ng),
                                                                 glm::dot(alsoBehind, ns), glm::dot(alsoBehind, ng)) : 1.f;
         REQUIRE(f.x == Approx(0.6f / kPi * adjoint).epsilon(1e-5));
         // The front is on the other side now: a direction in front of Ng is black.
-        REQUIRE(IsBlack(twoSided.Evaluate(glm::normalize(Vec3(0.f, 0.2f, 1.f)), cos)));
+        REQUIRE(IsBlack(twoSided.Evaluate(glm::normalize(Vec3(0.f, 0.2f, 1.f))).mValue));
     }
 }
 

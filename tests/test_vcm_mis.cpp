@@ -284,8 +284,9 @@ TEST_CASE("Degenerate paths and pdfs give finite weights in [0, 1], never NaN", 
                     const Vec3 normal = path.n[size_t(s)];
                     Vec3 direction = Dir(path, s, s - 1);
                     direction = direction - 2.f * glm::dot(direction, normal) * normal;
-                    float cosCamera, cameraDirPdfW = -1.f, cameraRevPdfW = -1.f;
-                    bsdfs.camera[size_t(s)].Evaluate(direction, cosCamera, &cameraDirPdfW, &cameraRevPdfW);
+                    const BsdfEval cameraEval = bsdfs.camera[size_t(s)].Evaluate(direction);
+                    const float cosCamera = cameraEval.mCosThetaGen;
+                    const float cameraDirPdfW = cameraEval.mDirPdfW, cameraRevPdfW = cameraEval.mRevPdfW;
                     if (cameraDirPdfW == 0.f && cameraRevPdfW == 0.f) belowSurface++;
                     const float w = VcmMis::WeightConnection(mis, light, camera, PdfWtoA(cameraDirPdfW, 1.f, cosCamera),
                                                              cameraRevPdfW, 0.f, 0.f);
