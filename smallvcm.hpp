@@ -4035,6 +4035,7 @@ inline int LastLane(int aMask) {
 // pages on request, madvise): a ray's node and block loads jump across the whole tree,
 // and with 4 KiB pages those of a large tree miss the TLB as well as the cache (Embree
 // asks for such pages too). Arrays under 2 MiB, and other systems, get ordinary memory.
+// The range search's grid ([SECTION] Appendix: range search) uses them for its arrays.
 inline constexpr size_t kHugePageBytes = size_t(2) << 20;
 template <typename T>
 struct HugePageAllocator {
@@ -4999,6 +5000,9 @@ private:
                 }
             }
         }
+        // The cells' ranges are requested before their marks are read, so that a query
+        // with points waits for one round of memory here, not two.
+        for (int c = 0; c < cells; c++) Prefetch(&mBucketEnds[hashes[c] & mBucketMask]);
         // No marked cell: nothing can pass.
         bool anyOccupied = mOccupied.empty();
         if (!anyOccupied)
@@ -5016,7 +5020,6 @@ private:
             if ((summary & summaryBit) && std::find(buckets, buckets + count, bucket) != buckets + count) continue;
             summary |= summaryBit;
             buckets[count++] = bucket;
-            Prefetch(&mBucketEnds[bucket]);
         }
         aQuery.mBucketCount = count;
     }
@@ -5081,10 +5084,10 @@ private:
     // Sizes an array that Build overwrites whole. Growing, it drops its old contents instead
     // of copying them and reserves a quarter more, as the point count differs by a few
     // percent between builds (pages never written take no memory).
-    template <class T>
-    static void ResizeForOverwrite(std::vector<T>& aArray, size_t aCount) {
+    template <class Vector>
+    static void ResizeForOverwrite(Vector& aArray, size_t aCount) {
         if (aArray.capacity() < aCount) {
-            std::vector<T>().swap(aArray);
+            Vector().swap(aArray);
             aArray.reserve(aCount + aCount / 4);
         }
         aArray.resize(aCount);
@@ -5111,12 +5114,16 @@ private:
 
     float mRadius = 0.f, mRadiusSqr = 0.f, mInvCellSize = 1.f;
     uint32_t mBucketMask = 0;
-    std::vector<uint32_t> mBucketEnds;
+    // On 2 MiB pages where the system offers them (detail::HugePageAllocator, [SECTION]
+    // Appendix: BVH): a query's loads land anywhere in these arrays.
+    template <class T>
+    using Array = std::vector<T, detail::HugePageAllocator<T>>;
+    Array<uint32_t> mBucketEnds;
     struct Point { Vec3 mPosition; uint32_t mIndex; };
-    std::vector<Point> mPoints;       // in bucket order
-    std::vector<Item> mItems;         // in the same order
+    Array<Point> mPoints;             // in bucket order
+    Array<Item> mItems;               // in the same order
     std::vector<uint32_t> mBucketOf;  // build scratch, kept to avoid reallocating
-    std::vector<uint64_t> mOccupied;  // IsOccupied's bits (none unless mMarkOccupiedCells)
+    Array<uint64_t> mOccupied;        // IsOccupied's bits (none unless mMarkOccupiedCells)
     uint32_t mOccupiedMask = 0;
     bool mMarkOccupiedCells = false;
     mutable uint64_t mQueries = 0, mEmptyQueries = 0;  // since the last Build (one thread: see the contract)
