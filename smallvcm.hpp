@@ -625,16 +625,41 @@ private:
 // How texture coordinates outside [0, 1] map into the image (glTF sampler wrap modes).
 enum class TextureWrap { kRepeat, kClampToEdge, kMirroredRepeat };
 
+// An affine map of texture coordinates (glTF's KHR_texture_transform): scale, then a
+// rotation of the uv axes by `rotation` radians counter-clockwise, then an offset:
+//     u' = ox + cos(rot) sx u + sin(rot) sy v,    v' = oy - sin(rot) sx u + cos(rot) sy v
+// (the extension's example, rotation pi/2 with offset (0, 1) and scale 1/2, then shows
+// the image's lower-left quadrant turned clockwise by 90 degrees).
+struct UvTransform {
+    Vec2 mOffset{0.f};
+    Vec2 mU{1.f, 0.f}, mV{0.f, 1.f};  // where u and v go: uv' = mOffset + u mU + v mV
+    bool mIdentity = true;            // then uv' = uv exactly
+
+    static UvTransform Make(const Vec2& aOffset, float aRotation, const Vec2& aScale) {
+        UvTransform t;
+        const float c = std::cos(aRotation), s = std::sin(aRotation);
+        t.mOffset = aOffset;
+        t.mU = aScale.x * Vec2(c, -s);
+        t.mV = aScale.y * Vec2(s, c);
+        t.mIdentity = aOffset == Vec2(0.f) && aRotation == 0.f && aScale == Vec2(1.f);
+        return t;
+    }
+    Vec2 Apply(const Vec2& aUv) const { return mIdentity ? aUv : mOffset + aUv.x * mU + aUv.y * mV; }
+};
+
 // An RGB image in linear colour, filtered bilinearly. glTF conventions: uv (0, 0) is the
 // top-left corner of the image (row 0), texel centres lie at ((i + 0.5) / width, ...).
+// The texture coordinates of a lookup go through mUvTransform first.
 struct Texture {
     int mWidth = 0, mHeight = 0;
     std::vector<Vec3> mTexels;  // row by row from the top
     TextureWrap mWrapU = TextureWrap::kRepeat, mWrapV = TextureWrap::kRepeat;
+    UvTransform mUvTransform;
 
-    Vec3 Lookup(const Vec2& aUv) const {
-        const float x = Reduce(aUv.x, mWrapU) * float(mWidth) - 0.5f;
-        const float y = Reduce(aUv.y, mWrapV) * float(mHeight) - 0.5f;
+    Vec3 Lookup(const Vec2& aTexCoord) const {
+        const Vec2 uv = mUvTransform.Apply(aTexCoord);
+        const float x = Reduce(uv.x, mWrapU) * float(mWidth) - 0.5f;
+        const float y = Reduce(uv.y, mWrapV) * float(mHeight) - 0.5f;
         const float fx = std::floor(x), fy = std::floor(y);
         const float tx = x - fx, ty = y - fy;
         const int x0 = int(fx), y0 = int(fy);
@@ -738,7 +763,7 @@ struct Triangle {
     Vec3 mNormal{0.f};   // set by Scene::Finalize from the winding
     int mMaterialId = 0;
     int mLightId = -1;
-    Vec2 mUv0{0.f}, mUv1{0.f}, mUv2{0.f};  // texture coordinates (glTF TEXCOORD_0)
+    Vec2 mUv0{0.f}, mUv1{0.f}, mUv2{0.f};  // texture coordinates (the glTF set its material's textures use)
     // Vertex normals (glTF NORMAL) of a smooth-shaded triangle, interpolated at each hit
     // into the shading normal; Scene::Finalize normalises them. Flat triangles have none.
     bool mHasVertexNormals = false;
@@ -6516,7 +6541,7 @@ private:
     static const std::set<std::string>& SupportedExtensions() {
         static const std::set<std::string> kSupported = {
             "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
-            "KHR_materials_ior", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
+            "KHR_materials_ior", "KHR_texture_transform", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
         return kSupported;
     }
 
@@ -6653,15 +6678,73 @@ private:
         mReport.mNotes.push_back(note);
     }
 
-    // The scene texture for glTF texture aTexture (decoded once, however many materials use it).
-    // aSlot names the material's use of it ("baseColorTexture", "emissiveTexture").
-    int TextureIndex(int aTexture, int aTexCoord, const char* aSlot, const std::string& aWhat) {
-        if (aTexCoord != 0)
-            Fail(aWhat + ": its " + aSlot + " uses TEXCOORD_" + std::to_string(aTexCoord) + "; only TEXCOORD_0 is supported");
+    // A material's use of a texture: the scene texture (one per glTF texture and
+    // transform, decoded once however many materials use it) and the TEXCOORD set it reads.
+    struct TextureUse {
+        int mTexture = -1;
+        int mTexCoord = 0;
+    };
+    // aSlot names the use ("baseColorTexture", "emissiveTexture"). KHR_texture_transform
+    // on it gives the texture its UvTransform and may choose another TEXCOORD set.
+    TextureUse UseTexture(const tinygltf::TextureInfo& aInfo, const char* aSlot, const std::string& aWhat) {
+        const std::string slot = aWhat + ": its " + aSlot;
+        TextureUse use;
+        use.mTexCoord = aInfo.texCoord;
+        Vec2 offset(0.f), scale(1.f);
+        float rotation = 0.f;
+        auto transform = aInfo.extensions.find("KHR_texture_transform");
+        if (transform != aInfo.extensions.end()) {
+            const tinygltf::Value& t = transform->second;
+            if (!t.IsObject()) Fail(slot + ": KHR_texture_transform must be an object");
+            auto pair = [&](const char* aKey, Vec2 aDefault) {
+                if (!t.Has(aKey)) return aDefault;
+                const tinygltf::Value& v = t.Get(aKey);
+                if (!v.IsArray() || v.ArrayLen() != 2 || !v.Get(0).IsNumber() || !v.Get(1).IsNumber())
+                    Fail(slot + ": KHR_texture_transform." + aKey + " must be an array of 2 numbers");
+                const Vec2 value(float(v.Get(0).GetNumberAsDouble()), float(v.Get(1).GetNumberAsDouble()));
+                if (!std::isfinite(value.x) || !std::isfinite(value.y))
+                    Fail(slot + ": KHR_texture_transform." + aKey + " is not finite (NaN, infinity, or beyond float)");
+                return value;
+            };
+            offset = pair("offset", offset);
+            scale = pair("scale", scale);
+            if (t.Has("rotation")) {
+                const tinygltf::Value& v = t.Get("rotation");
+                rotation = v.IsNumber() ? float(v.GetNumberAsDouble()) : std::numeric_limits<float>::quiet_NaN();
+                if (!std::isfinite(rotation))
+                    Fail(slot + ": KHR_texture_transform.rotation must be a finite number (radians)");
+            }
+            if (t.Has("texCoord")) {
+                const tinygltf::Value& v = t.Get("texCoord");
+                if (!v.IsInt() || v.GetNumberAsInt() < 0)
+                    Fail(slot + ": KHR_texture_transform.texCoord must be a non-negative integer");
+                use.mTexCoord = v.GetNumberAsInt();
+            }
+        }
+        if (use.mTexCoord < 0 || use.mTexCoord > kMaxTexCoordSet)
+            Fail(slot + " uses TEXCOORD_" + std::to_string(use.mTexCoord) + "; sets 0 to " + std::to_string(kMaxTexCoordSet) +
+                 " are read");
+        use.mTexture = TextureIndex(aInfo.index, UvTransform::Make(offset, rotation, scale), aWhat);
+        return use;
+    }
+    static constexpr int kMaxTexCoordSet = 7;
+
+    // The scene texture for glTF texture aTexture seen through aTransform.
+    int TextureIndex(int aTexture, const UvTransform& aTransform, const std::string& aWhat) {
         if (aTexture < 0 || aTexture >= int(mModel.textures.size()))
             Fail(aWhat + " refers to texture " + std::to_string(aTexture) + ", which does not exist");
-        auto known = mTextureIndex.find(aTexture);
+        const TextureKey key{aTexture, aTransform.mOffset.x, aTransform.mOffset.y, aTransform.mU.x, aTransform.mU.y,
+                             aTransform.mV.x, aTransform.mV.y};
+        auto known = mTextureIndex.find(key);
         if (known != mTextureIndex.end()) return known->second;
+        // The same image under another transform: a copy of the decoded texture.
+        for (const auto& [otherKey, index] : mTextureIndex)
+            if (otherKey.mTexture == aTexture) {
+                Texture copy = mScene.mTextures[size_t(index)];
+                copy.mUvTransform = aTransform;
+                mScene.mTextures.push_back(std::move(copy));
+                return mTextureIndex[key] = int(mScene.mTextures.size()) - 1;
+            }
         const tinygltf::Texture& texture = mModel.textures[size_t(aTexture)];
         const std::string what = "texture " + std::to_string(aTexture);
         if (texture.source < 0 || texture.source >= int(mModel.images.size()))
@@ -6674,9 +6757,10 @@ private:
             result.mWrapU = WrapMode(sampler.wrapS, what);
             result.mWrapV = WrapMode(sampler.wrapT, what);
         }
+        result.mUvTransform = aTransform;
         mScene.mTextures.push_back(std::move(result));
         const int index = int(mScene.mTextures.size()) - 1;
-        mTextureIndex[aTexture] = index;
+        mTextureIndex[key] = index;
         return index;
     }
     TextureWrap WrapMode(int aGltfWrap, const std::string& aWhat) const {
@@ -6751,6 +6835,7 @@ private:
             const tinygltf::Material& source = mModel.materials[m];
             const std::string what = "material " + std::to_string(m) + (source.name.empty() ? "" : " '" + Excerpt(source.name) + "'");
             const auto& pbr = source.pbrMetallicRoughness;
+            std::vector<std::pair<const char*, int>> texCoordSets;  // the textures read, and their sets
             // What the header does not model is approximated and listed in one note.
             if (pbr.metallicRoughnessTexture.index >= 0) Approximated("metallicRoughnessTexture (the factors are used)");
             if (source.normalTexture.index >= 0) Approximated("normalTexture (NORMAL, or else geometric normals, are used)");
@@ -6791,7 +6876,9 @@ private:
                     const Vec3 specular = glm::mix(Vec3(0.04f), baseColor, metallic);
                     material.mDiffuseReflectance = (1.f - metallic) * 0.96f * baseColor;
                     if (pbr.baseColorTexture.index >= 0) {
-                        material.mBaseColorTexture = TextureIndex(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord, "baseColorTexture", what);
+                        const TextureUse use = UseTexture(pbr.baseColorTexture, "baseColorTexture", what);
+                        material.mBaseColorTexture = use.mTexture;
+                        texCoordSets.push_back({"baseColorTexture", use.mTexCoord});
                         material.mSpecularUntinted = Vec3(0.04f * (1.f - metallic));
                     }
                     if (roughness == 0.f) {
@@ -6825,8 +6912,19 @@ private:
             // emissiveTexture multiplies the factor (an sRGB texture, like the base colour);
             // with a black factor it changes nothing, and is not decoded.
             int emissionTexture = -1;
-            if (source.emissiveTexture.index >= 0 && !IsBlack(emission))
-                emissionTexture = TextureIndex(source.emissiveTexture.index, source.emissiveTexture.texCoord, "emissiveTexture", what);
+            if (source.emissiveTexture.index >= 0 && !IsBlack(emission)) {
+                const TextureUse use = UseTexture(source.emissiveTexture, "emissiveTexture", what);
+                emissionTexture = use.mTexture;
+                texCoordSets.push_back({"emissiveTexture", use.mTexCoord});
+            }
+            // One set of texture coordinates per triangle: the textures a material reads
+            // must agree on it.
+            for (const auto& [slot, set] : texCoordSets)
+                if (set != texCoordSets.front().second)
+                    Fail(what + ": its " + texCoordSets.front().first + " reads TEXCOORD_" + std::to_string(texCoordSets.front().second) +
+                         " and its " + slot + " TEXCOORD_" + std::to_string(set) +
+                         "; the textures of one material must share one set of texture coordinates");
+            mMaterialTexCoord.push_back(texCoordSets.empty() ? 0 : texCoordSets.front().second);
             mMaterialEmission.push_back(emission);
             mMaterialEmissionTexture.push_back(emissionTexture);
             mMaterialEmitsTwoSided.push_back(source.doubleSided);
@@ -6853,6 +6951,7 @@ private:
             mDefaultMaterial = mScene.AddMaterial(material);
             mMaterialEmission.push_back(Vec3(0.f));
             mMaterialEmissionTexture.push_back(-1);
+            mMaterialTexCoord.push_back(0);
             mMaterialEmitsTwoSided.push_back(false);
         }
         return mDefaultMaterial;
@@ -7046,14 +7145,15 @@ private:
                                   : mMaterialEmissionTexture[size_t(material)] >= 0       ? "an emissiveTexture"
                                                                                            : nullptr;
             if (texture) {
-                auto texcoord = primitive.attributes.find("TEXCOORD_0");
+                const std::string set = "TEXCOORD_" + std::to_string(mMaterialTexCoord[size_t(material)]);
+                auto texcoord = primitive.attributes.find(set);
                 if (texcoord == primitive.attributes.end())
-                    Fail(what + ": its material has " + texture + " but the primitive has no TEXCOORD_0");
-                uvs = ReadAccessor(texcoord->second, TINYGLTF_TYPE_VEC2, AccessorKind::kTexcoords, what + " TEXCOORD_0");
-                if (uvs.size() != 2 * vertexCount) Fail(what + ": TEXCOORD_0 and POSITION have different counts");
+                    Fail(what + ": its material has " + texture + " but the primitive has no " + set);
+                uvs = ReadAccessor(texcoord->second, TINYGLTF_TYPE_VEC2, AccessorKind::kTexcoords, what + " " + set);
+                if (uvs.size() != 2 * vertexCount) Fail(what + ": " + set + " and POSITION have different counts");
                 for (size_t v = 0; v < uvs.size(); v++)
                     if (!std::isfinite(uvs[v]) || !std::isfinite(float(uvs[v])))
-                        Fail(what + ": TEXCOORD_0 of vertex " + std::to_string(v / 2) + " is not finite (NaN or infinity)");
+                        Fail(what + ": " + set + " of vertex " + std::to_string(v / 2) + " is not finite (NaN or infinity)");
             }
             const std::vector<Vec3> normals = WorldNormals(primitive, aWorld, vertexCount, what);
             size_t againstWinding = 0;
@@ -7369,9 +7469,19 @@ private:
     Scene mScene;
     std::vector<Vec3> mMaterialEmission;  // per scene material
     std::vector<int> mMaterialEmissionTexture;  // per scene material: index into Scene::mTextures, or -1
+    std::vector<int> mMaterialTexCoord;         // per scene material: the TEXCOORD set its textures read
     std::vector<bool> mMaterialEmitsTwoSided;  // per scene material: glTF doubleSided (area lights only)
     std::map<std::string, int> mApproximated;  // feature -> occurrences, for one note
-    std::unordered_map<int, int> mTextureIndex;  // glTF texture -> scene texture
+    // glTF texture and transform -> scene texture
+    struct TextureKey {
+        int mTexture;
+        float mOffsetX, mOffsetY, mUx, mUy, mVx, mVy;
+        bool operator<(const TextureKey& aOther) const {
+            return std::tie(mTexture, mOffsetX, mOffsetY, mUx, mUy, mVx, mVy) <
+                   std::tie(aOther.mTexture, aOther.mOffsetX, aOther.mOffsetY, aOther.mUx, aOther.mUy, aOther.mVx, aOther.mVy);
+        }
+    };
+    std::map<TextureKey, int> mTextureIndex;
     static constexpr uint64_t kMaxTexturePixels = uint64_t(1) << 26;  // 64 Mpixel: 768 MB of linear texels
     int mDefaultMaterial = -1;
     bool mHasCamera = false;
