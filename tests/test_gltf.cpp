@@ -1121,6 +1121,149 @@ TEST_CASE("Bad texture transforms and texture coordinate sets are refused in one
     }
 }
 
+namespace {
+
+// A normal map of one texel whose stored bytes are aBytes (through the PNG writer, which
+// sRGB-encodes: the linear value whose encoding is each byte), and the unit normal the
+// renderer makes of it in the tangent frame (T, B, N) = (+x, +y, +z) of the floor below.
+Image NormalMapImage(const glm::ivec3& aBytes) {
+    const auto linear = [](int aByte) {
+        const float e = float(aByte) / 255.f;
+        return e <= 0.04045f ? e / 12.92f : std::pow((e + 0.055f) / 1.055f, 2.4f);
+    };
+    Image image(1, 1);
+    image.mPixels = {Vec3(linear(aBytes.x), linear(aBytes.y), linear(aBytes.z))};
+    return image;
+}
+Vec3 MappedNormal(const glm::ivec3& aBytes, float aScale = 1.f) {
+    const Vec3 local((2.f * float(aBytes.x) / 255.f - 1.f) * aScale, (2.f * float(aBytes.y) / 255.f - 1.f) * aScale,
+                     2.f * float(aBytes.z) / 255.f - 1.f);
+    return glm::normalize(local);
+}
+
+// The unit floor [0,1]^2 at z = 0 with uv = (x, 1 - y) (the image upright seen from
+// above), a normal map (normalTexture, JSON aNormalTexture) and, optionally, TANGENT
+// (aTangent, the same at every vertex) and NORMAL (aNormal, likewise; then no normal map).
+std::string WriteNormalMappedFloor(const TemporaryFolder& aFolder, const Image& aMap, const std::string& aNormalTexture,
+                                   const Vec4* aTangent = nullptr, const Vec3* aNormal = nullptr) {
+    WriteImage(aFolder / "normal.png", aMap);
+    const float positions[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    const float uvs[8] = {0, 1, 1, 1, 1, 0, 0, 0};
+    const uint32_t indices[6] = {0, 1, 2, 2, 3, 0};
+    std::string bin(reinterpret_cast<const char*>(positions), sizeof positions);
+    bin.append(reinterpret_cast<const char*>(uvs), sizeof uvs);
+    bin.append(reinterpret_cast<const char*>(indices), sizeof indices);
+    std::string attributes = R"("POSITION": 0, "TEXCOORD_0": 1)", views, accessors;
+    if (aTangent) {
+        const size_t offset = bin.size();
+        for (int v = 0; v < 4; v++) bin.append(reinterpret_cast<const char*>(aTangent), sizeof(Vec4));
+        attributes += R"(, "TANGENT": 3)";
+        views += R"(, {"buffer": 0, "byteOffset": )" + std::to_string(offset) + R"(, "byteLength": 64})";
+        accessors += R"(, {"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC4"})";
+    }
+    if (aNormal) {
+        const size_t offset = bin.size();
+        for (int v = 0; v < 4; v++) bin.append(reinterpret_cast<const char*>(aNormal), sizeof(Vec3));
+        const int index = aTangent ? 4 : 3;
+        attributes += R"(, "NORMAL": )" + std::to_string(index);
+        views += R"(, {"buffer": 0, "byteOffset": )" + std::to_string(offset) + R"(, "byteLength": 48})";
+        accessors += R"(, {"bufferView": )" + std::to_string(index) + R"(, "componentType": 5126, "count": 4, "type": "VEC3"})";
+    }
+    std::ofstream(aFolder / "floor.bin", std::ios::binary) << bin;
+    std::ostringstream json;
+    json << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {)" << attributes << R"(}, "indices": 2, "material": 0}]}],
+      "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1], "metallicFactor": 0,
+                     "roughnessFactor": 1})" << (aNormal ? "" : R"(, "normalTexture": )" + aNormalTexture) << R"(}],
+      "textures": [{"source": 0}], "images": [{"uri": "normal.png"}],
+      "buffers": [{"uri": "floor.bin", "byteLength": )" << bin.size() << R"(}],
+      "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                      {"buffer": 0, "byteOffset": 80, "byteLength": 24})" << views << R"(],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                    {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+                    {"bufferView": 2, "componentType": 5125, "count": 6, "type": "SCALAR"})" << accessors << R"(]})";
+    std::ofstream(aFolder / "floor.gltf") << json.str();
+    return aFolder / "floor.gltf";
+}
+
+Vec3 ShadingNormalAt(const Scene& aScene, float aX, float aY) {
+    const SurfacePoint hit = aScene.Intersect(Ray{Vec3(aX, aY, 1.f), Vec3(0.f, 0.f, -1.f)});
+    REQUIRE(hit.IsValid());
+    return hit.mShadingNormal;
+}
+
+void CheckNormal(const Vec3& aActual, const Vec3& aExpected) {
+    INFO("shading normal " << Str(aActual) << ", expected " << Str(aExpected));
+    for (int k = 0; k < 3; k++) CHECK(aActual[k] == Approx(aExpected[k]).margin(1e-5));
+}
+
+const glm::ivec3 kTiltRight(191, 128, 238);  // tangent space (0.5, 0.004, 0.87): towards +u
+const glm::ivec3 kTiltUp(128, 191, 238);     // towards the image's up
+
+} // namespace
+
+TEST_CASE("A normal map tilts the shading normal: the image's right along +u, its up along the image's up", "[gltf][textures][normal_map]") {
+    // On the floor, +u is +x and the image's up (decreasing v) is +y, the normal +z. A frame
+    // flipped in u or in v turns one of the two tilts the wrong way.
+    for (const glm::ivec3& bytes : {kTiltRight, kTiltUp}) {
+        const Vec3 expected = MappedNormal(bytes);
+        INFO("texel " << bytes.x << " " << bytes.y << " " << bytes.z);
+        {   // tangents generated (no TANGENT), flat floor
+            TemporaryFolder folder;
+            const Scene scene = LoadGltfScene(WriteNormalMappedFloor(folder, NormalMapImage(bytes), R"({"index": 0})"));
+            CheckNormal(ShadingNormalAt(scene, 0.3f, 0.6f), expected);
+            CheckNormal(ShadingNormalAt(scene, 0.8f, 0.1f), expected);
+        }
+        {   // TANGENT given, right-handed: the same
+            TemporaryFolder folder;
+            const Vec4 tangent(1.f, 0.f, 0.f, 1.f);
+            const Scene scene = LoadGltfScene(WriteNormalMappedFloor(folder, NormalMapImage(bytes), R"({"index": 0})", &tangent));
+            CheckNormal(ShadingNormalAt(scene, 0.3f, 0.6f), expected);
+        }
+        {   // TANGENT with w = -1: the bitangent, and so the up tilt, turns over
+            TemporaryFolder folder;
+            const Vec4 tangent(1.f, 0.f, 0.f, -1.f);
+            const Scene scene = LoadGltfScene(WriteNormalMappedFloor(folder, NormalMapImage(bytes), R"({"index": 0})", &tangent));
+            CheckNormal(ShadingNormalAt(scene, 0.3f, 0.6f), Vec3(expected.x, -expected.y, expected.z));
+        }
+    }
+    // normalTexture.scale scales the tilt's x and y.
+    TemporaryFolder folder;
+    const Scene scene = LoadGltfScene(WriteNormalMappedFloor(folder, NormalMapImage(kTiltRight), R"({"index": 0, "scale": 0.5})"));
+    CheckNormal(ShadingNormalAt(scene, 0.5f, 0.5f), MappedNormal(kTiltRight, 0.5f));
+}
+
+TEST_CASE("A normal-mapped floor renders as the same floor with the tilted normal as its vertex normals", "[gltf][textures][normal_map]") {
+    // The normal map and vertex normals are two ways to the same shading normal, so every
+    // estimator -- path tracing, and light tracing and BPT, where light sub-paths need the
+    // adjoint shading factor -- must render the two floors alike (the same random numbers:
+    // the images differ only where float rounding of the normal changes a decision). The
+    // untilted floor differs by far more (a point light off to the -x side: tilting the
+    // normal towards +x turns the floor away from it), so the test can fail.
+    const Vec3 tilted = MappedNormal(kTiltRight);
+    const Vec3 flat(0.f, 0.f, 1.f);
+    auto render = [&](const char* aKind, Algorithm aAlgorithm) {
+        TemporaryFolder folder;
+        const std::string kind = aKind;
+        const std::string path = kind == "map" ? WriteNormalMappedFloor(folder, NormalMapImage(kTiltRight), R"({"index": 0})")
+                                 : kind == "normals" ? WriteNormalMappedFloor(folder, NormalMapImage(kTiltRight), "", nullptr, &tilted)
+                                                     : WriteNormalMappedFloor(folder, NormalMapImage(kTiltRight), "", nullptr, &flat);
+        Scene scene = LoadGltfScene(path);  // lit by the default sky, and:
+        scene.AddPointLight(Vec3(-0.5f, 0.5f, 0.8f), Vec3(20.f));
+        scene.mCamera.Setup(Vec3(0.5f, -1.f, 1.5f), Vec3(0.f, 1.5f, -1.5f), Vec3(0.f, 0.f, 1.f), 50.f);
+        scene.mCamera.SetResolution(24, 24);
+        scene.Finalize();
+        return testutil::PixelStatistics(testutil::RenderWith(scene, aAlgorithm, 8, 21).mImage).mean;
+    };
+    for (Algorithm algorithm : {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kBidirectionalPathTracing}) {
+        INFO(AlgorithmShortName(algorithm));
+        const double map = render("map", algorithm), normals = render("normals", algorithm), untilted = render("flat", algorithm);
+        INFO("normal map " << map << ", vertex normals " << normals << ", untilted " << untilted);
+        CHECK(map == Approx(normals).epsilon(1e-3));
+        CHECK(std::abs(untilted - normals) > 0.05 * normals);
+    }
+}
+
 TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][textures]") {
     TemporaryFolder folder;
     Image image(1, 1);
@@ -1128,7 +1271,7 @@ TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][t
     std::string text = ReadText(WriteTexturedFloor(folder, image, 10497, 1.f));
     const std::string material = R"("materials": [{)";
     text.replace(text.find(material), material.size(),
-                 material + R"("alphaMode": "BLEND", "normalTexture": {"index": 0}, "emissiveTexture": {"index": 0}, )");
+                 material + R"("alphaMode": "BLEND", "normalTexture": {"index": 0}, "occlusionTexture": {"index": 0}, "emissiveTexture": {"index": 0}, )");
     std::ofstream(folder / "floor.gltf") << text;
     GltfLoadReport report;
     LoadGltfScene(folder / "floor.gltf", &report);
@@ -1137,9 +1280,10 @@ TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][t
         if (note.find("approximated (not modelled)") == std::string::npos) continue;
         notes++;
         // The emissiveTexture is modelled: with the floor's black emissiveFactor (glTF's
-        // default) it changes nothing, and nothing about it is approximated.
-        CHECK_THAT(note, Catch::Contains("alphaMode BLEND (rendered opaque)") && Catch::Contains("normalTexture") &&
-                         !Catch::Contains("emissiveTexture"));
+        // default) it changes nothing, and nothing about it is approximated. So is the
+        // normalTexture (a normal map).
+        CHECK_THAT(note, Catch::Contains("alphaMode BLEND (rendered opaque)") && Catch::Contains("occlusionTexture") &&
+                         !Catch::Contains("normalTexture") && !Catch::Contains("emissiveTexture"));
     }
     CHECK(notes == 1);
 }
