@@ -228,6 +228,7 @@ inline constexpr float kMinLightArea = 1e-30f;
 
 using Vec2 = glm::vec2;
 using Vec3 = glm::vec3;
+using Vec4 = glm::vec4;
 
 inline constexpr float kPi = 3.14159265358979323846f;
 inline constexpr float kInvPi = 1.f / kPi;
@@ -625,16 +626,41 @@ private:
 // How texture coordinates outside [0, 1] map into the image (glTF sampler wrap modes).
 enum class TextureWrap { kRepeat, kClampToEdge, kMirroredRepeat };
 
+// An affine map of texture coordinates (glTF's KHR_texture_transform): scale, then a
+// rotation of the uv axes by `rotation` radians counter-clockwise, then an offset:
+//     u' = ox + cos(rot) sx u + sin(rot) sy v,    v' = oy - sin(rot) sx u + cos(rot) sy v
+// (the extension's example, rotation pi/2 with offset (0, 1) and scale 1/2, then shows
+// the image's lower-left quadrant turned clockwise by 90 degrees).
+struct UvTransform {
+    Vec2 mOffset{0.f};
+    Vec2 mU{1.f, 0.f}, mV{0.f, 1.f};  // where u and v go: uv' = mOffset + u mU + v mV
+    bool mIdentity = true;            // then uv' = uv exactly
+
+    static UvTransform Make(const Vec2& aOffset, float aRotation, const Vec2& aScale) {
+        UvTransform t;
+        const float c = std::cos(aRotation), s = std::sin(aRotation);
+        t.mOffset = aOffset;
+        t.mU = aScale.x * Vec2(c, -s);
+        t.mV = aScale.y * Vec2(s, c);
+        t.mIdentity = aOffset == Vec2(0.f) && aRotation == 0.f && aScale == Vec2(1.f);
+        return t;
+    }
+    Vec2 Apply(const Vec2& aUv) const { return mIdentity ? aUv : mOffset + aUv.x * mU + aUv.y * mV; }
+};
+
 // An RGB image in linear colour, filtered bilinearly. glTF conventions: uv (0, 0) is the
 // top-left corner of the image (row 0), texel centres lie at ((i + 0.5) / width, ...).
+// The texture coordinates of a lookup go through mUvTransform first.
 struct Texture {
     int mWidth = 0, mHeight = 0;
     std::vector<Vec3> mTexels;  // row by row from the top
     TextureWrap mWrapU = TextureWrap::kRepeat, mWrapV = TextureWrap::kRepeat;
+    UvTransform mUvTransform;
 
-    Vec3 Lookup(const Vec2& aUv) const {
-        const float x = Reduce(aUv.x, mWrapU) * float(mWidth) - 0.5f;
-        const float y = Reduce(aUv.y, mWrapV) * float(mHeight) - 0.5f;
+    Vec3 Lookup(const Vec2& aTexCoord) const {
+        const Vec2 uv = mUvTransform.Apply(aTexCoord);
+        const float x = Reduce(uv.x, mWrapU) * float(mWidth) - 0.5f;
+        const float y = Reduce(uv.y, mWrapV) * float(mHeight) - 0.5f;
         const float fx = std::floor(x), fy = std::floor(y);
         const float tx = x - fx, ty = y - fy;
         const int x0 = int(fx), y0 = int(fy);
@@ -683,6 +709,11 @@ struct Material {
     // base colour, so mSpecularUntinted = 0.04 (1 - metallic)).
     int mBaseColorTexture = -1;
     Vec3 mSpecularUntinted{0.f};
+    // Normal map (glTF normalTexture; index into Scene::mTextures, -1 for none; linear
+    // RGB): the shading normal tilted in the tangent frame (Scene::NormalMapped);
+    // mNormalScale scales the tilt's x and y (glTF's normalTexture.scale).
+    int mNormalTexture = -1;
+    float mNormalScale = 1.f;
 
     bool HasNonSpecular() const { return !IsBlack(mDiffuseReflectance) || !IsBlack(mPhongReflectance); }
     bool HasSpecular() const { return !IsBlack(mMirrorReflectance) || mIor > 0.f; }
@@ -738,11 +769,15 @@ struct Triangle {
     Vec3 mNormal{0.f};   // set by Scene::Finalize from the winding
     int mMaterialId = 0;
     int mLightId = -1;
-    Vec2 mUv0{0.f}, mUv1{0.f}, mUv2{0.f};  // texture coordinates (glTF TEXCOORD_0)
+    Vec2 mUv0{0.f}, mUv1{0.f}, mUv2{0.f};  // texture coordinates (the glTF set its material's textures use)
     // Vertex normals (glTF NORMAL) of a smooth-shaded triangle, interpolated at each hit
     // into the shading normal; Scene::Finalize normalises them. Flat triangles have none.
     bool mHasVertexNormals = false;
     Vec3 mN0{0.f}, mN1{0.f}, mN2{0.f};
+    // Vertex tangents of a normal-mapped triangle (glTF TANGENT, or the loader's): xyz
+    // along increasing u, w = +1 or -1, the handedness of the bitangent w (N x T).
+    bool mHasTangents = false;
+    Vec4 mT0{0.f}, mT1{0.f}, mT2{0.f};
     // In double: a thin triangle's float cross product loses most of its digits.
     float Area() const {
         return float(0.5 * glm::length(glm::cross(glm::dvec3(mP1) - glm::dvec3(mP0), glm::dvec3(mP2) - glm::dvec3(mP0))));
@@ -1405,6 +1440,9 @@ public:
                 const TriangleBarycentrics b = Barycentrics(triangle, ioPoint.mPosition);
                 if (kind.mTextured) ioPoint.mUv = TriangleUv(triangle, b);
                 if (kind.mHasVertexNormals) ioPoint.mShadingNormal = InterpolatedNormal(triangle, b);
+                if (kind.mNormalMapped)
+                    ioPoint.mShadingNormal = NormalMapped(triangle, b, ioPoint.mShadingNormal, ioPoint.mUv,
+                                                          mMaterials[size_t(kind.mMaterialId)]);
             }
         } else {
             const Sphere& sphere = mSpheres[size_t(primitive - triangleCount)];
@@ -1472,6 +1510,34 @@ public:
         return glm::dot(normal, aTriangle.mNormal) < 0.f ? -normal : normal;
     }
 
+    // The shading normal aNormal tilted by the material's normal map at aUv (glTF
+    // normalTexture). The texel, mapped from [0, 1] to [-1, 1] with x and y times the
+    // scale, is a direction in the tangent frame (T, B, N): N = aNormal, T the interpolated
+    // tangent made orthogonal to N, B = w (N x T). The image's +x runs along T (increasing
+    // u) and its up along B (decreasing v: glTF's v runs down the image). The result is a
+    // shading normal like any other (the BSDF's no-leak rule and adjoint factor apply);
+    // one that would face away from the surface, or a frame that cannot be built, leaves
+    // aNormal as it is.
+    Vec3 NormalMapped(const Triangle& aTriangle, const TriangleBarycentrics& aB, const Vec3& aNormal, const Vec2& aUv,
+                      const Material& aMaterial) const {
+        if (!aB.mValid) return aNormal;
+        const float b1 = float(aB.mB1), b2 = float(aB.mB2), b0 = 1.f - b1 - b2;
+        const Vec4 tangent = b0 * aTriangle.mT0 + b1 * aTriangle.mT1 + b2 * aTriangle.mT2;
+        Vec3 t = Vec3(tangent) - aNormal * glm::dot(aNormal, Vec3(tangent));
+        const float tLength = glm::length(t);
+        if (!(tLength > 1e-6f) || !std::isfinite(tLength)) return aNormal;
+        t /= tLength;
+        const Vec3 b = (tangent.w < 0.f ? -1.f : 1.f) * glm::cross(aNormal, t);
+        const Vec3 texel = mTextures[size_t(aMaterial.mNormalTexture)].Lookup(aUv);
+        const Vec3 local((2.f * texel.x - 1.f) * aMaterial.mNormalScale, (2.f * texel.y - 1.f) * aMaterial.mNormalScale,
+                         2.f * texel.z - 1.f);
+        const Vec3 tilted = local.x * t + local.y * b + local.z * aNormal;
+        const float length = glm::length(tilted);
+        if (!(length > 1e-6f) || !std::isfinite(length)) return aNormal;
+        const Vec3 normal = tilted / length;
+        return glm::dot(normal, aTriangle.mNormal) > 0.f ? normal : aNormal;
+    }
+
 private:
     // --- Finalize's steps ------------------------------------------------------------
     // Something to render and lights that emit a finite, non-negative amount.
@@ -1507,6 +1573,10 @@ private:
                         throw Error(aWhere + ": triangle " + std::to_string(t) + " has a vertex normal that is zero or not finite");
                     *normal = Vec3(glm::dvec3(*normal) / length);
                 }
+            if (triangle.mHasTangents)
+                for (const Vec4& tangent : {triangle.mT0, triangle.mT1, triangle.mT2})
+                    if (!IsFinite(Vec3(tangent)) || !std::isfinite(tangent.w) || tangent.w == 0.f)
+                        throw Error(aWhere + ": triangle " + std::to_string(t) + " has a tangent that is not finite or has no handedness (w)");
             CheckMaterial(aWhere, triangle.mMaterialId);
             box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2);
         }
@@ -1638,13 +1708,14 @@ private:
         int mLightId = -1;
         bool mTextured = false;          // a base-colour or emission texture: needs the uv
         bool mHasVertexNormals = false;  // smooth: needs the interpolated normal
+        bool mNormalMapped = false;      // a normal map and tangents: tilts the shading normal
         bool operator==(const TriangleKind& aOther) const {
-            return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals) ==
-                   std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals);
+            return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals, mNormalMapped) ==
+                   std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals, aOther.mNormalMapped);
         }
         bool operator<(const TriangleKind& aOther) const {
-            return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals) <
-                   std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals);
+            return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals, mNormalMapped) <
+                   std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals, aOther.mNormalMapped);
         }
     };
     struct alignas(16) TriangleHitRecord {
@@ -1658,6 +1729,8 @@ private:
         kind.mTextured = mMaterials[size_t(aTriangle.mMaterialId)].mBaseColorTexture >= 0 ||
                          (aTriangle.mLightId >= 0 && mLights[size_t(aTriangle.mLightId)].mEmissionTexture >= 0);
         kind.mHasVertexNormals = aTriangle.mHasVertexNormals;
+        kind.mNormalMapped = aTriangle.mHasTangents && mMaterials[size_t(aTriangle.mMaterialId)].mNormalTexture >= 0;
+        kind.mTextured = kind.mTextured || kind.mNormalMapped;
         return kind;
     }
     void BuildTriangleHitRecords() {
@@ -1708,9 +1781,12 @@ private:
     }
     void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
         if (aMaterialId >= 0 && size_t(aMaterialId) < mMaterials.size()) {
-            const int texture = mMaterials[size_t(aMaterialId)].mBaseColorTexture;
-            if (texture >= 0 && !IsUsableTexture(texture))
-                throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " refers to a missing or empty texture");
+            const Material& material = mMaterials[size_t(aMaterialId)];
+            for (const int texture : {material.mBaseColorTexture, material.mNormalTexture})
+                if (texture >= 0 && !IsUsableTexture(texture))
+                    throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " refers to a missing or empty texture");
+            if (!std::isfinite(material.mNormalScale))
+                throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " has a normal scale that is not finite");
         }
         if (aMaterialId < 0 || aMaterialId >= int(mMaterials.size()))
             throw Error(aWhere + ": a primitive refers to material " + std::to_string(aMaterialId) + ", which does not exist");
@@ -6516,7 +6592,7 @@ private:
     static const std::set<std::string>& SupportedExtensions() {
         static const std::set<std::string> kSupported = {
             "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
-            "KHR_materials_ior", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
+            "KHR_materials_ior", "KHR_texture_transform", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
         return kSupported;
     }
 
@@ -6653,20 +6729,83 @@ private:
         mReport.mNotes.push_back(note);
     }
 
-    // The scene texture for glTF texture aTexture (decoded once, however many materials use it).
-    // aSlot names the material's use of it ("baseColorTexture", "emissiveTexture").
-    int TextureIndex(int aTexture, int aTexCoord, const char* aSlot, const std::string& aWhat) {
-        if (aTexCoord != 0)
-            Fail(aWhat + ": its " + aSlot + " uses TEXCOORD_" + std::to_string(aTexCoord) + "; only TEXCOORD_0 is supported");
+    // A material's use of a texture: the scene texture (one per glTF texture and
+    // transform, decoded once however many materials use it) and the TEXCOORD set it reads.
+    struct TextureUse {
+        int mTexture = -1;
+        int mTexCoord = 0;
+    };
+    // aSlot names the use ("baseColorTexture", "emissiveTexture", "normalTexture"): its
+    // index, TEXCOORD set and extensions come from the textureInfo; KHR_texture_transform
+    // gives the texture its UvTransform and may choose another set. aSrgb: colour (the
+    // base colour, emission) is sRGB-encoded, a normal map is not.
+    TextureUse UseTexture(int aIndex, int aTexCoord, const tinygltf::ExtensionMap& aExtensions, bool aSrgb,
+                          const char* aSlot, const std::string& aWhat) {
+        const std::string slot = aWhat + ": its " + aSlot;
+        TextureUse use;
+        use.mTexCoord = aTexCoord;
+        Vec2 offset(0.f), scale(1.f);
+        float rotation = 0.f;
+        auto transform = aExtensions.find("KHR_texture_transform");
+        if (transform != aExtensions.end()) {
+            const tinygltf::Value& t = transform->second;
+            if (!t.IsObject()) Fail(slot + ": KHR_texture_transform must be an object");
+            auto pair = [&](const char* aKey, Vec2 aDefault) {
+                if (!t.Has(aKey)) return aDefault;
+                const tinygltf::Value& v = t.Get(aKey);
+                if (!v.IsArray() || v.ArrayLen() != 2 || !v.Get(0).IsNumber() || !v.Get(1).IsNumber())
+                    Fail(slot + ": KHR_texture_transform." + aKey + " must be an array of 2 numbers");
+                const Vec2 value(float(v.Get(0).GetNumberAsDouble()), float(v.Get(1).GetNumberAsDouble()));
+                if (!std::isfinite(value.x) || !std::isfinite(value.y))
+                    Fail(slot + ": KHR_texture_transform." + aKey + " is not finite (NaN, infinity, or beyond float)");
+                return value;
+            };
+            offset = pair("offset", offset);
+            scale = pair("scale", scale);
+            if (t.Has("rotation")) {
+                const tinygltf::Value& v = t.Get("rotation");
+                rotation = v.IsNumber() ? float(v.GetNumberAsDouble()) : std::numeric_limits<float>::quiet_NaN();
+                if (!std::isfinite(rotation))
+                    Fail(slot + ": KHR_texture_transform.rotation must be a finite number (radians)");
+            }
+            if (t.Has("texCoord")) {
+                const tinygltf::Value& v = t.Get("texCoord");
+                if (!v.IsInt() || v.GetNumberAsInt() < 0)
+                    Fail(slot + ": KHR_texture_transform.texCoord must be a non-negative integer");
+                use.mTexCoord = v.GetNumberAsInt();
+            }
+        }
+        if (use.mTexCoord < 0 || use.mTexCoord > kMaxTexCoordSet)
+            Fail(slot + " uses TEXCOORD_" + std::to_string(use.mTexCoord) + "; sets 0 to " + std::to_string(kMaxTexCoordSet) +
+                 " are read");
+        use.mTexture = TextureIndex(aIndex, UvTransform::Make(offset, rotation, scale), aSrgb, aWhat);
+        return use;
+    }
+    static constexpr int kMaxTexCoordSet = 7;
+
+    // The scene texture for glTF texture aTexture seen through aTransform, its texels
+    // decoded from sRGB or taken as they are (aSrgb).
+    int TextureIndex(int aTexture, const UvTransform& aTransform, bool aSrgb, const std::string& aWhat) {
         if (aTexture < 0 || aTexture >= int(mModel.textures.size()))
             Fail(aWhat + " refers to texture " + std::to_string(aTexture) + ", which does not exist");
-        auto known = mTextureIndex.find(aTexture);
+        const TextureKey key{aTexture, aSrgb, aTransform.mOffset.x, aTransform.mOffset.y, aTransform.mU.x, aTransform.mU.y,
+                             aTransform.mV.x, aTransform.mV.y};
+        auto known = mTextureIndex.find(key);
         if (known != mTextureIndex.end()) return known->second;
         const tinygltf::Texture& texture = mModel.textures[size_t(aTexture)];
         const std::string what = "texture " + std::to_string(aTexture);
         if (texture.source < 0 || texture.source >= int(mModel.images.size()))
             Fail(what + " has no image (source " + std::to_string(texture.source) + "; PNG or JPEG images are supported)");
-        Texture result = DecodeImage(texture.source);
+        const DecodedImage& image = Decoded(texture.source);
+        Texture result;
+        result.mWidth = image.mWidth;
+        result.mHeight = image.mHeight;
+        result.mTexels.resize(size_t(image.mWidth) * size_t(image.mHeight));
+        float toLinear[256];
+        for (int v = 0; v < 256; v++) toLinear[v] = aSrgb ? SrgbToLinear(float(v) / 255.f) : float(v) / 255.f;
+        const unsigned char* rgb = image.mRgb.data();
+        for (size_t i = 0; i < result.mTexels.size(); i++)
+            result.mTexels[i] = Vec3(toLinear[rgb[3 * i]], toLinear[rgb[3 * i + 1]], toLinear[rgb[3 * i + 2]]);
         if (texture.sampler >= 0) {
             if (texture.sampler >= int(mModel.samplers.size()))
                 Fail(what + " refers to sampler " + std::to_string(texture.sampler) + ", which does not exist");
@@ -6674,9 +6813,10 @@ private:
             result.mWrapU = WrapMode(sampler.wrapS, what);
             result.mWrapV = WrapMode(sampler.wrapT, what);
         }
+        result.mUvTransform = aTransform;
         mScene.mTextures.push_back(std::move(result));
         const int index = int(mScene.mTextures.size()) - 1;
-        mTextureIndex[aTexture] = index;
+        mTextureIndex[key] = index;
         return index;
     }
     TextureWrap WrapMode(int aGltfWrap, const std::string& aWhat) const {
@@ -6688,11 +6828,18 @@ private:
         }
     }
 
-    // An image's pixels, sRGB-decoded to linear (glTF: base colour and emissive textures are sRGB).
+    // An image's 8-bit RGB pixels, decoded once for all the textures that use it (as
+    // colour and as a normal map, or under several transforms).
     // Bytes come from a buffer view or data URI (kept by the image loader above) or from
     // a file inside the scene's folder, read like a buffer file: regular files only,
     // confined, size-checked before reading. The size in pixels is checked before decoding.
-    Texture DecodeImage(int aImage) {
+    struct DecodedImage {
+        int mWidth = 0, mHeight = 0;
+        std::vector<unsigned char> mRgb;
+    };
+    const DecodedImage& Decoded(int aImage) {
+        auto known = mDecodedImages.find(aImage);
+        if (known != mDecodedImages.end()) return known->second;
         tinygltf::Image& image = mModel.images[size_t(aImage)];
         const std::string what = "image " + std::to_string(aImage) + (image.uri.empty() || image.uri.compare(0, 5, "data:") == 0
                                                                           ? std::string() : " '" + Excerpt(image.uri) + "'");
@@ -6715,18 +6862,14 @@ private:
                  std::to_string(kMaxTexturePixels) + " per texture");
         unsigned char* pixels = stbi_load_from_memory(bytes->data(), int(bytes->size()), &width, &height, &channels, 3);
         if (!pixels) Fail(what + ": decoding failed (" + Excerpt(stbi_failure_reason()) + ")");
-        Texture texture;
-        texture.mWidth = width;
-        texture.mHeight = height;
-        texture.mTexels.resize(size_t(width) * size_t(height));
-        float srgbToLinear[256];
-        for (int v = 0; v < 256; v++) srgbToLinear[v] = SrgbToLinear(float(v) / 255.f);
-        for (size_t i = 0; i < texture.mTexels.size(); i++)
-            texture.mTexels[i] = Vec3(srgbToLinear[pixels[3 * i]], srgbToLinear[pixels[3 * i + 1]], srgbToLinear[pixels[3 * i + 2]]);
+        DecodedImage& decoded = mDecodedImages[aImage];
+        decoded.mWidth = width;
+        decoded.mHeight = height;
+        decoded.mRgb.assign(pixels, pixels + size_t(width) * size_t(height) * 3);
         stbi_image_free(pixels);
         image.image.clear();
         image.image.shrink_to_fit();
-        return texture;
+        return decoded;
     }
     // The inverse sRGB transfer function (IEC 61966-2-1).
     static float SrgbToLinear(float aEncoded) {
@@ -6751,9 +6894,9 @@ private:
             const tinygltf::Material& source = mModel.materials[m];
             const std::string what = "material " + std::to_string(m) + (source.name.empty() ? "" : " '" + Excerpt(source.name) + "'");
             const auto& pbr = source.pbrMetallicRoughness;
+            std::vector<std::pair<const char*, int>> texCoordSets;  // the textures read, and their sets
             // What the header does not model is approximated and listed in one note.
             if (pbr.metallicRoughnessTexture.index >= 0) Approximated("metallicRoughnessTexture (the factors are used)");
-            if (source.normalTexture.index >= 0) Approximated("normalTexture (NORMAL, or else geometric normals, are used)");
             if (source.occlusionTexture.index >= 0) Approximated("occlusionTexture (occlusion is computed, not baked)");
             if (source.alphaMode != "OPAQUE") Approximated("alphaMode " + Excerpt(source.alphaMode) + " (rendered opaque)");
 
@@ -6791,7 +6934,10 @@ private:
                     const Vec3 specular = glm::mix(Vec3(0.04f), baseColor, metallic);
                     material.mDiffuseReflectance = (1.f - metallic) * 0.96f * baseColor;
                     if (pbr.baseColorTexture.index >= 0) {
-                        material.mBaseColorTexture = TextureIndex(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord, "baseColorTexture", what);
+                        const TextureUse use = UseTexture(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
+                                                          pbr.baseColorTexture.extensions, true, "baseColorTexture", what);
+                        material.mBaseColorTexture = use.mTexture;
+                        texCoordSets.push_back({"baseColorTexture", use.mTexCoord});
                         material.mSpecularUntinted = Vec3(0.04f * (1.f - metallic));
                     }
                     if (roughness == 0.f) {
@@ -6825,8 +6971,30 @@ private:
             // emissiveTexture multiplies the factor (an sRGB texture, like the base colour);
             // with a black factor it changes nothing, and is not decoded.
             int emissionTexture = -1;
-            if (source.emissiveTexture.index >= 0 && !IsBlack(emission))
-                emissionTexture = TextureIndex(source.emissiveTexture.index, source.emissiveTexture.texCoord, "emissiveTexture", what);
+            if (source.emissiveTexture.index >= 0 && !IsBlack(emission)) {
+                const TextureUse use = UseTexture(source.emissiveTexture.index, source.emissiveTexture.texCoord,
+                                                  source.emissiveTexture.extensions, true, "emissiveTexture", what);
+                emissionTexture = use.mTexture;
+                texCoordSets.push_back({"emissiveTexture", use.mTexCoord});
+            }
+            // The normal map (any material: it tilts the shading normal, whatever reflects).
+            if (source.normalTexture.index >= 0) {
+                const TextureUse use = UseTexture(source.normalTexture.index, source.normalTexture.texCoord,
+                                                  source.normalTexture.extensions, false, "normalTexture", what);
+                material.mNormalTexture = use.mTexture;
+                material.mNormalScale = float(source.normalTexture.scale);
+                if (!std::isfinite(material.mNormalScale))
+                    Fail(what + ": normalTexture.scale must be a finite number");
+                texCoordSets.push_back({"normalTexture", use.mTexCoord});
+            }
+            // One set of texture coordinates per triangle: the textures a material reads
+            // must agree on it.
+            for (const auto& [slot, set] : texCoordSets)
+                if (set != texCoordSets.front().second)
+                    Fail(what + ": its " + texCoordSets.front().first + " reads TEXCOORD_" + std::to_string(texCoordSets.front().second) +
+                         " and its " + slot + " TEXCOORD_" + std::to_string(set) +
+                         "; the textures of one material must share one set of texture coordinates");
+            mMaterialTexCoord.push_back(texCoordSets.empty() ? 0 : texCoordSets.front().second);
             mMaterialEmission.push_back(emission);
             mMaterialEmissionTexture.push_back(emissionTexture);
             mMaterialEmitsTwoSided.push_back(source.doubleSided);
@@ -6853,6 +7021,7 @@ private:
             mDefaultMaterial = mScene.AddMaterial(material);
             mMaterialEmission.push_back(Vec3(0.f));
             mMaterialEmissionTexture.push_back(-1);
+            mMaterialTexCoord.push_back(0);
             mMaterialEmitsTwoSided.push_back(false);
         }
         return mDefaultMaterial;
@@ -6941,14 +7110,15 @@ private:
 
     // Reads an accessor as aComponents-wide rows of doubles, after checking its type,
     // component type and that every byte it names lies inside its buffer.
-    enum class AccessorKind { kIndices, kPositions, kNormals, kTexcoords };
+    enum class AccessorKind { kIndices, kPositions, kNormals, kTexcoords, kTangents };
     std::vector<double> ReadAccessor(int aIndex, int aType, AccessorKind aKind, const std::string& aWhat) const {
         const bool aIndices = aKind == AccessorKind::kIndices;
         if (aIndex < 0 || aIndex >= int(mModel.accessors.size())) Fail(aWhat + " refers to accessor " + std::to_string(aIndex) + ", which does not exist");
         const tinygltf::Accessor& accessor = mModel.accessors[size_t(aIndex)];
         const std::string where = aWhat + " (accessor " + std::to_string(aIndex) + ")";
         if (accessor.type != aType)
-            Fail(where + ": wrong type (" + (aIndices ? "SCALAR" : aKind == AccessorKind::kTexcoords ? "VEC2" : "VEC3") + " expected)");
+            Fail(where + ": wrong type (" + (aIndices ? "SCALAR" : aKind == AccessorKind::kTexcoords ? "VEC2"
+                                                 : aKind == AccessorKind::kTangents ? "VEC4" : "VEC3") + " expected)");
         const int componentType = accessor.componentType;
         size_t componentSize;
         if (aIndices) {
@@ -6963,10 +7133,11 @@ private:
             else Fail(where + ": texture coordinates must be FLOAT or normalised unsigned byte or short");
         } else {
             if (componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
-                Fail(where + (aKind == AccessorKind::kNormals ? ": normals must be FLOAT" : ": positions must be FLOAT"));
+                Fail(where + (aKind == AccessorKind::kNormals ? ": normals must be FLOAT"
+                              : aKind == AccessorKind::kTangents ? ": tangents must be FLOAT" : ": positions must be FLOAT"));
             componentSize = 4;
         }
-        const size_t components = aIndices ? 1 : aKind == AccessorKind::kTexcoords ? 2 : 3;
+        const size_t components = aIndices ? 1 : aKind == AccessorKind::kTexcoords ? 2 : aKind == AccessorKind::kTangents ? 4 : 3;
         const double normalisation = aKind != AccessorKind::kTexcoords || componentSize == 4 ? 1.0
                                      : componentSize == 1 ? 1.0 / 255.0 : 1.0 / 65535.0;
         if (accessor.bufferView < 0 || accessor.bufferView >= int(mModel.bufferViews.size()))
@@ -7042,20 +7213,25 @@ private:
             const int material = MaterialIndex(primitive.material, what);
             // Texture coordinates, read only for textured materials (and then required).
             std::vector<double> uvs;
+            const bool normalMapped = mScene.mMaterials[size_t(material)].mNormalTexture >= 0;
             const char* texture = mScene.mMaterials[size_t(material)].mBaseColorTexture >= 0 ? "a baseColorTexture"
                                   : mMaterialEmissionTexture[size_t(material)] >= 0       ? "an emissiveTexture"
+                                  : normalMapped                                           ? "a normalTexture"
                                                                                            : nullptr;
             if (texture) {
-                auto texcoord = primitive.attributes.find("TEXCOORD_0");
+                const std::string set = "TEXCOORD_" + std::to_string(mMaterialTexCoord[size_t(material)]);
+                auto texcoord = primitive.attributes.find(set);
                 if (texcoord == primitive.attributes.end())
-                    Fail(what + ": its material has " + texture + " but the primitive has no TEXCOORD_0");
-                uvs = ReadAccessor(texcoord->second, TINYGLTF_TYPE_VEC2, AccessorKind::kTexcoords, what + " TEXCOORD_0");
-                if (uvs.size() != 2 * vertexCount) Fail(what + ": TEXCOORD_0 and POSITION have different counts");
+                    Fail(what + ": its material has " + texture + " but the primitive has no " + set);
+                uvs = ReadAccessor(texcoord->second, TINYGLTF_TYPE_VEC2, AccessorKind::kTexcoords, what + " " + set);
+                if (uvs.size() != 2 * vertexCount) Fail(what + ": " + set + " and POSITION have different counts");
                 for (size_t v = 0; v < uvs.size(); v++)
                     if (!std::isfinite(uvs[v]) || !std::isfinite(float(uvs[v])))
-                        Fail(what + ": TEXCOORD_0 of vertex " + std::to_string(v / 2) + " is not finite (NaN or infinity)");
+                        Fail(what + ": " + set + " of vertex " + std::to_string(v / 2) + " is not finite (NaN or infinity)");
             }
             const std::vector<Vec3> normals = WorldNormals(primitive, aWorld, vertexCount, what);
+            const std::vector<Vec4> tangents =
+                normalMapped ? CornerTangents(primitive, aWorld, vertexCount, world, uvs, normals, indices, flip, what) : std::vector<Vec4>();
             size_t againstWinding = 0;
             std::vector<int> triangleIds;
             // Room for this primitive's triangles, growing geometrically (a file with many
@@ -7066,10 +7242,21 @@ private:
                 size_t i0 = size_t(indices[t]), i1 = size_t(indices[t + 1]), i2 = size_t(indices[t + 2]);
                 if (i0 >= vertexCount || i1 >= vertexCount || i2 >= vertexCount)
                     Fail(what + ": index out of range in triangle " + std::to_string(t / 3) + " (vertex count " + std::to_string(vertexCount) + ")");
-                if (flip) std::swap(i1, i2);
+                size_t c1 = t + 1, c2 = t + 2;  // the corners, which tangents belong to
+                if (flip) {
+                    std::swap(i1, i2);
+                    std::swap(c1, c2);
+                }
                 const std::optional<Vec3> normal = TriangleNormal(world[i0], world[i1], world[i2]);
                 if (!normal) { mSkippedTriangles++; continue; }
                 triangleIds.push_back(mScene.AddTriangle(world[i0], world[i1], world[i2], material));
+                if (!tangents.empty() && tangents[t].w != 0.f && tangents[c1].w != 0.f && tangents[c2].w != 0.f) {
+                    Triangle& added = mScene.mTriangles.back();
+                    added.mHasTangents = true;
+                    added.mT0 = tangents[t];
+                    added.mT1 = tangents[c1];
+                    added.mT2 = tangents[c2];
+                }
                 if (!uvs.empty()) {
                     Triangle& added = mScene.mTriangles.back();
                     added.mUv0 = Vec2(float(uvs[2 * i0]), float(uvs[2 * i0 + 1]));
@@ -7105,6 +7292,103 @@ private:
                                                                  "and")) +
                                          " one-sided emission and glass work inside out)");
         }
+    }
+
+    // The tangents of a normal-mapped primitive in world space, one per corner (as
+    // aIndices lists them): xyz along increasing u, w = +1 or -1 the handedness (glTF:
+    // bitangent = w (N x T)); w = 0 where there is none (then that triangle is not
+    // normal-mapped). From TANGENT when the primitive has it (xyz carried by the node's
+    // matrix, w flipped by a mirroring one); otherwise generated as the glTF specification
+    // asks, in MikkTSpace's manner: each triangle's dP/du and image-up direction (-dP/dv,
+    // glTF's v running down) from its positions and texture coordinates, summed per
+    // vertex weighted by the corner's angle, separately for the two handednesses (so that
+    // a mirrored uv seam does not average opposite frames away), then made orthogonal to
+    // the vertex's normal. (MikkTSpace also splits vertices at other seams and welds by
+    // position; this sums per index, as the file shares vertices.)
+    std::vector<Vec4> CornerTangents(const tinygltf::Primitive& aPrimitive, const Mat4& aWorld, size_t aVertexCount,
+                                     const std::vector<Vec3>& aPositions, const std::vector<double>& aUvs,
+                                     const std::vector<Vec3>& aNormals, const std::vector<double>& aIndices, bool aFlip,
+                                     const std::string& aWhat) {
+        std::vector<Vec4> corners(aIndices.size(), Vec4(0.f));
+        auto attribute = aPrimitive.attributes.find("TANGENT");
+        if (attribute != aPrimitive.attributes.end()) {
+            const std::vector<double> local = ReadAccessor(attribute->second, TINYGLTF_TYPE_VEC4, AccessorKind::kTangents, aWhat + " TANGENT");
+            if (local.size() != 4 * aVertexCount)
+                Fail(aWhat + ": TANGENT has " + std::to_string(local.size() / 4) + " elements but POSITION has " +
+                     std::to_string(aVertexCount) + " (one tangent per vertex)");
+            const glm::dmat3 matrix(aWorld);
+            const double handedness = glm::determinant(matrix) < 0.0 ? -1.0 : 1.0;
+            std::vector<Vec4> world(aVertexCount);
+            for (size_t v = 0; v < aVertexCount; v++) {
+                const glm::dvec4 t(local[4 * v], local[4 * v + 1], local[4 * v + 2], local[4 * v + 3]);
+                if (!std::isfinite(t.x) || !std::isfinite(t.y) || !std::isfinite(t.z) || !std::isfinite(t.w))
+                    Fail(aWhat + ": TANGENT of vertex " + std::to_string(v) + " is not finite (NaN or infinity)");
+                if (t.w != 1.0 && t.w != -1.0)
+                    Fail(aWhat + ": TANGENT of vertex " + std::to_string(v) + " has w = " + std::to_string(t.w) +
+                         " (glTF: +1 or -1, the bitangent's handedness)");
+                const glm::dvec3 xyz = matrix * glm::dvec3(t);
+                const double length = glm::length(xyz);
+                if (length > 0.0 && std::isfinite(length)) world[v] = Vec4(Vec3(xyz / length), float(t.w * handedness));
+            }
+            for (size_t c = 0; c < aIndices.size(); c++)
+                if (size_t(aIndices[c]) < aVertexCount) corners[c] = world[size_t(aIndices[c])];
+            return corners;
+        }
+        // Per vertex and handedness (0: +1, 1: -1): the sums of tangents and up directions.
+        std::vector<glm::dvec3> tangentSum[2], upSum[2];
+        for (int h = 0; h < 2; h++) {
+            tangentSum[h].assign(aVertexCount, glm::dvec3(0.0));
+            upSum[h].assign(aVertexCount, glm::dvec3(0.0));
+        }
+        std::vector<int> cornerHandedness(aIndices.size(), -1);
+        for (size_t t = 0; t + 2 < aIndices.size(); t += 3) {
+            const size_t v[3] = {size_t(aIndices[t]), size_t(aIndices[t + 1]), size_t(aIndices[t + 2])};
+            if (v[0] >= aVertexCount || v[1] >= aVertexCount || v[2] >= aVertexCount) continue;  // refused by the caller
+            const glm::dvec3 p[3] = {glm::dvec3(aPositions[v[0]]), glm::dvec3(aPositions[v[1]]), glm::dvec3(aPositions[v[2]])};
+            const glm::dvec2 uv[3] = {{aUvs[2 * v[0]], aUvs[2 * v[0] + 1]}, {aUvs[2 * v[1]], aUvs[2 * v[1] + 1]},
+                                      {aUvs[2 * v[2]], aUvs[2 * v[2] + 1]}};
+            const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+            const glm::dvec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
+            const double det = d1.x * d2.y - d2.x * d1.y;
+            const glm::dvec3 faceNormal = glm::cross(e1, e2);
+            if (!(std::abs(det) > 0.0) || !(glm::length(faceNormal) > 0.0)) continue;  // no uv area: no frame
+            const glm::dvec3 dPdu = (e1 * d2.y - e2 * d1.y) / det;
+            const glm::dvec3 dPdv = (e2 * d1.x - e1 * d2.x) / det;
+            const double tLength = glm::length(dPdu), vLength = glm::length(dPdv);
+            if (!(tLength > 0.0) || !(vLength > 0.0) || !std::isfinite(tLength) || !std::isfinite(vLength)) continue;
+            const glm::dvec3 tangent = dPdu / tLength, up = -dPdv / vLength;
+            const int h = glm::dot(glm::cross(faceNormal, tangent), up) < 0.0 ? 1 : 0;
+            for (int k = 0; k < 3; k++) {
+                const glm::dvec3 a = p[(k + 1) % 3] - p[k], b = p[(k + 2) % 3] - p[k];
+                const double angle = std::acos(std::clamp(glm::dot(a, b) / (glm::length(a) * glm::length(b)), -1.0, 1.0));
+                if (!std::isfinite(angle)) continue;
+                tangentSum[h][v[k]] += angle * tangent;
+                upSum[h][v[k]] += angle * up;
+                cornerHandedness[t + size_t(k)] = h;
+            }
+        }
+        for (size_t c = 0; c < aIndices.size(); c++) {
+            const int h = cornerHandedness[c];
+            if (h < 0) continue;
+            const size_t v = size_t(aIndices[c]);
+            // The normal the renderer will tilt: the vertex normal (or the face's), turned
+            // to the front the winding gives, as the shading normal is (a mirroring node
+            // reverses the winding: aFlip).
+            const size_t t = c - c % 3;
+            const glm::dvec3 p0(aPositions[size_t(aIndices[t])]);
+            const glm::dvec3 front = (aFlip ? -1.0 : 1.0) * glm::cross(glm::dvec3(aPositions[size_t(aIndices[t + 1])]) - p0,
+                                                                     glm::dvec3(aPositions[size_t(aIndices[t + 2])]) - p0);
+            glm::dvec3 n = !aNormals.empty() && aNormals[v] != Vec3(0.f) ? glm::dvec3(aNormals[v]) : glm::normalize(front);
+            if (glm::dot(n, front) < 0.0) n = -n;
+            const glm::dvec3 sum = tangentSum[h][v];
+            const glm::dvec3 orthogonal = sum - n * glm::dot(n, sum);
+            const double length = glm::length(orthogonal);
+            if (!(length > 1e-12) || !std::isfinite(length)) continue;
+            const glm::dvec3 tangent = orthogonal / length;
+            const float w = glm::dot(glm::cross(n, tangent), upSum[h][v]) < 0.0 ? -1.f : 1.f;
+            corners[c] = Vec4(Vec3(tangent), w);
+        }
+        return corners;
     }
 
     // The vertex normals (NORMAL) of a primitive in world space, or none when it has no
@@ -7369,9 +7653,22 @@ private:
     Scene mScene;
     std::vector<Vec3> mMaterialEmission;  // per scene material
     std::vector<int> mMaterialEmissionTexture;  // per scene material: index into Scene::mTextures, or -1
+    std::vector<int> mMaterialTexCoord;         // per scene material: the TEXCOORD set its textures read
     std::vector<bool> mMaterialEmitsTwoSided;  // per scene material: glTF doubleSided (area lights only)
     std::map<std::string, int> mApproximated;  // feature -> occurrences, for one note
-    std::unordered_map<int, int> mTextureIndex;  // glTF texture -> scene texture
+    // glTF texture and transform -> scene texture
+    struct TextureKey {
+        int mTexture;
+        bool mSrgb;
+        float mOffsetX, mOffsetY, mUx, mUy, mVx, mVy;
+        bool operator<(const TextureKey& aOther) const {
+            return std::tie(mTexture, mSrgb, mOffsetX, mOffsetY, mUx, mUy, mVx, mVy) <
+                   std::tie(aOther.mTexture, aOther.mSrgb, aOther.mOffsetX, aOther.mOffsetY, aOther.mUx, aOther.mUy,
+                            aOther.mVx, aOther.mVy);
+        }
+    };
+    std::map<TextureKey, int> mTextureIndex;
+    std::map<int, DecodedImage> mDecodedImages;  // glTF image -> its pixels, while loading
     static constexpr uint64_t kMaxTexturePixels = uint64_t(1) << 26;  // 64 Mpixel: 768 MB of linear texels
     int mDefaultMaterial = -1;
     bool mHasCamera = false;

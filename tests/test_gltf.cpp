@@ -977,6 +977,293 @@ TEST_CASE("The sampler's wrap mode applies to texture coordinates beyond 1", "[g
     }
 }
 
+namespace {
+
+// The textured floor of WriteTexturedFloor (uv = (x, 1 - y)) with a second set of texture
+// coordinates, TEXCOORD_1 = (1 - x, 1 - y) (the floor mirrored left to right), and the
+// base-colour texture described by aTextureInfo (JSON, e.g. {"index": 0, "texCoord": 1}).
+// aMaterialExtra goes into the material (e.g. an emissive texture).
+std::string WriteFloorWithTextureInfo(const TemporaryFolder& aFolder, const Image& aImage, const std::string& aTextureInfo,
+                                      const std::string& aMaterialExtra = "", int aImages = 1) {
+    WriteImage(aFolder / "base colour.png", aImage);
+    const float positions[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    const float uv0[8] = {0, 1, 1, 1, 1, 0, 0, 0};
+    const float uv1[8] = {1, 1, 0, 1, 0, 0, 1, 0};
+    const uint32_t indices[6] = {0, 1, 2, 2, 3, 0};
+    std::string bin(reinterpret_cast<const char*>(positions), sizeof positions);
+    bin.append(reinterpret_cast<const char*>(uv0), sizeof uv0);
+    bin.append(reinterpret_cast<const char*>(uv1), sizeof uv1);
+    bin.append(reinterpret_cast<const char*>(indices), sizeof indices);
+    std::ofstream(aFolder / "floor.bin", std::ios::binary) << bin;
+    std::ostringstream json;
+    json << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "extensionsUsed": ["KHR_texture_transform"],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "TEXCOORD_1": 2}, "indices": 3, "material": 0}]}],
+      "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0,
+                     "roughnessFactor": 1, "baseColorTexture": )" << aTextureInfo << "}" << aMaterialExtra << R"(}],
+      "textures": [)" << (aImages == 1 ? R"({"source": 0, "sampler": 0})" : R"({"source": 0, "sampler": 0}, {"source": 0, "sampler": 0})") << R"(],
+      "images": [{"uri": "base%20colour.png"}],
+      "samplers": [{"wrapS": 33071, "wrapT": 33071}],
+      "buffers": [{"uri": "floor.bin", "byteLength": )" << bin.size() << R"(}],
+      "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                      {"buffer": 0, "byteOffset": 80, "byteLength": 32}, {"buffer": 0, "byteOffset": 112, "byteLength": 24}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                    {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+                    {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
+                    {"bufferView": 3, "componentType": 5125, "count": 6, "type": "SCALAR"}]})";
+    std::ofstream(aFolder / "floor.gltf") << json.str();
+    return aFolder / "floor.gltf";
+}
+
+// A 4 x 4 image, black but for its lower-left quadrant: from the top, blue and white,
+// then red and green (colours that survive the PNG's sRGB encoding exactly).
+Image QuadrantImage() {
+    Image image(4, 4);
+    image.mPixels.assign(16, Vec3(0.f));
+    image.mPixels[2 * 4 + 0] = Vec3(0.f, 0.f, 1.f);  // column 0, row 2
+    image.mPixels[2 * 4 + 1] = Vec3(1.f);            // column 1, row 2
+    image.mPixels[3 * 4 + 0] = Vec3(1.f, 0.f, 0.f);  // column 0, row 3 (the bottom row)
+    image.mPixels[3 * 4 + 1] = Vec3(0.f, 1.f, 0.f);  // column 1, row 3
+    return image;
+}
+
+void CheckTexel(const Scene& aScene, float aX, float aY, const Vec3& aExpected) {
+    const Vec3 texel = TexelAt(aScene, aX, aY);
+    INFO("floor point (" << aX << ", " << aY << "): texel " << Str(texel) << ", expected " << Str(aExpected));
+    for (int k = 0; k < 3; k++) CHECK(texel[k] == Approx(aExpected[k]).margin(1e-4));
+}
+
+} // namespace
+
+TEST_CASE("KHR_texture_transform: the extension's example shows the image's lower-left quadrant turned clockwise", "[gltf][textures]") {
+    // The specification's example: offset (0, 1), rotation pi/2, scale (1/2, 1/2) "utilizes
+    // only the lower left quadrant of the source image, rotated clockwise 90 degrees". On
+    // the floor (uv = (x, 1 - y), the image upright when seen from above) the quadrant's
+    // four texels -- blue, white over red, green -- turned clockwise put red top left,
+    // blue top right, green bottom left and white bottom right. A rotation the other way,
+    // or u and v swapped, puts other colours (or black) there.
+    TemporaryFolder folder;
+    const Scene scene = LoadGltfScene(WriteFloorWithTextureInfo(folder, QuadrantImage(),
+        R"({"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0, 1], "rotation": 1.5707963268, "scale": [0.5, 0.5]}}})"));
+    CheckTexel(scene, 0.25f, 0.75f, Vec3(1.f, 0.f, 0.f));  // top left: red
+    CheckTexel(scene, 0.75f, 0.75f, Vec3(0.f, 0.f, 1.f));  // top right: blue
+    CheckTexel(scene, 0.25f, 0.25f, Vec3(0.f, 1.f, 0.f));  // bottom left: green
+    CheckTexel(scene, 0.75f, 0.25f, Vec3(1.f));            // bottom right: white
+    // Without the extension the same points show the image's black upper-left quadrant.
+    TemporaryFolder plain;
+    const Scene untransformed = LoadGltfScene(WriteFloorWithTextureInfo(plain, QuadrantImage(), R"({"index": 0})"));
+    CheckTexel(untransformed, 0.25f, 0.75f, Vec3(0.f));
+}
+
+TEST_CASE("KHR_texture_transform: offset and scale alone, and the texture is shared only where the transform is", "[gltf][textures]") {
+    // scale (0.5, 0.5) then offset (0, 0.5): uv' = (x / 2, 1/2 + (1 - y) / 2), the lower-left
+    // quadrant upright: blue top left, white top right, red bottom left, green bottom right.
+    TemporaryFolder folder;
+    const Scene scene = LoadGltfScene(WriteFloorWithTextureInfo(folder, QuadrantImage(),
+        R"({"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0, 0.5], "scale": [0.5, 0.5]}}})"));
+    CheckTexel(scene, 0.25f, 0.75f, Vec3(0.f, 0.f, 1.f));
+    CheckTexel(scene, 0.75f, 0.75f, Vec3(1.f));
+    CheckTexel(scene, 0.25f, 0.25f, Vec3(1.f, 0.f, 0.f));
+    CheckTexel(scene, 0.75f, 0.25f, Vec3(0.f, 1.f, 0.f));
+    CHECK(scene.mTextures.size() == 1);
+    // The same image as base colour (transformed) and as emission (not): two scene textures.
+    TemporaryFolder two;
+    const Scene both = LoadGltfScene(WriteFloorWithTextureInfo(two, QuadrantImage(),
+        R"({"index": 0, "extensions": {"KHR_texture_transform": {"scale": [0.5, 0.5]}}})",
+        R"(, "emissiveFactor": [1, 1, 1], "emissiveTexture": {"index": 1})", 2));
+    CHECK(both.mTextures.size() == 2);
+}
+
+TEST_CASE("A texture reads the TEXCOORD set its textureInfo names, or KHR_texture_transform's texCoord", "[gltf][textures]") {
+    // TEXCOORD_1 mirrors the floor left to right: the lower-left quadrant's red (image
+    // column 0, bottom row) moves from the floor's bottom left to its bottom right.
+    const Image image = QuadrantImage();
+    for (const char* info : {R"({"index": 0, "texCoord": 1})",
+                             R"({"index": 0, "texCoord": 0, "extensions": {"KHR_texture_transform": {"texCoord": 1}}})"}) {
+        INFO(info);
+        TemporaryFolder folder;
+        const Scene scene = LoadGltfScene(WriteFloorWithTextureInfo(folder, image, info));
+        CheckTexel(scene, 7.f / 8.f, 1.f / 8.f, Vec3(1.f, 0.f, 0.f));  // texel (0, 3) through TEXCOORD_1
+        CheckTexel(scene, 1.f / 8.f, 1.f / 8.f, Vec3(0.f));            // texel (3, 3): black
+    }
+    TemporaryFolder folder;
+    const Scene scene = LoadGltfScene(WriteFloorWithTextureInfo(folder, image, R"({"index": 0})"));
+    CheckTexel(scene, 1.f / 8.f, 1.f / 8.f, Vec3(1.f, 0.f, 0.f));  // TEXCOORD_0: red bottom left
+}
+
+TEST_CASE("Bad texture transforms and texture coordinate sets are refused in one line naming the material", "[gltf][textures]") {
+    const Image image = QuadrantImage();
+    const struct { const char* mInfo; const char* mExtra; const char* mMessage; } cases[] = {
+        {R"({"index": 0, "extensions": {"KHR_texture_transform": {"offset": [1e39, 0]}}})", "",
+         "material 0: its baseColorTexture: KHR_texture_transform.offset is not finite"},
+        {R"({"index": 0, "extensions": {"KHR_texture_transform": {"scale": [1, 2, 3]}}})", "",
+         "material 0: its baseColorTexture: KHR_texture_transform.scale must be an array of 2 numbers"},
+        {R"({"index": 0, "extensions": {"KHR_texture_transform": {"rotation": "90"}}})", "",
+         "material 0: its baseColorTexture: KHR_texture_transform.rotation must be a finite number (radians)"},
+        {R"({"index": 0, "extensions": {"KHR_texture_transform": {"texCoord": -1}}})", "",
+         "material 0: its baseColorTexture: KHR_texture_transform.texCoord must be a non-negative integer"},
+        {R"({"index": 0, "texCoord": 2})", "", ""},  // a set the primitive lacks: the primitive is named
+        {R"({"index": 0, "texCoord": 99})", "", "material 0: its baseColorTexture uses TEXCOORD_99; sets 0 to 7 are read"},
+        {R"({"index": 0})", R"(, "emissiveFactor": [1, 1, 1], "emissiveTexture": {"index": 0, "texCoord": 1})",
+         "material 0: its baseColorTexture reads TEXCOORD_0 and its emissiveTexture TEXCOORD_1"},
+    };
+    for (const auto& c : cases) {
+        INFO(c.mInfo << c.mExtra);
+        TemporaryFolder folder;
+        const std::string path = WriteFloorWithTextureInfo(folder, image, c.mInfo, c.mExtra);
+        const std::string error = LoadError(path);
+        if (std::string(c.mMessage).empty())
+            CHECK_THAT(error, Catch::StartsWith(path + ": ") &&
+                              Catch::EndsWith("mesh 0 primitive 0: its material has a baseColorTexture but the primitive has no TEXCOORD_2"));
+        else
+            CHECK_THAT(error, Catch::StartsWith(path + ": " + c.mMessage));
+        CHECK(error.find('\n') == std::string::npos);
+    }
+}
+
+namespace {
+
+// A normal map of one texel whose stored bytes are aBytes (through the PNG writer, which
+// sRGB-encodes: the linear value whose encoding is each byte), and the unit normal the
+// renderer makes of it in the tangent frame (T, B, N) = (+x, +y, +z) of the floor below.
+Image NormalMapImage(const glm::ivec3& aBytes) {
+    const auto linear = [](int aByte) {
+        const float e = float(aByte) / 255.f;
+        return e <= 0.04045f ? e / 12.92f : std::pow((e + 0.055f) / 1.055f, 2.4f);
+    };
+    Image image(1, 1);
+    image.mPixels = {Vec3(linear(aBytes.x), linear(aBytes.y), linear(aBytes.z))};
+    return image;
+}
+Vec3 MappedNormal(const glm::ivec3& aBytes, float aScale = 1.f) {
+    const Vec3 local((2.f * float(aBytes.x) / 255.f - 1.f) * aScale, (2.f * float(aBytes.y) / 255.f - 1.f) * aScale,
+                     2.f * float(aBytes.z) / 255.f - 1.f);
+    return glm::normalize(local);
+}
+
+// The unit floor [0,1]^2 at z = 0 with uv = (x, 1 - y) (the image upright seen from
+// above), a normal map (normalTexture, JSON aNormalTexture) and, optionally, TANGENT
+// (aTangent, the same at every vertex) and NORMAL (aNormal, likewise; then no normal map).
+std::string WriteNormalMappedFloor(const TemporaryFolder& aFolder, const Image& aMap, const std::string& aNormalTexture,
+                                   const Vec4* aTangent = nullptr, const Vec3* aNormal = nullptr) {
+    WriteImage(aFolder / "normal.png", aMap);
+    const float positions[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    const float uvs[8] = {0, 1, 1, 1, 1, 0, 0, 0};
+    const uint32_t indices[6] = {0, 1, 2, 2, 3, 0};
+    std::string bin(reinterpret_cast<const char*>(positions), sizeof positions);
+    bin.append(reinterpret_cast<const char*>(uvs), sizeof uvs);
+    bin.append(reinterpret_cast<const char*>(indices), sizeof indices);
+    std::string attributes = R"("POSITION": 0, "TEXCOORD_0": 1)", views, accessors;
+    if (aTangent) {
+        const size_t offset = bin.size();
+        for (int v = 0; v < 4; v++) bin.append(reinterpret_cast<const char*>(aTangent), sizeof(Vec4));
+        attributes += R"(, "TANGENT": 3)";
+        views += R"(, {"buffer": 0, "byteOffset": )" + std::to_string(offset) + R"(, "byteLength": 64})";
+        accessors += R"(, {"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC4"})";
+    }
+    if (aNormal) {
+        const size_t offset = bin.size();
+        for (int v = 0; v < 4; v++) bin.append(reinterpret_cast<const char*>(aNormal), sizeof(Vec3));
+        const int index = aTangent ? 4 : 3;
+        attributes += R"(, "NORMAL": )" + std::to_string(index);
+        views += R"(, {"buffer": 0, "byteOffset": )" + std::to_string(offset) + R"(, "byteLength": 48})";
+        accessors += R"(, {"bufferView": )" + std::to_string(index) + R"(, "componentType": 5126, "count": 4, "type": "VEC3"})";
+    }
+    std::ofstream(aFolder / "floor.bin", std::ios::binary) << bin;
+    std::ostringstream json;
+    json << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {)" << attributes << R"(}, "indices": 2, "material": 0}]}],
+      "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1], "metallicFactor": 0,
+                     "roughnessFactor": 1})" << (aNormal ? "" : R"(, "normalTexture": )" + aNormalTexture) << R"(}],
+      "textures": [{"source": 0}], "images": [{"uri": "normal.png"}],
+      "buffers": [{"uri": "floor.bin", "byteLength": )" << bin.size() << R"(}],
+      "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                      {"buffer": 0, "byteOffset": 80, "byteLength": 24})" << views << R"(],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                    {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+                    {"bufferView": 2, "componentType": 5125, "count": 6, "type": "SCALAR"})" << accessors << R"(]})";
+    std::ofstream(aFolder / "floor.gltf") << json.str();
+    return aFolder / "floor.gltf";
+}
+
+Vec3 ShadingNormalAt(const Scene& aScene, float aX, float aY) {
+    const SurfacePoint hit = aScene.Intersect(Ray{Vec3(aX, aY, 1.f), Vec3(0.f, 0.f, -1.f)});
+    REQUIRE(hit.IsValid());
+    return hit.mShadingNormal;
+}
+
+void CheckNormal(const Vec3& aActual, const Vec3& aExpected) {
+    INFO("shading normal " << Str(aActual) << ", expected " << Str(aExpected));
+    for (int k = 0; k < 3; k++) CHECK(aActual[k] == Approx(aExpected[k]).margin(1e-5));
+}
+
+const glm::ivec3 kTiltRight(191, 128, 238);  // tangent space (0.5, 0.004, 0.87): towards +u
+const glm::ivec3 kTiltUp(128, 191, 238);     // towards the image's up
+
+} // namespace
+
+TEST_CASE("A normal map tilts the shading normal: the image's right along +u, its up along the image's up", "[gltf][textures][normal_map]") {
+    // On the floor, +u is +x and the image's up (decreasing v) is +y, the normal +z. A frame
+    // flipped in u or in v turns one of the two tilts the wrong way.
+    for (const glm::ivec3& bytes : {kTiltRight, kTiltUp}) {
+        const Vec3 expected = MappedNormal(bytes);
+        INFO("texel " << bytes.x << " " << bytes.y << " " << bytes.z);
+        {   // tangents generated (no TANGENT), flat floor
+            TemporaryFolder folder;
+            const Scene scene = LoadGltfScene(WriteNormalMappedFloor(folder, NormalMapImage(bytes), R"({"index": 0})"));
+            CheckNormal(ShadingNormalAt(scene, 0.3f, 0.6f), expected);
+            CheckNormal(ShadingNormalAt(scene, 0.8f, 0.1f), expected);
+        }
+        {   // TANGENT given, right-handed: the same
+            TemporaryFolder folder;
+            const Vec4 tangent(1.f, 0.f, 0.f, 1.f);
+            const Scene scene = LoadGltfScene(WriteNormalMappedFloor(folder, NormalMapImage(bytes), R"({"index": 0})", &tangent));
+            CheckNormal(ShadingNormalAt(scene, 0.3f, 0.6f), expected);
+        }
+        {   // TANGENT with w = -1: the bitangent, and so the up tilt, turns over
+            TemporaryFolder folder;
+            const Vec4 tangent(1.f, 0.f, 0.f, -1.f);
+            const Scene scene = LoadGltfScene(WriteNormalMappedFloor(folder, NormalMapImage(bytes), R"({"index": 0})", &tangent));
+            CheckNormal(ShadingNormalAt(scene, 0.3f, 0.6f), Vec3(expected.x, -expected.y, expected.z));
+        }
+    }
+    // normalTexture.scale scales the tilt's x and y.
+    TemporaryFolder folder;
+    const Scene scene = LoadGltfScene(WriteNormalMappedFloor(folder, NormalMapImage(kTiltRight), R"({"index": 0, "scale": 0.5})"));
+    CheckNormal(ShadingNormalAt(scene, 0.5f, 0.5f), MappedNormal(kTiltRight, 0.5f));
+}
+
+TEST_CASE("A normal-mapped floor renders as the same floor with the tilted normal as its vertex normals", "[gltf][textures][normal_map]") {
+    // The normal map and vertex normals are two ways to the same shading normal, so every
+    // estimator -- path tracing, and light tracing and BPT, where light sub-paths need the
+    // adjoint shading factor -- must render the two floors alike (the same random numbers:
+    // the images differ only where float rounding of the normal changes a decision). The
+    // untilted floor differs by far more (a point light off to the -x side: tilting the
+    // normal towards +x turns the floor away from it), so the test can fail.
+    const Vec3 tilted = MappedNormal(kTiltRight);
+    const Vec3 flat(0.f, 0.f, 1.f);
+    auto render = [&](const char* aKind, Algorithm aAlgorithm) {
+        TemporaryFolder folder;
+        const std::string kind = aKind;
+        const std::string path = kind == "map" ? WriteNormalMappedFloor(folder, NormalMapImage(kTiltRight), R"({"index": 0})")
+                                 : kind == "normals" ? WriteNormalMappedFloor(folder, NormalMapImage(kTiltRight), "", nullptr, &tilted)
+                                                     : WriteNormalMappedFloor(folder, NormalMapImage(kTiltRight), "", nullptr, &flat);
+        Scene scene = LoadGltfScene(path);  // lit by the default sky, and:
+        scene.AddPointLight(Vec3(-0.5f, 0.5f, 0.8f), Vec3(20.f));
+        scene.mCamera.Setup(Vec3(0.5f, -1.f, 1.5f), Vec3(0.f, 1.5f, -1.5f), Vec3(0.f, 0.f, 1.f), 50.f);
+        scene.mCamera.SetResolution(24, 24);
+        scene.Finalize();
+        return testutil::PixelStatistics(testutil::RenderWith(scene, aAlgorithm, 8, 21).mImage).mean;
+    };
+    for (Algorithm algorithm : {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kBidirectionalPathTracing}) {
+        INFO(AlgorithmShortName(algorithm));
+        const double map = render("map", algorithm), normals = render("normals", algorithm), untilted = render("flat", algorithm);
+        INFO("normal map " << map << ", vertex normals " << normals << ", untilted " << untilted);
+        CHECK(map == Approx(normals).epsilon(1e-3));
+        CHECK(std::abs(untilted - normals) > 0.05 * normals);
+    }
+}
+
 TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][textures]") {
     TemporaryFolder folder;
     Image image(1, 1);
@@ -984,7 +1271,7 @@ TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][t
     std::string text = ReadText(WriteTexturedFloor(folder, image, 10497, 1.f));
     const std::string material = R"("materials": [{)";
     text.replace(text.find(material), material.size(),
-                 material + R"("alphaMode": "BLEND", "normalTexture": {"index": 0}, "emissiveTexture": {"index": 0}, )");
+                 material + R"("alphaMode": "BLEND", "normalTexture": {"index": 0}, "occlusionTexture": {"index": 0}, "emissiveTexture": {"index": 0}, )");
     std::ofstream(folder / "floor.gltf") << text;
     GltfLoadReport report;
     LoadGltfScene(folder / "floor.gltf", &report);
@@ -993,9 +1280,10 @@ TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][t
         if (note.find("approximated (not modelled)") == std::string::npos) continue;
         notes++;
         // The emissiveTexture is modelled: with the floor's black emissiveFactor (glTF's
-        // default) it changes nothing, and nothing about it is approximated.
-        CHECK_THAT(note, Catch::Contains("alphaMode BLEND (rendered opaque)") && Catch::Contains("normalTexture") &&
-                         !Catch::Contains("emissiveTexture"));
+        // default) it changes nothing, and nothing about it is approximated. So is the
+        // normalTexture (a normal map).
+        CHECK_THAT(note, Catch::Contains("alphaMode BLEND (rendered opaque)") && Catch::Contains("occlusionTexture") &&
+                         !Catch::Contains("normalTexture") && !Catch::Contains("emissiveTexture"));
     }
     CHECK(notes == 1);
 }

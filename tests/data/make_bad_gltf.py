@@ -355,9 +355,13 @@ bad("texture_image_not_png.gltf", "the base colour image is a data URI holding t
 bad("texture_no_texcoord.gltf", "a textured floor whose primitive has no TEXCOORD_0",
     "its material has a baseColorTexture but the primitive has no TEXCOORD_0")(
     lambda: modified(textured({"uri": "data:image/png;base64," + TINY_PNG_BASE64, "mimeType": "image/png"})))
-bad("texture_texcoord_1.gltf", "a baseColorTexture that uses TEXCOORD_1",
-    "only TEXCOORD_0 is supported")(
+bad("texture_texcoord_9.gltf", "a baseColorTexture that uses TEXCOORD_9",
+    "its baseColorTexture uses TEXCOORD_9; sets 0 to 7 are read")(
     lambda: modified(lambda d: (textured({"uri": "x.png"})(d),
+                                d["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"].update(texCoord=9))))
+bad("texture_texcoord_1_absent.gltf", "a baseColorTexture that uses TEXCOORD_1, which the primitive lacks",
+    "its material has a baseColorTexture but the primitive has no TEXCOORD_1")(
+    lambda: modified(lambda d: (textured({"uri": "data:image/png;base64," + TINY_PNG_BASE64, "mimeType": "image/png"})(d),
                                 d["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"].update(texCoord=1))))
 def emissive_textured(image, texcoords=None, raw=None):
     """The emitter (material 1, mesh 1) with an emissiveTexture of the given image, and
@@ -390,10 +394,10 @@ bad("emissive_texture_uv_nan.gltf", "the emitter's TEXCOORD_0 of vertex 1 has u 
     lambda: emissive_textured(TINY_PNG_IMAGE, LIGHT_UVS,
                               raw=struct.pack("<2f", *LIGHT_UVS[0]) + struct.pack("<If", NAN_BITS, 0.0) +
                               b"".join(struct.pack("<2f", *uv) for uv in LIGHT_UVS[2:])))
-bad("emissive_texture_texcoord_1.gltf", "an emissiveTexture that uses TEXCOORD_1",
-    "its emissiveTexture uses TEXCOORD_1; only TEXCOORD_0 is supported")(
+bad("emissive_texture_texcoord_9.gltf", "an emissiveTexture that uses TEXCOORD_9",
+    "its emissiveTexture uses TEXCOORD_9; sets 0 to 7 are read")(
     lambda: modified(lambda d: (d.update(images=[{"uri": "x.png"}], textures=[{"source": 0}]),
-                                d["materials"][1].update(emissiveTexture={"index": 0, "texCoord": 1}))))
+                                d["materials"][1].update(emissiveTexture={"index": 0, "texCoord": 9}))))
 
 bad("diffuse_above_one.gltf", "SMALLVCM_material diffuse (1.2, 0.5, 0.5)", "must not exceed 1")(
     lambda: modified(lambda d: d["materials"][0]["extensions"]["SMALLVCM_material"].update(
