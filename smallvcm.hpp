@@ -6441,6 +6441,7 @@ private:
                                                           nullptr, false);
         if (json.is_object()) {  // otherwise tinygltf says what is wrong with it
             CheckVersionAndExtensions(json);
+            CheckCompressionFallbacks(json, binary);
             CheckDeclaredBuffers(json);
             CheckSpotAnglesAreNumbers(json);
         }
@@ -6520,8 +6521,50 @@ private:
         return kSupported;
     }
 
-    // Before any buffer is read: a glTF 1.0 file, or an extension the file requires that
-    // is not modelled here (compressed meshes, KTX2 textures...), is named in one line
+    // How to get a file that loads, for the unsupported extensions files carry most; null
+    // for any other.
+    static const char* HowToGetAPlainFile(const std::string& aExtension) {
+        static const std::pair<const char*, const char*> kHints[] = {
+            {"KHR_draco_mesh_compression", "its meshes are Draco-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
+            {"EXT_meshopt_compression", "its buffers are meshopt-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
+            {"KHR_mesh_quantization", "its vertex attributes are quantized: dequantize the file first (e.g. `gltf-transform dequantize IN OUT`)"},
+            {"KHR_texture_basisu", "its textures are KTX2/Basis: convert them to PNG or JPEG first (e.g. re-export with PNG textures)"},
+            {"EXT_texture_webp", "its textures are WebP: convert them to PNG or JPEG first"},
+        };
+        for (const auto& [name, hint] : kHints)
+            if (aExtension == name) return hint;
+        return nullptr;
+    }
+
+    // The refusal of the required extensions not modelled here, or "" when there are
+    // none: every one is named in one line (fixing the first would only lead to the next),
+    // each with its hint. A known name is written as is, any other quoted as an excerpt,
+    // and a list longer than a screen line ends in how many more there are.
+    static std::string UnsupportedRequiredExtensions(const std::vector<std::string>& aRequired) {
+        std::vector<std::string> names;
+        std::set<std::string> seen;
+        size_t more = 0;
+        for (const std::string& name : aRequired) {
+            if (SupportedExtensions().count(name) || !seen.insert(name).second) continue;
+            if (names.size() < 8) names.push_back(name);
+            else more++;
+        }
+        if (names.empty()) return "";
+        const bool several = names.size() > 1;
+        std::string list, hints;
+        for (size_t i = 0; i < names.size(); i++) {
+            const char* hint = HowToGetAPlainFile(names[i]);
+            const bool last = i + 1 == names.size() && more == 0;
+            list += std::string(i == 0 ? "" : last ? " and " : ", ") + (hint ? names[i] : "'" + Excerpt(names[i]) + "'");
+            if (hint) hints += (hints.empty() ? "" : "; ") + (several ? names[i] + ": " : std::string()) + hint;
+        }
+        if (more > 0) list += " and " + std::to_string(more) + " more";
+        return std::string(several ? "required extensions " : "required extension ") + list + (several ? " are" : " is") +
+               " not supported" + (hints.empty() ? "" : ": " + hints);
+    }
+
+    // Before any buffer is read: a glTF 1.0 file, or the extensions the file requires that
+    // are not modelled here (compressed meshes, KTX2 textures...), are named in one line
     // that says how to get a file that loads.
     void CheckVersionAndExtensions(const nlohmann::json& aJson) {
         if (aJson.contains("asset") && aJson["asset"].is_object() && aJson["asset"].contains("version") &&
@@ -6531,25 +6574,110 @@ private:
                 Fail("this is a glTF 1.0 file (asset.version \"" + Excerpt(version) + "\"); only glTF 2.0 is supported: convert it "
                      "(e.g. import it into Blender and export glTF 2.0)");
         }
-        static const std::pair<const char*, const char*> kHowToGetAPlainFile[] = {
-            {"KHR_draco_mesh_compression", "its meshes are Draco-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
-            {"EXT_meshopt_compression", "its buffers are meshopt-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
-            {"KHR_mesh_quantization", "its vertex attributes are quantized: dequantize the file first (e.g. `gltf-transform dequantize IN OUT`)"},
-            {"KHR_texture_basisu", "its textures are KTX2/Basis: convert them to PNG or JPEG first (e.g. re-export with PNG textures)"},
-            {"EXT_texture_webp", "its textures are WebP: convert them to PNG or JPEG first"},
-        };
-        if (aJson.contains("extensionsRequired") && aJson["extensionsRequired"].is_array())
-            for (const nlohmann::json& entry : aJson["extensionsRequired"]) {
-                if (!entry.is_string() || SupportedExtensions().count(entry.get<std::string>())) continue;
-                const std::string name = entry.get<std::string>();
-                for (const auto& known : kHowToGetAPlainFile)
-                    if (name == known.first) Fail("required extension " + name + " is not supported: " + known.second);
-                Fail("required extension '" + Excerpt(name) + "' is not supported");
-            }
+        if (aJson.contains("extensionsRequired") && aJson["extensionsRequired"].is_array()) {
+            std::vector<std::string> required;
+            for (const nlohmann::json& entry : aJson["extensionsRequired"])
+                if (entry.is_string()) required.push_back(entry.get<std::string>());
+            const std::string problem = UnsupportedRequiredExtensions(required);
+            if (!problem.empty()) Fail(problem);
+        }
         if (aJson.contains("extensionsUsed") && aJson["extensionsUsed"].is_array())
             for (const nlohmann::json& entry : aJson["extensionsUsed"])
                 if (entry.is_string() && !SupportedExtensions().count(entry.get<std::string>()) && mIgnoredExtensions.size() < 32)
                     mIgnoredExtensions.insert(entry.get<std::string>());
+    }
+
+    // aObject[aKey], or null when aObject is not an object or has no such member.
+    static const nlohmann::json& Member(const nlohmann::json& aObject, const char* aKey) {
+        static const nlohmann::json kNull;
+        if (!aObject.is_object()) return kNull;
+        const auto found = aObject.find(aKey);
+        return found == aObject.end() ? kNull : *found;
+    }
+    // aArray[aIndex] when aIndex is an index into the array aArray, else null.
+    static const nlohmann::json& Element(const nlohmann::json& aArray, const nlohmann::json& aIndex) {
+        static const nlohmann::json kNull;
+        if (!aArray.is_array() || !aIndex.is_number_unsigned() || aIndex.get<uint64_t>() >= aArray.size()) return kNull;
+        return aArray[aIndex.get<size_t>()];
+    }
+
+    // An accessor whose data is not in any buffer view (a Draco primitive's without a fallback).
+    static bool HasNoBufferView(const nlohmann::json& aAccessor) { return aAccessor.is_object() && !aAccessor.contains("bufferView"); }
+    // Buffer aBuffer holds no bytes of its own: it has no URI, and is not the first buffer
+    // of a .glb (which stands for the BIN chunk).
+    static bool HasNoData(const nlohmann::json& aBuffers, size_t aBuffer, bool aBinary) {
+        const nlohmann::json& uri = Member(aBuffers[aBuffer], "uri");
+        return aBuffers[aBuffer].is_object() && (uri.is_null() || uri == "") && !(aBinary && aBuffer == 0);
+    }
+
+    // A compression extension that a file uses without requiring it promises the data
+    // uncompressed too, for readers without the extension (both specifications):
+    // KHR_draco_mesh_compression keeps each compressed primitive's accessors on buffer
+    // views, EXT_meshopt_compression keeps each compressed buffer view's own buffer filled
+    // (a URI, or a .glb's BIN chunk). A file without that fallback can only be read with
+    // the extension, which is not modelled here: it is refused by the extension's name
+    // before tinygltf stops at a missing bufferView, or copies a .glb's BIN chunk, which
+    // holds the compressed bytes, into a buffer that has no URI. Any other buffer without
+    // a URI is refused too: only a .glb's first buffer stands for its BIN chunk.
+    void CheckCompressionFallbacks(const nlohmann::json& aJson, bool aBinary) {
+        // Each: "<extension> is not supported, and <what> has no uncompressed fallback to
+        // read instead (<why>): <how to get a plain file>".
+        std::vector<std::string> problems;
+        const auto refuse = [&](const char* aExtension, const std::string& aWhat, const std::string& aWhy) {
+            problems.push_back(std::string(aExtension) + " is not supported, and " + aWhat +
+                               " has no uncompressed fallback to read instead (" + aWhy + "): " + HowToGetAPlainFile(aExtension));
+        };
+        const nlohmann::json& accessors = Member(aJson, "accessors");
+        const nlohmann::json& meshes = Member(aJson, "meshes");
+        std::string draco;  // the first accessor of a compressed primitive without a bufferView
+        for (size_t m = 0; meshes.is_array() && m < meshes.size() && draco.empty(); m++) {
+            const nlohmann::json& primitives = Member(meshes[m], "primitives");
+            for (size_t p = 0; primitives.is_array() && p < primitives.size() && draco.empty(); p++) {
+                const nlohmann::json& primitive = primitives[p];
+                if (!Member(Member(primitive, "extensions"), "KHR_draco_mesh_compression").is_object()) continue;
+                const nlohmann::json& indices = Member(primitive, "indices");
+                if (HasNoBufferView(Element(accessors, indices))) draco = "accessor " + indices.dump() + ", its indices";
+                const nlohmann::json& attributes = Member(primitive, "attributes");
+                if (attributes.is_object())
+                    for (const auto& [semantic, index] : attributes.items())
+                        if (draco.empty() && HasNoBufferView(Element(accessors, index)))
+                            draco = "accessor " + index.dump() + ", its " + Excerpt(semantic);
+                if (!draco.empty())
+                    refuse("KHR_draco_mesh_compression", "mesh " + std::to_string(m) + " primitive " + std::to_string(p),
+                           draco + ", has no bufferView");
+            }
+        }
+
+        const nlohmann::json& buffers = Member(aJson, "buffers");
+        const nlohmann::json& views = Member(aJson, "bufferViews");
+        std::set<size_t> fallbackBuffers;  // under a compressed view, or marked as a fallback
+        bool meshopt = false;              // refused already
+        for (size_t v = 0; views.is_array() && v < views.size(); v++) {
+            if (!Member(Member(views[v], "extensions"), "EXT_meshopt_compression").is_object()) continue;
+            const nlohmann::json& buffer = Member(views[v], "buffer");
+            if (!Element(buffers, buffer).is_object()) continue;  // tinygltf says what is wrong
+            fallbackBuffers.insert(buffer.get<size_t>());
+            if (!meshopt && HasNoData(buffers, buffer.get<size_t>(), aBinary)) {
+                refuse("EXT_meshopt_compression", "bufferView " + std::to_string(v), "its buffer " + buffer.dump() + " has no URI: it holds no data");
+                meshopt = true;
+            }
+        }
+        for (size_t b = 0; buffers.is_array() && b < buffers.size(); b++)
+            if (Member(Member(Member(buffers[b], "extensions"), "EXT_meshopt_compression"), "fallback") == true) {
+                fallbackBuffers.insert(b);
+                if (!meshopt && HasNoData(buffers, b, aBinary)) {
+                    refuse("EXT_meshopt_compression", "the file", "buffer " + std::to_string(b) + ", marked as the fallback, has no URI: it holds no data");
+                    meshopt = true;
+                }
+            }
+        for (size_t b = 0; buffers.is_array() && b < buffers.size() && problems.empty(); b++)
+            if (!fallbackBuffers.count(b) && HasNoData(buffers, b, aBinary))
+                problems.push_back("buffer " + std::to_string(b) + " has no URI (only a .glb's first buffer may go without one: "
+                                   "it stands for the BIN chunk)");
+        if (problems.empty()) return;
+        std::string message;
+        for (const std::string& problem : problems) message += (message.empty() ? "" : "; ") + problem;
+        Fail(message);
     }
 
     // The sizes the buffers declare, known before tinygltf reads or decodes a byte: a
@@ -6612,8 +6740,8 @@ private:
     }
 
     void CheckModelFeatures() {
-        for (const std::string& required : mModel.extensionsRequired)
-            if (!SupportedExtensions().count(required)) Fail("required extension '" + Excerpt(required) + "' is not supported");
+        const std::string unsupported = UnsupportedRequiredExtensions(mModel.extensionsRequired);
+        if (!unsupported.empty()) Fail(unsupported);
         if (!mModel.skins.empty()) Fail("skins are not supported");
         for (const tinygltf::Accessor& accessor : mModel.accessors)
             if (accessor.sparse.isSparse) Fail("sparse accessors are not supported");

@@ -663,6 +663,14 @@ std::string LoadError(const std::string& aPath, const GltfLoadOptions& aOptions 
     return "";
 }
 
+// aText with its one occurrence of aFrom replaced by aTo.
+std::string Replaced(std::string aText, const std::string& aFrom, const std::string& aTo) {
+    const size_t at = aText.find(aFrom);
+    REQUIRE(at != std::string::npos);
+    REQUIRE(aText.find(aFrom, at + 1) == std::string::npos);
+    return aText.replace(at, aFrom.size(), aTo);
+}
+
 } // namespace
 
 TEST_CASE("The test cube is closed and wound outwards", "[gltf]") {
@@ -755,6 +763,74 @@ TEST_CASE("A file without an emitter gets a white background, which the options 
         CHECK(backgrounds == 1);
         CHECK_FALSE(report.mDefaultBackground);
         CHECK(lit.mLights.size() == (cornell == 3 ? lightsInFile : lightsInFile + 1));
+    }
+}
+
+TEST_CASE("Every unsupported required extension is named in one line, each with its hint", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    // KHR_lights_punctual is modelled; EXT_meshopt_compression, listed twice, is named once.
+    const std::string path = WriteTemporary(folder, "several.gltf", R"({"asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_lights_punctual", "EXT_meshopt_compression", "EXT_unknown_feature", "KHR_mesh_quantization"],
+        "extensionsRequired": ["KHR_lights_punctual", "EXT_meshopt_compression", "EXT_unknown_feature", "KHR_mesh_quantization",
+                               "EXT_meshopt_compression"],
+        "buffers": [{"byteLength": 100, "uri": "missing.bin"}], "scenes": [{"nodes": []}]})");
+    CHECK(LoadError(path) == path + ": required extensions EXT_meshopt_compression, 'EXT_unknown_feature' and KHR_mesh_quantization "
+                                    "are not supported: EXT_meshopt_compression: its buffers are meshopt-compressed: decompress the "
+                                    "file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression); "
+                                    "KHR_mesh_quantization: its vertex attributes are quantized: dequantize the file first (e.g. "
+                                    "`gltf-transform dequantize IN OUT`)");
+    // A list longer than a line ends in how many more there are.
+    std::string many;
+    for (int e = 0; e < 11; e++) many += std::string(e > 0 ? ", " : "") + "\"EXT_unknown_" + std::to_string(e) + "\"";
+    const std::string manyPath = WriteTemporary(folder, "many.gltf", R"({"asset": {"version": "2.0"}, "extensionsRequired": [)" +
+                                                                     many + R"(], "scenes": [{"nodes": []}]})");
+    CHECK(LoadError(manyPath) == manyPath + ": required extensions 'EXT_unknown_0', 'EXT_unknown_1', 'EXT_unknown_2', "
+                                            "'EXT_unknown_3', 'EXT_unknown_4', 'EXT_unknown_5', 'EXT_unknown_6', "
+                                            "'EXT_unknown_7' and 3 more are not supported");
+}
+
+TEST_CASE("A compression extension only used loads from its uncompressed fallback, and is refused by name without one", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    const std::vector<float> cube = Cube(Vec3(0.f));
+    const std::string bytes(reinterpret_cast<const char*>(cube.data()), cube.size() * sizeof(float));
+    const auto ignored = [](const GltfLoadReport& aReport, const std::string& aExtension) {
+        for (const std::string& note : aReport.mNotes)
+            if (note.find("ignored extensions") != std::string::npos && note.find(aExtension) != std::string::npos) return true;
+        return false;
+    };
+    SECTION("KHR_draco_mesh_compression: the primitive's accessors keep their bufferView, or have none") {
+        const std::string draco = Replaced(MeshGltf(cube, "", R"(, "extensionsUsed": ["KHR_draco_mesh_compression"])"),
+            R"({"attributes": {"POSITION": 0}, "material": 0})",
+            R"({"attributes": {"POSITION": 0}, "material": 0, "extensions": {"KHR_draco_mesh_compression": {"bufferView": 0,
+                "attributes": {"POSITION": 0}}}})");
+        const std::string withFallback = WriteTemporary(folder, "draco_fallback.gltf", draco);
+        GltfLoadReport report;
+        CHECK(LoadGltfScene(withFallback, &report).mTriangles.size() == 12);
+        CHECK(ignored(report, "KHR_draco_mesh_compression"));
+        const std::string without = WriteTemporary(folder, "draco_only.gltf",
+                                                   Replaced(draco, R"({"bufferView": 0, "componentType")", R"({"componentType")"));
+        CHECK_THAT(LoadError(without), Catch::StartsWith(without + ": KHR_draco_mesh_compression is not supported, and mesh 0 "
+                                                         "primitive 0 has no uncompressed fallback to read instead (accessor 0, its "
+                                                         "POSITION, has no bufferView): its meshes are Draco-compressed"));
+    }
+    SECTION("EXT_meshopt_compression: the buffer view's own buffer holds the uncompressed bytes, or nothing") {
+        // The view reads its compressed bytes from buffer 0 (here plain ones), its own are in buffer 1.
+        const std::string meshopt = Replaced(MeshGltf(cube, "", R"(, "extensionsUsed": ["EXT_meshopt_compression"])"),
+            R"("bufferViews": [{"buffer": 0, )",
+            R"("bufferViews": [{"buffer": 1, "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteLength": 432,
+                "byteStride": 12, "count": 36, "mode": "ATTRIBUTES"}}, )");
+        const std::string marked = R"("extensions": {"EXT_meshopt_compression": {"fallback": true}})";
+        const std::string withFallback = WriteTemporary(folder, "meshopt_fallback.gltf", Replaced(meshopt, R"("}], "extensionsUsed")",
+            R"("}, {"byteLength": 432, "uri": "data:application/octet-stream;base64,)" + Base64(bytes) + "\", " + marked +
+                R"(}], "extensionsUsed")"));
+        GltfLoadReport report;
+        CHECK(LoadGltfScene(withFallback, &report).mTriangles.size() == 12);
+        CHECK(ignored(report, "EXT_meshopt_compression"));
+        const std::string without = WriteTemporary(folder, "meshopt_only.gltf", Replaced(meshopt, R"("}], "extensionsUsed")",
+            R"("}, {"byteLength": 432, )" + marked + R"(}], "extensionsUsed")"));
+        CHECK_THAT(LoadError(without), Catch::StartsWith(without + ": EXT_meshopt_compression is not supported, and bufferView 0 has "
+                                                         "no uncompressed fallback to read instead (its buffer 1 has no URI: it holds no "
+                                                         "data): its buffers are meshopt-compressed"));
     }
 }
 
@@ -1083,3 +1159,4 @@ TEST_CASE("The load report says how long reading and Scene::Finalize took", "[gl
     CHECK(report.mFinalizeSeconds > 0.0);
     CHECK(report.mReadSeconds + report.mFinalizeSeconds <= total);
 }
+
