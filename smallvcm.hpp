@@ -6680,10 +6680,6 @@ private:
         Fail(message);
     }
 
-    // The sizes the buffers declare, known before tinygltf reads or decodes a byte: a
-    // file is read only if it is as long as some buffer says, and a data URI is decoded
-    // only if its text is no longer than its byteLength needs. (tinygltf itself reads a
-    // whole file, or decodes a whole URI, before it compares the size.)
     // tinygltf keeps the default of a spot cone angle that is not a number ("0.5" as a
     // string): such a file would silently render another cone, so it is refused here.
     void CheckSpotAnglesAreNumbers(const nlohmann::json& aJson) {
@@ -6704,39 +6700,85 @@ private:
         }
     }
 
+    // What the buffers declare, known before tinygltf reads or decodes a byte. Their
+    // sizes: a file is read only if it is as long as some buffer says, and a data URI is
+    // decoded only if its text is no longer than its byteLength needs (tinygltf itself
+    // reads a whole file, or decodes a whole URI, before it compares the size). And the
+    // file each URI names, under the name tinygltf will ask ReadBufferFile for.
     void CheckDeclaredBuffers(const nlohmann::json& aJson) {
         if (!aJson.contains("buffers") || !aJson["buffers"].is_array()) return;  // tinygltf says what is wrong
         const nlohmann::json& buffers = aJson["buffers"];
         for (size_t b = 0; b < buffers.size(); b++) {
             const nlohmann::json& buffer = buffers[b];
-            if (!buffer.is_object() || !buffer.contains("byteLength") || !buffer["byteLength"].is_number_unsigned()) continue;
-            const uint64_t byteLength = buffer["byteLength"].get<uint64_t>();
-            if (!buffer.contains("uri") || !buffer["uri"].is_string()) continue;
+            if (!buffer.is_object() || !buffer.contains("uri") || !buffer["uri"].is_string()) continue;
             const std::string& uri = buffer["uri"].get_ref<const std::string&>();
+            const bool sized = buffer.contains("byteLength") && buffer["byteLength"].is_number_unsigned();
+            const uint64_t byteLength = sized ? buffer["byteLength"].get<uint64_t>() : 0;
             if (uri.compare(0, 5, "data:") == 0) {
                 const size_t comma = uri.find(',');
                 const uint64_t encoded = comma == std::string::npos ? 0 : uint64_t(uri.size() - comma - 1);
-                if (encoded / 4 * 3 > byteLength + 3)
+                if (sized && encoded / 4 * 3 > byteLength + 3)
                     Fail("buffer " + std::to_string(b) + ": its data URI holds about " + ByteCount(encoded / 4 * 3) +
                          ", more than its byteLength of " + ByteCount(byteLength) + " (not decoded)");
             } else {
-                mDeclaredBufferSizes.insert(byteLength);
+                if (sized) mDeclaredBufferSizes.insert(byteLength);
+                mBufferFileNames[TinygltfDecoded(uri)].push_back(PercentDecoded(uri));
             }
         }
     }
 
-    // tinygltf's file reader: aFile is the scene's folder joined with a buffer's URI.
+    // The name tinygltf 2.7 decodes a buffer URI to before it asks for the file (dlib's
+    // urldecode): '+' is read as a space, as in HTML forms, and '%' with the two characters
+    // after it as the byte they spell (a character that is no hex digit counts as 0).
+    static std::string TinygltfDecoded(const std::string& aUri) {
+        const auto digit = [](char aChar) {
+            return aChar >= '0' && aChar <= '9' ? aChar - '0' : aChar >= 'a' && aChar <= 'f' ? aChar - 'a' + 10
+                 : aChar >= 'A' && aChar <= 'F' ? aChar - 'A' + 10 : 0;
+        };
+        std::string decoded;
+        for (size_t i = 0; i < aUri.size(); i++) {
+            if (aUri[i] == '+') {
+                decoded += ' ';
+            } else if (aUri[i] == '%' && i + 2 < aUri.size()) {
+                decoded += char(digit(aUri[i + 1]) * 16 + digit(aUri[i + 2]));
+                i += 2;
+            } else {
+                decoded += aUri[i];
+            }
+        }
+        return decoded;
+    }
+
+    // tinygltf's file reader: aFile is the scene's folder joined with tinygltf's decoding
+    // of a buffer's URI. A URI names a file by RFC 3986 (a '+' is a plus), so the file read
+    // is the one CheckDeclaredBuffers noted under that decoding, the first not yet read
+    // when two URIs decode alike (tinygltf reads the buffers in order).
     bool ReadBufferFile(std::vector<unsigned char>& oBytes, std::string& oError, const std::string& aFile) {
-        const std::string uri = aFile.compare(0, mFolder.size(), mFolder) == 0 ? aFile.substr(std::min(aFile.size(), mFolder.size() + 1)) : aFile;
-        const std::string problem = ReadUntrustedFile(aFile, mRoot, [&](uint64_t aSize) -> std::string {
+        std::string name = aFile.substr(std::min(aFile.size(), mFolder.size()));
+        if (!name.empty() && name[0] == '/') name.erase(0, 1);
+        const auto noted = mBufferFileNames.find(name);
+        if (noted != mBufferFileNames.end() && !noted->second.empty()) {
+            name = noted->second.front();
+            noted->second.pop_front();
+        }
+        const std::string problem = ReadFileNamedByUri(name, [&](uint64_t aSize) -> std::string {
             if (!mDeclaredBufferSizes.count(aSize)) return "its size, " + ByteCount(aSize) + ", is no buffer's byteLength (not read)";
             return SizeProblem(aSize);
         }, oBytes);
         if (problem.empty()) return true;
         // Kept for the message: tinygltf would quote the whole joined path.
-        if (mBufferProblem.empty()) mBufferProblem = "buffer URI '" + Excerpt(uri) + "': " + problem;
+        if (mBufferProblem.empty()) mBufferProblem = "buffer URI '" + Excerpt(name) + "': " + problem;
         oError += problem;
         return false;
+    }
+
+    // Reads the file that a decoded URI aName names, relative to the scene's folder and
+    // inside mRoot; returns "" or the problem. No file name holds a NUL byte ("%00"), and
+    // the system would read the name only up to it.
+    std::string ReadFileNamedByUri(const std::string& aName, const std::function<std::string(uint64_t)>& aSizeProblem,
+                                   std::vector<unsigned char>& oBytes) const {
+        if (aName.find('\0') != std::string::npos) return "the URI decodes to a NUL byte, which no file name holds";
+        return ReadUntrustedFile(mFolder + "/" + aName, mRoot, aSizeProblem, oBytes);
     }
 
     void CheckModelFeatures() {
@@ -6828,8 +6870,8 @@ private:
         const std::vector<unsigned char>* bytes = &image.image;
         if (image.image.empty()) {
             if (image.uri.empty()) Fail(what + " has neither a URI nor a buffer view");
-            const std::string problem = ReadUntrustedFile(mFolder + "/" + PercentDecoded(image.uri), mRoot,
-                                                          [&](uint64_t aSize) { return SizeProblem(aSize); }, fileBytes);
+            const std::string problem = ReadFileNamedByUri(PercentDecoded(image.uri), [&](uint64_t aSize) { return SizeProblem(aSize); },
+                                                           fileBytes);
             if (!problem.empty()) Fail(what + ": " + problem);
             bytes = &fileBytes;
         }
@@ -7491,6 +7533,7 @@ private:
     std::string mFolder;                        // the scene file's canonical folder: URIs are relative to it
     std::string mRoot;                          // canonical folder every URI must resolve into
     std::set<uint64_t> mDeclaredBufferSizes;    // byteLength of every buffer with a file URI
+    std::map<std::string, std::deque<std::string>> mBufferFileNames;  // tinygltf's decoding of a file URI -> the files it names, in order
     uint64_t mBytesRead = 0;                    // scene file and buffer files so far
     std::string mBufferProblem;                 // why a buffer file was not read, if one was not
     tinygltf::Model mModel;

@@ -1160,3 +1160,64 @@ TEST_CASE("The load report says how long reading and Scene::Finalize took", "[gl
     CHECK(report.mReadSeconds + report.mFinalizeSeconds <= total);
 }
 
+TEST_CASE("Buffer and image URIs name files exactly as they percent-decode: spaces, trailing spaces and '+' stay", "[gltf][textures]") {
+    // The textured floor above with its two files renamed: {image file, its URI, buffer
+    // file, its URI}. tinygltf decodes a buffer URI's '+' to a space, as HTML forms do; a
+    // URI's '+' is a plus (RFC 3986).
+    const struct {
+        const char *mImage, *mImageUri, *mBuffer, *mBufferUri;
+    } cases[] = {
+        {"tex.png ", "tex.png ", "floor.bin ", "floor.bin "},
+        {"name with trailing space .png", "name with trailing space .png", "a b.bin", "a%20b.bin"},
+        {"x+y.png", "x+y.png", "c++.bin", "c++.bin"},
+        {"my image.png", "my%20image.png", "50%.bin", "50%25.bin"},
+    };
+    Image image(1, 1);
+    image.mPixels = {Vec3(1.f, 0.f, 0.f)};
+    for (const auto& c : cases) {
+        INFO("image '" << c.mImage << "', buffer '" << c.mBuffer << "'");
+        TemporaryFolder folder;
+        std::string text = ReadText(WriteTexturedFloor(folder, image, 10497, 1.f));
+        std::filesystem::rename(folder / "base colour.png", folder / c.mImage);
+        std::filesystem::rename(folder / "floor.bin", folder / c.mBuffer);
+        text = Replaced(text, R"("base%20colour.png")", std::string("\"") + c.mImageUri + "\"");
+        std::ofstream(folder / "floor.gltf") << Replaced(text, R"("floor.bin")", std::string("\"") + c.mBufferUri + "\"");
+        const Scene scene = LoadGltfScene(folder / "floor.gltf");
+        CHECK(scene.mTriangles.size() == 2);
+        CHECK(TexelAt(scene, 0.5f, 0.5f) == image.mPixels[0]);
+    }
+}
+
+TEST_CASE("Two buffer URIs that tinygltf decodes alike each read their own file", "[gltf]") {
+    // "p+q.bin" and "p%20q.bin" both reach the file reader as "p q.bin": buffer 0 must get
+    // p+q.bin (the cube), buffer 1 p q.bin (the cube moved by 10, unused).
+    TemporaryFolder folder;
+    const auto write = [&](const std::string& aName, const std::vector<float>& aFloats) {
+        std::ofstream(folder / aName, std::ios::binary).write(reinterpret_cast<const char*>(aFloats.data()),
+                                                               std::streamsize(aFloats.size() * sizeof(float)));
+    };
+    write("p+q.bin", Cube(Vec3(0.f)));
+    write("p q.bin", Cube(Vec3(10.f)));
+    const std::string gltf = MeshGltf(Cube(Vec3(0.f)));
+    const size_t uri = gltf.find(R"("uri": ")");
+    const size_t end = gltf.find('"', uri + 8);
+    const std::string path = WriteTemporary(folder, "twins.gltf", gltf.substr(0, uri) + R"("uri": "p+q.bin"}, {"byteLength": 432,
+        "uri": "p%20q.bin")" + gltf.substr(end + 1));
+    const Scene scene = LoadGltfScene(path);
+    REQUIRE(scene.mTriangles.size() == 12);
+    for (const Triangle& triangle : scene.mTriangles) CHECK(MaxComponent(triangle.mP0) <= 1.f);
+}
+
+TEST_CASE("A URI that decodes to a NUL byte is refused: no file name holds one", "[gltf][textures]") {
+    TemporaryFolder folder;
+    Image image(1, 1);
+    image.mPixels = {Vec3(1.f)};
+    const std::string text = ReadText(WriteTexturedFloor(folder, image, 10497, 1.f));
+    // Read up to the NUL, "floor.bin%00.txt" would name floor.bin, which exists.
+    std::ofstream(folder / "buffer.gltf") << Replaced(text, R"("floor.bin")", R"("floor.bin%00.txt")");
+    CHECK(LoadError(folder / "buffer.gltf") == folder / "buffer.gltf" + ": buffer URI 'floor.bin?.txt': the URI decodes to a NUL "
+                                                                       "byte, which no file name holds");
+    std::ofstream(folder / "image.gltf") << Replaced(text, R"("base%20colour.png")", R"("base%20colour.png%00.txt")");
+    CHECK(LoadError(folder / "image.gltf") == folder / "image.gltf" + ": image 0 'base%20colour.png%00.txt': the URI decodes to a "
+                                                                     "NUL byte, which no file name holds");
+}
