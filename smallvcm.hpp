@@ -6381,6 +6381,7 @@ public:
             Fail("camera " + std::to_string(mOptions.mCamera) + " was asked for, but the scene has " + std::to_string(mCameraNodes) +
                  " camera node(s)" + (mCameraNodes > 0 ? " (0.." + std::to_string(mCameraNodes - 1) + ")" : std::string()));
         if (!mHasCamera) AddDefaultCamera();
+        CheckSomethingEmits();
         mScene.mName = mPath;
         const auto finalizeStart = std::chrono::steady_clock::now();
         mScene.Finalize();  // its Error messages start with the path too
@@ -7469,11 +7470,12 @@ private:
     }
 
     // The background by GltfLoadOptions::mBackground, after every node's lights are in.
+    // A black one emits nothing: it is no light, the same as none.
     void ChooseBackground() {
         using Background = GltfLoadOptions::Background;
         if (mOptions.mBackground == Background::kRadiance) {
             CheckColor(mOptions.mBackgroundRadiance, "the background radiance", false);
-            mScene.AddBackgroundLight(mOptions.mBackgroundRadiance);
+            if (!IsBlack(mOptions.mBackgroundRadiance)) mScene.AddBackgroundLight(mOptions.mBackgroundRadiance);
             return;
         }
         if (mOptions.mBackground == Background::kNone) return;
@@ -7490,6 +7492,26 @@ private:
                                                       : "the scene has no light") +
                                  ": added a uniform white background (radiance 1; --background R,G,B or --background "
                                  "none changes it)");
+    }
+
+    // A scene in which nothing emits renders black with every estimator: refused, with why
+    // and how to light it. A light of zero emission (a point light of intensity 0, a black
+    // background in the file) counts as none. Scene::Finalize names a scene without
+    // geometry first.
+    void CheckSomethingEmits() const {
+        if (mScene.mTriangles.empty() && mScene.mSpheres.empty()) return;
+        for (const Light& light : mScene.mLights)
+            if (!IsBlack(light.mEmission)) return;
+        using Background = GltfLoadOptions::Background;
+        const size_t lights = mScene.mLights.size();
+        const std::string fileLights = lights == 0 ? "the file has no other light"
+            : "the file's " + std::to_string(lights) + (lights == 1 ? " light emits" : " lights emit") +
+              " nothing (zero intensity or black radiance)";
+        const std::string why = mOptions.mBackground == Background::kNone       ? "--background none removes the background and " + fileLights
+                                : mOptions.mBackground == Background::kRadiance ? "--background 0,0,0 is black and " + fileLights
+                                                                                : fileLights;
+        Fail("the scene has no light: " + why + "; give a non-black --background R,G,B, or " +
+             (lights == 0 ? "add lights to the file" : "lights that emit"));
     }
 
     // A camera for a file without one: it looks at the centre of the bounding box of all

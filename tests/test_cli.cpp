@@ -280,6 +280,30 @@ TEST_CASE("-a mypt renders the student's path tracer, the same image as Render i
     CHECK(smallvcm::MeanValue(image) > 0.0);
 }
 
+TEST_CASE("--background 0,0,0 on a file without lights is refused as --background none is, and writes nothing", "[cli]") {
+    TemporaryFolder folder;
+    // One triangle, no light, no camera.
+    const std::string scene = folder / "unlit.gltf";
+    std::ofstream(scene) << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}],
+      "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]})";
+    const std::string output = folder / "out.png";
+    const Run black = RunProgram(Tiny(output) + " " + Quote(scene) + " --background 0,0,0");
+    CheckFailure(black, 1, scene, output);
+    CHECK(black.mStderr == "smallvcm: " + scene + ": the scene has no light: --background 0,0,0 is black and the file has no other "
+                                                  "light; give a non-black --background R,G,B, or add lights to the file\n");
+    const Run none = RunProgram(Tiny(output) + " " + Quote(scene) + " --background none");
+    CheckFailure(none, 1, scene, output);
+    CHECK_THAT(none.mStderr, Catch::Contains(": the scene has no light: --background none removes the background"));
+    // The same file renders with the default white background, or any non-black one.
+    const Run grey = RunProgram(Tiny(output) + " " + Quote(scene) + " --background 0,0,0.5");
+    INFO(grey);
+    CHECK(grey.mExitCode == 0);
+    CHECK(fs::exists(output));
+}
+
 namespace {
 
 // build/smallvcm started in the background, its output streams in files of aFolder.

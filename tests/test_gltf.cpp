@@ -746,7 +746,8 @@ TEST_CASE("A file without an emitter gets a white background, which the options 
 
     GltfLoadOptions options;
     options.mBackground = GltfLoadOptions::Background::kNone;
-    CHECK(LoadError(path, options) == path + ": the scene has no light");
+    CHECK(LoadError(path, options) == path + ": the scene has no light: --background none removes the background and the file "
+                                              "has no other light; give a non-black --background R,G,B, or add lights to the file");
     // Replacing the background of a scene that has one (Cornell scene 3), and adding one to
     // a scene lit otherwise (Cornell scene 4: its ceiling light stays).
     options.mBackground = GltfLoadOptions::Background::kRadiance;
@@ -764,6 +765,30 @@ TEST_CASE("A file without an emitter gets a white background, which the options 
         CHECK_FALSE(report.mDefaultBackground);
         CHECK(lit.mLights.size() == (cornell == 3 ? lightsInFile : lightsInFile + 1));
     }
+}
+
+TEST_CASE("A black background is no light: refused as none is when nothing else emits, and not added beside other lights", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    const std::string unlit = WriteTemporary(folder, "unlit.gltf", MeshGltf(Cube(Vec3(0.f))));
+    GltfLoadOptions black;
+    black.mBackground = GltfLoadOptions::Background::kRadiance;
+    black.mBackgroundRadiance = Vec3(0.f);
+    CHECK(LoadError(unlit, black) == unlit + ": the scene has no light: --background 0,0,0 is black and the file has no other "
+                                             "light; give a non-black --background R,G,B, or add lights to the file");
+    // Cornell scene 3 is lit by its background alone: replaced by a black one, nothing emits.
+    CHECK_THAT(LoadError(CornellPath(3), black), Catch::StartsWith(CornellPath(3) + ": the scene has no light: --background 0,0,0"));
+    // Cornell scene 4 keeps its ceiling light, and no black background is added to be sampled.
+    const Scene lit = LoadGltfScene(CornellPath(4), nullptr, black);
+    CHECK(lit.mLights.size() == LoadGltfScene(CornellPath(4)).mLights.size());
+    CHECK(lit.GetBackground() == nullptr);
+    // The file's own lights that emit nothing count as none, whatever the option.
+    const std::string blackInFile = WriteTemporary(folder, "black_background.gltf", MeshGltf(Cube(Vec3(0.f)), "",
+        R"(, "extensionsUsed": ["SMALLVCM_background"], "extensions": {"SMALLVCM_background": {"radiance": [0, 0, 0]}})"));
+    CHECK(LoadError(blackInFile) == blackInFile + ": the scene has no light: the file's 1 light emits nothing (zero intensity or "
+                                                  "black radiance); give a non-black --background R,G,B, or lights that emit");
+    GltfLoadOptions white;
+    white.mBackground = GltfLoadOptions::Background::kRadiance;
+    CHECK(LoadGltfScene(blackInFile, nullptr, white).GetBackground()->mEmission == Vec3(1.f));
 }
 
 TEST_CASE("Every unsupported required extension is named in one line, each with its hint", "[gltf]") {

@@ -595,6 +595,9 @@ bad("meshopt_used_without_fallback.glb", "the same as a .glb (tinygltf would cop
 bad("buffer_without_uri.glb", "a .glb whose second buffer has no URI (only the first stands for the BIN chunk; "
     "tinygltf would copy the BIN chunk into it)", "buffer 1 has no URI")(
     lambda: make_glb(modified(lambda d: d["buffers"].append({"byteLength": d["buffers"][0]["byteLength"]}))))
+bad("lights_emit_nothing.gltf", "the only light is a point light of intensity 0 (the image would be black)",
+    "the scene has no light: the file's 1 light emits nothing")(
+    lambda: modified(with_punctual({"type": "point", "intensity": 0.0}), light=False))
 bad("no_geometry.gltf", "a camera and a point light, nothing else", "the scene has no geometry")(
     lambda: no_geometry())
 bad("node_cycle.gltf", "the floor node is its own child", "cycle")(
