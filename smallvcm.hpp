@@ -6457,6 +6457,7 @@ public:
             Fail("camera " + std::to_string(mOptions.mCamera) + " was asked for, but the scene has " + std::to_string(mCameraNodes) +
                  " camera node(s)" + (mCameraNodes > 0 ? " (0.." + std::to_string(mCameraNodes - 1) + ")" : std::string()));
         if (!mHasCamera) AddDefaultCamera();
+        CheckSomethingEmits();
         mScene.mName = mPath;
         const auto finalizeStart = std::chrono::steady_clock::now();
         mScene.Finalize();  // its Error messages start with the path too
@@ -6517,6 +6518,7 @@ private:
                                                           nullptr, false);
         if (json.is_object()) {  // otherwise tinygltf says what is wrong with it
             CheckVersionAndExtensions(json);
+            CheckCompressionFallbacks(json, binary);
             CheckDeclaredBuffers(json);
             CheckSpotAnglesAreNumbers(json);
         }
@@ -6596,8 +6598,50 @@ private:
         return kSupported;
     }
 
-    // Before any buffer is read: a glTF 1.0 file, or an extension the file requires that
-    // is not modelled here (compressed meshes, KTX2 textures...), is named in one line
+    // How to get a file that loads, for the unsupported extensions files carry most; null
+    // for any other.
+    static const char* HowToGetAPlainFile(const std::string& aExtension) {
+        static const std::pair<const char*, const char*> kHints[] = {
+            {"KHR_draco_mesh_compression", "its meshes are Draco-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
+            {"EXT_meshopt_compression", "its buffers are meshopt-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
+            {"KHR_mesh_quantization", "its vertex attributes are quantized: dequantize the file first (e.g. `gltf-transform dequantize IN OUT`)"},
+            {"KHR_texture_basisu", "its textures are KTX2/Basis: convert them to PNG or JPEG first (e.g. re-export with PNG textures)"},
+            {"EXT_texture_webp", "its textures are WebP: convert them to PNG or JPEG first"},
+        };
+        for (const auto& [name, hint] : kHints)
+            if (aExtension == name) return hint;
+        return nullptr;
+    }
+
+    // The refusal of the required extensions not modelled here, or "" when there are
+    // none: every one is named in one line (fixing the first would only lead to the next),
+    // each with its hint. A known name is written as is, any other quoted as an excerpt,
+    // and a list longer than a screen line ends in how many more there are.
+    static std::string UnsupportedRequiredExtensions(const std::vector<std::string>& aRequired) {
+        std::vector<std::string> names;
+        std::set<std::string> seen;
+        size_t more = 0;
+        for (const std::string& name : aRequired) {
+            if (SupportedExtensions().count(name) || !seen.insert(name).second) continue;
+            if (names.size() < 8) names.push_back(name);
+            else more++;
+        }
+        if (names.empty()) return "";
+        const bool several = names.size() > 1;
+        std::string list, hints;
+        for (size_t i = 0; i < names.size(); i++) {
+            const char* hint = HowToGetAPlainFile(names[i]);
+            const bool last = i + 1 == names.size() && more == 0;
+            list += std::string(i == 0 ? "" : last ? " and " : ", ") + (hint ? names[i] : "'" + Excerpt(names[i]) + "'");
+            if (hint) hints += (hints.empty() ? "" : "; ") + (several ? names[i] + ": " : std::string()) + hint;
+        }
+        if (more > 0) list += " and " + std::to_string(more) + " more";
+        return std::string(several ? "required extensions " : "required extension ") + list + (several ? " are" : " is") +
+               " not supported" + (hints.empty() ? "" : ": " + hints);
+    }
+
+    // Before any buffer is read: a glTF 1.0 file, or the extensions the file requires that
+    // are not modelled here (compressed meshes, KTX2 textures...), are named in one line
     // that says how to get a file that loads.
     void CheckVersionAndExtensions(const nlohmann::json& aJson) {
         if (aJson.contains("asset") && aJson["asset"].is_object() && aJson["asset"].contains("version") &&
@@ -6607,31 +6651,112 @@ private:
                 Fail("this is a glTF 1.0 file (asset.version \"" + Excerpt(version) + "\"); only glTF 2.0 is supported: convert it "
                      "(e.g. import it into Blender and export glTF 2.0)");
         }
-        static const std::pair<const char*, const char*> kHowToGetAPlainFile[] = {
-            {"KHR_draco_mesh_compression", "its meshes are Draco-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
-            {"EXT_meshopt_compression", "its buffers are meshopt-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
-            {"KHR_mesh_quantization", "its vertex attributes are quantized: dequantize the file first (e.g. `gltf-transform dequantize IN OUT`)"},
-            {"KHR_texture_basisu", "its textures are KTX2/Basis: convert them to PNG or JPEG first (e.g. re-export with PNG textures)"},
-            {"EXT_texture_webp", "its textures are WebP: convert them to PNG or JPEG first"},
-        };
-        if (aJson.contains("extensionsRequired") && aJson["extensionsRequired"].is_array())
-            for (const nlohmann::json& entry : aJson["extensionsRequired"]) {
-                if (!entry.is_string() || SupportedExtensions().count(entry.get<std::string>())) continue;
-                const std::string name = entry.get<std::string>();
-                for (const auto& known : kHowToGetAPlainFile)
-                    if (name == known.first) Fail("required extension " + name + " is not supported: " + known.second);
-                Fail("required extension '" + Excerpt(name) + "' is not supported");
-            }
+        if (aJson.contains("extensionsRequired") && aJson["extensionsRequired"].is_array()) {
+            std::vector<std::string> required;
+            for (const nlohmann::json& entry : aJson["extensionsRequired"])
+                if (entry.is_string()) required.push_back(entry.get<std::string>());
+            const std::string problem = UnsupportedRequiredExtensions(required);
+            if (!problem.empty()) Fail(problem);
+        }
         if (aJson.contains("extensionsUsed") && aJson["extensionsUsed"].is_array())
             for (const nlohmann::json& entry : aJson["extensionsUsed"])
                 if (entry.is_string() && !SupportedExtensions().count(entry.get<std::string>()) && mIgnoredExtensions.size() < 32)
                     mIgnoredExtensions.insert(entry.get<std::string>());
     }
 
-    // The sizes the buffers declare, known before tinygltf reads or decodes a byte: a
-    // file is read only if it is as long as some buffer says, and a data URI is decoded
-    // only if its text is no longer than its byteLength needs. (tinygltf itself reads a
-    // whole file, or decodes a whole URI, before it compares the size.)
+    // aObject[aKey], or null when aObject is not an object or has no such member.
+    static const nlohmann::json& Member(const nlohmann::json& aObject, const char* aKey) {
+        static const nlohmann::json kNull;
+        if (!aObject.is_object()) return kNull;
+        const auto found = aObject.find(aKey);
+        return found == aObject.end() ? kNull : *found;
+    }
+    // aArray[aIndex] when aIndex is an index into the array aArray, else null.
+    static const nlohmann::json& Element(const nlohmann::json& aArray, const nlohmann::json& aIndex) {
+        static const nlohmann::json kNull;
+        if (!aArray.is_array() || !aIndex.is_number_unsigned() || aIndex.get<uint64_t>() >= aArray.size()) return kNull;
+        return aArray[aIndex.get<size_t>()];
+    }
+
+    // An accessor whose data is not in any buffer view (a Draco primitive's without a fallback).
+    static bool HasNoBufferView(const nlohmann::json& aAccessor) { return aAccessor.is_object() && !aAccessor.contains("bufferView"); }
+    // Buffer aBuffer holds no bytes of its own: it has no URI, and is not the first buffer
+    // of a .glb (which stands for the BIN chunk).
+    static bool HasNoData(const nlohmann::json& aBuffers, size_t aBuffer, bool aBinary) {
+        const nlohmann::json& uri = Member(aBuffers[aBuffer], "uri");
+        return aBuffers[aBuffer].is_object() && (uri.is_null() || uri == "") && !(aBinary && aBuffer == 0);
+    }
+
+    // A compression extension that a file uses without requiring it promises the data
+    // uncompressed too, for readers without the extension (both specifications):
+    // KHR_draco_mesh_compression keeps each compressed primitive's accessors on buffer
+    // views, EXT_meshopt_compression keeps each compressed buffer view's own buffer filled
+    // (a URI, or a .glb's BIN chunk). A file without that fallback can only be read with
+    // the extension, which is not modelled here: it is refused by the extension's name
+    // before tinygltf stops at a missing bufferView, or copies a .glb's BIN chunk, which
+    // holds the compressed bytes, into a buffer that has no URI. Any other buffer without
+    // a URI is refused too: only a .glb's first buffer stands for its BIN chunk.
+    void CheckCompressionFallbacks(const nlohmann::json& aJson, bool aBinary) {
+        // Each: "<extension> is not supported, and <what> has no uncompressed fallback to
+        // read instead (<why>): <how to get a plain file>".
+        std::vector<std::string> problems;
+        const auto refuse = [&](const char* aExtension, const std::string& aWhat, const std::string& aWhy) {
+            problems.push_back(std::string(aExtension) + " is not supported, and " + aWhat +
+                               " has no uncompressed fallback to read instead (" + aWhy + "): " + HowToGetAPlainFile(aExtension));
+        };
+        const nlohmann::json& accessors = Member(aJson, "accessors");
+        const nlohmann::json& meshes = Member(aJson, "meshes");
+        std::string draco;  // the first accessor of a compressed primitive without a bufferView
+        for (size_t m = 0; meshes.is_array() && m < meshes.size() && draco.empty(); m++) {
+            const nlohmann::json& primitives = Member(meshes[m], "primitives");
+            for (size_t p = 0; primitives.is_array() && p < primitives.size() && draco.empty(); p++) {
+                const nlohmann::json& primitive = primitives[p];
+                if (!Member(Member(primitive, "extensions"), "KHR_draco_mesh_compression").is_object()) continue;
+                const nlohmann::json& indices = Member(primitive, "indices");
+                if (HasNoBufferView(Element(accessors, indices))) draco = "accessor " + indices.dump() + ", its indices";
+                const nlohmann::json& attributes = Member(primitive, "attributes");
+                if (attributes.is_object())
+                    for (const auto& [semantic, index] : attributes.items())
+                        if (draco.empty() && HasNoBufferView(Element(accessors, index)))
+                            draco = "accessor " + index.dump() + ", its " + Excerpt(semantic);
+                if (!draco.empty())
+                    refuse("KHR_draco_mesh_compression", "mesh " + std::to_string(m) + " primitive " + std::to_string(p),
+                           draco + ", has no bufferView");
+            }
+        }
+
+        const nlohmann::json& buffers = Member(aJson, "buffers");
+        const nlohmann::json& views = Member(aJson, "bufferViews");
+        std::set<size_t> fallbackBuffers;  // under a compressed view, or marked as a fallback
+        bool meshopt = false;              // refused already
+        for (size_t v = 0; views.is_array() && v < views.size(); v++) {
+            if (!Member(Member(views[v], "extensions"), "EXT_meshopt_compression").is_object()) continue;
+            const nlohmann::json& buffer = Member(views[v], "buffer");
+            if (!Element(buffers, buffer).is_object()) continue;  // tinygltf says what is wrong
+            fallbackBuffers.insert(buffer.get<size_t>());
+            if (!meshopt && HasNoData(buffers, buffer.get<size_t>(), aBinary)) {
+                refuse("EXT_meshopt_compression", "bufferView " + std::to_string(v), "its buffer " + buffer.dump() + " has no URI: it holds no data");
+                meshopt = true;
+            }
+        }
+        for (size_t b = 0; buffers.is_array() && b < buffers.size(); b++)
+            if (Member(Member(Member(buffers[b], "extensions"), "EXT_meshopt_compression"), "fallback") == true) {
+                fallbackBuffers.insert(b);
+                if (!meshopt && HasNoData(buffers, b, aBinary)) {
+                    refuse("EXT_meshopt_compression", "the file", "buffer " + std::to_string(b) + ", marked as the fallback, has no URI: it holds no data");
+                    meshopt = true;
+                }
+            }
+        for (size_t b = 0; buffers.is_array() && b < buffers.size() && problems.empty(); b++)
+            if (!fallbackBuffers.count(b) && HasNoData(buffers, b, aBinary))
+                problems.push_back("buffer " + std::to_string(b) + " has no URI (only a .glb's first buffer may go without one: "
+                                   "it stands for the BIN chunk)");
+        if (problems.empty()) return;
+        std::string message;
+        for (const std::string& problem : problems) message += (message.empty() ? "" : "; ") + problem;
+        Fail(message);
+    }
+
     // tinygltf keeps the default of a spot cone angle that is not a number ("0.5" as a
     // string): such a file would silently render another cone, so it is refused here.
     void CheckSpotAnglesAreNumbers(const nlohmann::json& aJson) {
@@ -6652,44 +6777,90 @@ private:
         }
     }
 
+    // What the buffers declare, known before tinygltf reads or decodes a byte. Their
+    // sizes: a file is read only if it is as long as some buffer says, and a data URI is
+    // decoded only if its text is no longer than its byteLength needs (tinygltf itself
+    // reads a whole file, or decodes a whole URI, before it compares the size). And the
+    // file each URI names, under the name tinygltf will ask ReadBufferFile for.
     void CheckDeclaredBuffers(const nlohmann::json& aJson) {
         if (!aJson.contains("buffers") || !aJson["buffers"].is_array()) return;  // tinygltf says what is wrong
         const nlohmann::json& buffers = aJson["buffers"];
         for (size_t b = 0; b < buffers.size(); b++) {
             const nlohmann::json& buffer = buffers[b];
-            if (!buffer.is_object() || !buffer.contains("byteLength") || !buffer["byteLength"].is_number_unsigned()) continue;
-            const uint64_t byteLength = buffer["byteLength"].get<uint64_t>();
-            if (!buffer.contains("uri") || !buffer["uri"].is_string()) continue;
+            if (!buffer.is_object() || !buffer.contains("uri") || !buffer["uri"].is_string()) continue;
             const std::string& uri = buffer["uri"].get_ref<const std::string&>();
+            const bool sized = buffer.contains("byteLength") && buffer["byteLength"].is_number_unsigned();
+            const uint64_t byteLength = sized ? buffer["byteLength"].get<uint64_t>() : 0;
             if (uri.compare(0, 5, "data:") == 0) {
                 const size_t comma = uri.find(',');
                 const uint64_t encoded = comma == std::string::npos ? 0 : uint64_t(uri.size() - comma - 1);
-                if (encoded / 4 * 3 > byteLength + 3)
+                if (sized && encoded / 4 * 3 > byteLength + 3)
                     Fail("buffer " + std::to_string(b) + ": its data URI holds about " + ByteCount(encoded / 4 * 3) +
                          ", more than its byteLength of " + ByteCount(byteLength) + " (not decoded)");
             } else {
-                mDeclaredBufferSizes.insert(byteLength);
+                if (sized) mDeclaredBufferSizes.insert(byteLength);
+                mBufferFileNames[TinygltfDecoded(uri)].push_back(PercentDecoded(uri));
             }
         }
     }
 
-    // tinygltf's file reader: aFile is the scene's folder joined with a buffer's URI.
+    // The name tinygltf 2.7 decodes a buffer URI to before it asks for the file (dlib's
+    // urldecode): '+' is read as a space, as in HTML forms, and '%' with the two characters
+    // after it as the byte they spell (a character that is no hex digit counts as 0).
+    static std::string TinygltfDecoded(const std::string& aUri) {
+        const auto digit = [](char aChar) {
+            return aChar >= '0' && aChar <= '9' ? aChar - '0' : aChar >= 'a' && aChar <= 'f' ? aChar - 'a' + 10
+                 : aChar >= 'A' && aChar <= 'F' ? aChar - 'A' + 10 : 0;
+        };
+        std::string decoded;
+        for (size_t i = 0; i < aUri.size(); i++) {
+            if (aUri[i] == '+') {
+                decoded += ' ';
+            } else if (aUri[i] == '%' && i + 2 < aUri.size()) {
+                decoded += char(digit(aUri[i + 1]) * 16 + digit(aUri[i + 2]));
+                i += 2;
+            } else {
+                decoded += aUri[i];
+            }
+        }
+        return decoded;
+    }
+
+    // tinygltf's file reader: aFile is the scene's folder joined with tinygltf's decoding
+    // of a buffer's URI. A URI names a file by RFC 3986 (a '+' is a plus), so the file read
+    // is the one CheckDeclaredBuffers noted under that decoding, the first not yet read
+    // when two URIs decode alike (tinygltf reads the buffers in order).
     bool ReadBufferFile(std::vector<unsigned char>& oBytes, std::string& oError, const std::string& aFile) {
-        const std::string uri = aFile.compare(0, mFolder.size(), mFolder) == 0 ? aFile.substr(std::min(aFile.size(), mFolder.size() + 1)) : aFile;
-        const std::string problem = ReadUntrustedFile(aFile, mRoot, [&](uint64_t aSize) -> std::string {
+        std::string name = aFile.substr(std::min(aFile.size(), mFolder.size()));
+        if (!name.empty() && name[0] == '/') name.erase(0, 1);
+        const auto noted = mBufferFileNames.find(name);
+        if (noted != mBufferFileNames.end() && !noted->second.empty()) {
+            name = noted->second.front();
+            noted->second.pop_front();
+        }
+        const std::string problem = ReadFileNamedByUri(name, [&](uint64_t aSize) -> std::string {
             if (!mDeclaredBufferSizes.count(aSize)) return "its size, " + ByteCount(aSize) + ", is no buffer's byteLength (not read)";
             return SizeProblem(aSize);
         }, oBytes);
         if (problem.empty()) return true;
         // Kept for the message: tinygltf would quote the whole joined path.
-        if (mBufferProblem.empty()) mBufferProblem = "buffer URI '" + Excerpt(uri) + "': " + problem;
+        if (mBufferProblem.empty()) mBufferProblem = "buffer URI '" + Excerpt(name) + "': " + problem;
         oError += problem;
         return false;
     }
 
+    // Reads the file that a decoded URI aName names, relative to the scene's folder and
+    // inside mRoot; returns "" or the problem. No file name holds a NUL byte ("%00"), and
+    // the system would read the name only up to it.
+    std::string ReadFileNamedByUri(const std::string& aName, const std::function<std::string(uint64_t)>& aSizeProblem,
+                                   std::vector<unsigned char>& oBytes) const {
+        if (aName.find('\0') != std::string::npos) return "the URI decodes to a NUL byte, which no file name holds";
+        return ReadUntrustedFile(mFolder + "/" + aName, mRoot, aSizeProblem, oBytes);
+    }
+
     void CheckModelFeatures() {
-        for (const std::string& required : mModel.extensionsRequired)
-            if (!SupportedExtensions().count(required)) Fail("required extension '" + Excerpt(required) + "' is not supported");
+        const std::string unsupported = UnsupportedRequiredExtensions(mModel.extensionsRequired);
+        if (!unsupported.empty()) Fail(unsupported);
         if (!mModel.skins.empty()) Fail("skins are not supported");
         for (const tinygltf::Accessor& accessor : mModel.accessors)
             if (accessor.sparse.isSparse) Fail("sparse accessors are not supported");
@@ -6847,8 +7018,8 @@ private:
         const std::vector<unsigned char>* bytes = &image.image;
         if (image.image.empty()) {
             if (image.uri.empty()) Fail(what + " has neither a URI nor a buffer view");
-            const std::string problem = ReadUntrustedFile(mFolder + "/" + PercentDecoded(image.uri), mRoot,
-                                                          [&](uint64_t aSize) { return SizeProblem(aSize); }, fileBytes);
+            const std::string problem = ReadFileNamedByUri(PercentDecoded(image.uri), [&](uint64_t aSize) { return SizeProblem(aSize); },
+                                                           fileBytes);
             if (!problem.empty()) Fail(what + ": " + problem);
             bytes = &fileBytes;
         }
@@ -7583,11 +7754,12 @@ private:
     }
 
     // The background by GltfLoadOptions::mBackground, after every node's lights are in.
+    // A black one emits nothing: it is no light, the same as none.
     void ChooseBackground() {
         using Background = GltfLoadOptions::Background;
         if (mOptions.mBackground == Background::kRadiance) {
             CheckColor(mOptions.mBackgroundRadiance, "the background radiance", false);
-            mScene.AddBackgroundLight(mOptions.mBackgroundRadiance);
+            if (!IsBlack(mOptions.mBackgroundRadiance)) mScene.AddBackgroundLight(mOptions.mBackgroundRadiance);
             return;
         }
         if (mOptions.mBackground == Background::kNone) return;
@@ -7604,6 +7776,26 @@ private:
                                                       : "the scene has no light") +
                                  ": added a uniform white background (radiance 1; --background R,G,B or --background "
                                  "none changes it)");
+    }
+
+    // A scene in which nothing emits renders black with every estimator: refused, with why
+    // and how to light it. A light of zero emission (a point light of intensity 0, a black
+    // background in the file) counts as none. Scene::Finalize names a scene without
+    // geometry first.
+    void CheckSomethingEmits() const {
+        if (mScene.mTriangles.empty() && mScene.mSpheres.empty()) return;
+        for (const Light& light : mScene.mLights)
+            if (!IsBlack(light.mEmission)) return;
+        using Background = GltfLoadOptions::Background;
+        const size_t lights = mScene.mLights.size();
+        const std::string fileLights = lights == 0 ? "the file has no other light"
+            : "the file's " + std::to_string(lights) + (lights == 1 ? " light emits" : " lights emit") +
+              " nothing (zero intensity or black radiance)";
+        const std::string why = mOptions.mBackground == Background::kNone       ? "--background none removes the background and " + fileLights
+                                : mOptions.mBackground == Background::kRadiance ? "--background 0,0,0 is black and " + fileLights
+                                                                                : fileLights;
+        Fail("the scene has no light: " + why + "; give a non-black --background R,G,B, or " +
+             (lights == 0 ? "add lights to the file" : "lights that emit"));
     }
 
     // A camera for a file without one: it looks at the centre of the bounding box of all
@@ -7647,6 +7839,7 @@ private:
     std::string mFolder;                        // the scene file's canonical folder: URIs are relative to it
     std::string mRoot;                          // canonical folder every URI must resolve into
     std::set<uint64_t> mDeclaredBufferSizes;    // byteLength of every buffer with a file URI
+    std::map<std::string, std::deque<std::string>> mBufferFileNames;  // tinygltf's decoding of a file URI -> the files it names, in order
     uint64_t mBytesRead = 0;                    // scene file and buffer files so far
     std::string mBufferProblem;                 // why a buffer file was not read, if one was not
     tinygltf::Model mModel;

@@ -1,7 +1,11 @@
 // smallvcm — the command-line renderer, with SmallVCM's options and a few more.
 //
+//   build/smallvcm scenes/cornell_1_mirror_ceiling.gltf -a bpt -t 10 -r 640x480 -o bpt.hdr
 //   build/smallvcm -s 4 -a vcm -i 32 -o vcm.png
-//   build/smallvcm -s scenes/cornell_1_mirror_ceiling.gltf -a bpt -t 10 -r 640x480 -o bpt.hdr
+//
+// The scene is the one argument that is not an option (as pbrt and Mitsuba take it),
+// anywhere among the options, or SmallVCM's -s SCENE; a Cornell scene number 0..4 works
+// either way. A positional scene beside another scene is an error naming both.
 //
 // Every bad value gives one line "smallvcm: <option>: <problem>" on stderr and exit code 2;
 // a problem with the scene or the output file gives "smallvcm: <file>: <problem>" and
@@ -71,8 +75,8 @@ std::string IntegratorNames() {
 
 void PrintHelp() {
     std::printf(
-        "Usage: smallvcm [options]\n"
-        "  -s SCENE            a glTF file, or a Cornell scene 0..4 (default 4):\n"
+        "Usage: smallvcm [SCENE] [options]\n"
+        "  SCENE, -s SCENE     a glTF file (.gltf or .glb), or a Cornell scene 0..4 (default 4):\n"
         "                        0 glossy + small spheres + sun      1 glossy + large mirror + ceiling light\n"
         "                        2 glossy + small spheres + point    3 glossy + small spheres + background\n"
         "                        4 small mirror and glass spheres + ceiling light (SmallVCM's default)\n"
@@ -107,8 +111,8 @@ void PrintHelp() {
         "  --camera N          the N-th camera node of the file (default: the first; a file without\n"
         "                        cameras gets one that frames the whole scene from the front)\n"
         "  --background R,G,B  add (or replace the file's) uniform background of this linear radiance;\n"
-        "  --background none     none: no background. Default: the file's, and white (1,1,1) when the\n"
-        "                        file has no light at all\n"
+        "  --background none     none (or black, 0,0,0): no background. Default: the file's, and white\n"
+        "                        (1,1,1) when the file has no light at all\n"
         "  -q                  quiet: nothing on success (no summary, notes or progress); errors still go to stderr\n"
         "  --help              this text\n"
         "Ctrl-C or SIGTERM writes the iterations done so far (exit 130 or 143); a second one stops at once.\n"
@@ -139,11 +143,13 @@ std::string ScenesFolder() {
     return "scenes";
 }
 
-std::string ResolveScene(const std::string& aScene) {
+// aScene as given (aOption: "-s", or "scene" for the positional argument): a Cornell
+// scene number becomes its file's path.
+std::string ResolveScene(const std::string& aScene, const std::string& aOption) {
     if (aScene.size() == 1 && aScene[0] >= '0' && aScene[0] <= '4')
         return ScenesFolder() + "/" + kCornellScenes[aScene[0] - '0'];
     if (aScene.find_first_not_of("0123456789-") == std::string::npos)
-        throw Error("-s: '" + aScene + "' is not a Cornell scene index (0..4) nor a .gltf/.glb file");
+        throw Error(aOption + ": '" + aScene + "' is not a Cornell scene index (0..4) nor a .gltf/.glb file");
     return aScene;
 }
 
@@ -167,6 +173,7 @@ void CheckOutputPaths(const std::string& aPath) {
 
 struct CommandLine {
     std::string mScene = "4";
+    std::string mSceneOption;  // how the scene was given: "-s", "scene" (the positional argument), or "" (the default)
     std::string mOutput = "smallvcm.png";
     int mWidth = 512, mHeight = 512;
     bool mQuiet = false;
@@ -222,7 +229,19 @@ CommandLine Parse(int argc, char** argv) {
     for (int i = 1; i < argc; i++) {
         const std::string arg = argv[i];
         if (arg == "--help" || arg == "-h") { PrintHelp(); std::exit(0); }
-        else if (arg == "-s") cl.mScene = value(i);
+        else if (arg == "-s" || arg.empty() || arg[0] != '-') {
+            // -s given again replaces the scene, as every option does; a positional scene
+            // beside any other is a mistake.
+            const bool positional = arg != "-s";
+            const std::string scene = positional ? arg : value(i);
+            if (cl.mSceneOption == "scene" || (positional && !cl.mSceneOption.empty())) {
+                const bool merge = cl.mScene == "merge" || scene == "merge";
+                throw Error("scene: two given, '" + cl.mScene + "' and '" + scene + "': a run renders one scene (give SCENE or -s SCENE once)" +
+                            (merge ? "; merge is a subcommand only as the first argument (smallvcm merge OUT RUN...)" : ""));
+            }
+            cl.mScene = scene;
+            cl.mSceneOption = positional ? "scene" : "-s";
+        }
         else if (arg == "-a") {
             const std::string name = value(i);
             cl.mIntegrator = smallvcm::FindIntegrator(name);
@@ -284,7 +303,7 @@ CommandLine Parse(int argc, char** argv) {
     if (cl.mOptions.mTechniqueLayers && cl.mIntegrator == &smallvcm::BuiltInIntegrator(smallvcm::Algorithm::kEyeLight))
         throw Error("--layers: the eye light has no techniques to separate");
     cl.mOptions.mProgress = !cl.mQuiet;
-    cl.mScene = ResolveScene(cl.mScene);
+    cl.mScene = ResolveScene(cl.mScene, cl.mSceneOption.empty() ? "-s" : cl.mSceneOption);
     return cl;
 }
 

@@ -280,6 +280,79 @@ TEST_CASE("-a mypt renders the student's path tracer, the same image as Render i
     CHECK(smallvcm::MeanValue(image) > 0.0);
 }
 
+TEST_CASE("The scene is the argument that is not an option, anywhere among the options, or -s SCENE: the same image", "[cli]") {
+    TemporaryFolder folder;
+    const auto render = [&](const std::string& aName, const std::string& aArguments) {
+        const std::string output = folder / aName;
+        const Run run = RunProgram(aArguments + " -o " + Quote(output));
+        INFO(run);
+        REQUIRE(run.mExitCode == 0);
+        return smallvcm::ReadPfm(output).mPixels;
+    };
+    // A Cornell scene number first, between options or last; a glTF file first or last.
+    // (Images are compared whole: a failure says false rather than list every pixel.)
+    const std::vector<smallvcm::Vec3> cornell = render("s4.pfm", "-a el -i 1 -r 16x12 -j 1 -q -s 4");
+    CHECK((render("first.pfm", "4 -a el -i 1 -r 16x12 -j 1 -q") == cornell));
+    CHECK((render("between.pfm", "-a el -i 1 4 -r 16x12 -j 1 -q") == cornell));
+    CHECK((render("last.pfm", "-a el -i 1 -r 16x12 -j 1 -q 4") == cornell));
+    const std::string file = testutil::CornellPath(1);
+    const std::vector<smallvcm::Vec3> gltf = render("s1.pfm", "-a el -i 1 -r 16x12 -j 1 -q -s " + file);
+    CHECK((gltf != cornell));
+    CHECK((render("file_first.pfm", file + " -a el -i 1 -r 16x12 -j 1 -q") == gltf));
+    CHECK((render("file_last.pfm", "-a el -i 1 -r 16x12 -j 1 -q " + file) == gltf));
+    // -s given twice keeps the last, as every option does.
+    CHECK((render("twice.pfm", "-a el -i 1 -r 16x12 -j 1 -q -s 4 -s " + file) == gltf));
+}
+
+TEST_CASE("A positional scene beside another is refused naming both; an argument starting with '-' that is no option stays unknown", "[cli]") {
+    TemporaryFolder folder;
+    const std::string output = folder / "out.png";
+    const std::string file = testutil::CornellPath(1);
+    for (const std::string& scenes : {"4 " + file, "-s 4 " + file, file + " -s 4", std::string("4 4")}) {
+        const Run run = RunProgram(Tiny(output) + " " + scenes);
+        CheckFailure(run, 2, "scene", output);
+        CHECK_THAT(run.mStderr, Catch::StartsWith("smallvcm: scene: two given, '") && Catch::Contains("': a run renders one scene"));
+        if (scenes != "4 4") CHECK_THAT(run.mStderr, Catch::Contains("'4'") && Catch::Contains("'" + file + "'"));
+    }
+    // merge away from the front reads as a scene: the message says where merge goes.
+    const Run merge = RunProgram("-q merge " + Quote(folder / "merged.pfm") + " run.pfm");
+    CheckFailure(merge, 2, "scene", folder / "merged.pfm");
+    CHECK_THAT(merge.mStderr, Catch::Contains("merge is a subcommand only as the first argument"));
+    for (const std::string option : {"--frobnicate", "-x", "-", "--s"}) {
+        const Run run = RunProgram(Tiny(output) + " 4 " + option);
+        CheckFailure(run, 2, option, output);
+        CHECK(run.mStderr == "smallvcm: " + option + ": unknown option (see --help)\n");
+    }
+    // A number that is no Cornell scene is refused as -s refuses it, named as given.
+    const Run nine = RunProgram(Tiny(output) + " 9");
+    CheckFailure(nine, 2, "scene", output);
+    CHECK(nine.mStderr == "smallvcm: scene: '9' is not a Cornell scene index (0..4) nor a .gltf/.glb file\n");
+}
+
+TEST_CASE("--background 0,0,0 on a file without lights is refused as --background none is, and writes nothing", "[cli]") {
+    TemporaryFolder folder;
+    // One triangle, no light, no camera.
+    const std::string scene = folder / "unlit.gltf";
+    std::ofstream(scene) << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}],
+      "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]})";
+    const std::string output = folder / "out.png";
+    const Run black = RunProgram(Tiny(output) + " " + Quote(scene) + " --background 0,0,0");
+    CheckFailure(black, 1, scene, output);
+    CHECK(black.mStderr == "smallvcm: " + scene + ": the scene has no light: --background 0,0,0 is black and the file has no other "
+                                                  "light; give a non-black --background R,G,B, or add lights to the file\n");
+    const Run none = RunProgram(Tiny(output) + " " + Quote(scene) + " --background none");
+    CheckFailure(none, 1, scene, output);
+    CHECK_THAT(none.mStderr, Catch::Contains(": the scene has no light: --background none removes the background"));
+    // The same file renders with the default white background, or any non-black one.
+    const Run grey = RunProgram(Tiny(output) + " " + Quote(scene) + " --background 0,0,0.5");
+    INFO(grey);
+    CHECK(grey.mExitCode == 0);
+    CHECK(fs::exists(output));
+}
+
 namespace {
 
 // build/smallvcm started in the background, its output streams in files of aFolder.

@@ -663,6 +663,14 @@ std::string LoadError(const std::string& aPath, const GltfLoadOptions& aOptions 
     return "";
 }
 
+// aText with its one occurrence of aFrom replaced by aTo.
+std::string Replaced(std::string aText, const std::string& aFrom, const std::string& aTo) {
+    const size_t at = aText.find(aFrom);
+    REQUIRE(at != std::string::npos);
+    REQUIRE(aText.find(aFrom, at + 1) == std::string::npos);
+    return aText.replace(at, aFrom.size(), aTo);
+}
+
 } // namespace
 
 TEST_CASE("The test cube is closed and wound outwards", "[gltf]") {
@@ -738,7 +746,8 @@ TEST_CASE("A file without an emitter gets a white background, which the options 
 
     GltfLoadOptions options;
     options.mBackground = GltfLoadOptions::Background::kNone;
-    CHECK(LoadError(path, options) == path + ": the scene has no light");
+    CHECK(LoadError(path, options) == path + ": the scene has no light: --background none removes the background and the file "
+                                              "has no other light; give a non-black --background R,G,B, or add lights to the file");
     // Replacing the background of a scene that has one (Cornell scene 3), and adding one to
     // a scene lit otherwise (Cornell scene 4: its ceiling light stays).
     options.mBackground = GltfLoadOptions::Background::kRadiance;
@@ -755,6 +764,98 @@ TEST_CASE("A file without an emitter gets a white background, which the options 
         CHECK(backgrounds == 1);
         CHECK_FALSE(report.mDefaultBackground);
         CHECK(lit.mLights.size() == (cornell == 3 ? lightsInFile : lightsInFile + 1));
+    }
+}
+
+TEST_CASE("A black background is no light: refused as none is when nothing else emits, and not added beside other lights", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    const std::string unlit = WriteTemporary(folder, "unlit.gltf", MeshGltf(Cube(Vec3(0.f))));
+    GltfLoadOptions black;
+    black.mBackground = GltfLoadOptions::Background::kRadiance;
+    black.mBackgroundRadiance = Vec3(0.f);
+    CHECK(LoadError(unlit, black) == unlit + ": the scene has no light: --background 0,0,0 is black and the file has no other "
+                                             "light; give a non-black --background R,G,B, or add lights to the file");
+    // Cornell scene 3 is lit by its background alone: replaced by a black one, nothing emits.
+    CHECK_THAT(LoadError(CornellPath(3), black), Catch::StartsWith(CornellPath(3) + ": the scene has no light: --background 0,0,0"));
+    // Cornell scene 4 keeps its ceiling light, and no black background is added to be sampled.
+    const Scene lit = LoadGltfScene(CornellPath(4), nullptr, black);
+    CHECK(lit.mLights.size() == LoadGltfScene(CornellPath(4)).mLights.size());
+    CHECK(lit.GetBackground() == nullptr);
+    // The file's own lights that emit nothing count as none, whatever the option.
+    const std::string blackInFile = WriteTemporary(folder, "black_background.gltf", MeshGltf(Cube(Vec3(0.f)), "",
+        R"(, "extensionsUsed": ["SMALLVCM_background"], "extensions": {"SMALLVCM_background": {"radiance": [0, 0, 0]}})"));
+    CHECK(LoadError(blackInFile) == blackInFile + ": the scene has no light: the file's 1 light emits nothing (zero intensity or "
+                                                  "black radiance); give a non-black --background R,G,B, or lights that emit");
+    GltfLoadOptions white;
+    white.mBackground = GltfLoadOptions::Background::kRadiance;
+    CHECK(LoadGltfScene(blackInFile, nullptr, white).GetBackground()->mEmission == Vec3(1.f));
+}
+
+TEST_CASE("Every unsupported required extension is named in one line, each with its hint", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    // KHR_lights_punctual is modelled; EXT_meshopt_compression, listed twice, is named once.
+    const std::string path = WriteTemporary(folder, "several.gltf", R"({"asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_lights_punctual", "EXT_meshopt_compression", "EXT_unknown_feature", "KHR_mesh_quantization"],
+        "extensionsRequired": ["KHR_lights_punctual", "EXT_meshopt_compression", "EXT_unknown_feature", "KHR_mesh_quantization",
+                               "EXT_meshopt_compression"],
+        "buffers": [{"byteLength": 100, "uri": "missing.bin"}], "scenes": [{"nodes": []}]})");
+    CHECK(LoadError(path) == path + ": required extensions EXT_meshopt_compression, 'EXT_unknown_feature' and KHR_mesh_quantization "
+                                    "are not supported: EXT_meshopt_compression: its buffers are meshopt-compressed: decompress the "
+                                    "file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression); "
+                                    "KHR_mesh_quantization: its vertex attributes are quantized: dequantize the file first (e.g. "
+                                    "`gltf-transform dequantize IN OUT`)");
+    // A list longer than a line ends in how many more there are.
+    std::string many;
+    for (int e = 0; e < 11; e++) many += std::string(e > 0 ? ", " : "") + "\"EXT_unknown_" + std::to_string(e) + "\"";
+    const std::string manyPath = WriteTemporary(folder, "many.gltf", R"({"asset": {"version": "2.0"}, "extensionsRequired": [)" +
+                                                                     many + R"(], "scenes": [{"nodes": []}]})");
+    CHECK(LoadError(manyPath) == manyPath + ": required extensions 'EXT_unknown_0', 'EXT_unknown_1', 'EXT_unknown_2', "
+                                            "'EXT_unknown_3', 'EXT_unknown_4', 'EXT_unknown_5', 'EXT_unknown_6', "
+                                            "'EXT_unknown_7' and 3 more are not supported");
+}
+
+TEST_CASE("A compression extension only used loads from its uncompressed fallback, and is refused by name without one", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    const std::vector<float> cube = Cube(Vec3(0.f));
+    const std::string bytes(reinterpret_cast<const char*>(cube.data()), cube.size() * sizeof(float));
+    const auto ignored = [](const GltfLoadReport& aReport, const std::string& aExtension) {
+        for (const std::string& note : aReport.mNotes)
+            if (note.find("ignored extensions") != std::string::npos && note.find(aExtension) != std::string::npos) return true;
+        return false;
+    };
+    SECTION("KHR_draco_mesh_compression: the primitive's accessors keep their bufferView, or have none") {
+        const std::string draco = Replaced(MeshGltf(cube, "", R"(, "extensionsUsed": ["KHR_draco_mesh_compression"])"),
+            R"({"attributes": {"POSITION": 0}, "material": 0})",
+            R"({"attributes": {"POSITION": 0}, "material": 0, "extensions": {"KHR_draco_mesh_compression": {"bufferView": 0,
+                "attributes": {"POSITION": 0}}}})");
+        const std::string withFallback = WriteTemporary(folder, "draco_fallback.gltf", draco);
+        GltfLoadReport report;
+        CHECK(LoadGltfScene(withFallback, &report).mTriangles.size() == 12);
+        CHECK(ignored(report, "KHR_draco_mesh_compression"));
+        const std::string without = WriteTemporary(folder, "draco_only.gltf",
+                                                   Replaced(draco, R"({"bufferView": 0, "componentType")", R"({"componentType")"));
+        CHECK_THAT(LoadError(without), Catch::StartsWith(without + ": KHR_draco_mesh_compression is not supported, and mesh 0 "
+                                                         "primitive 0 has no uncompressed fallback to read instead (accessor 0, its "
+                                                         "POSITION, has no bufferView): its meshes are Draco-compressed"));
+    }
+    SECTION("EXT_meshopt_compression: the buffer view's own buffer holds the uncompressed bytes, or nothing") {
+        // The view reads its compressed bytes from buffer 0 (here plain ones), its own are in buffer 1.
+        const std::string meshopt = Replaced(MeshGltf(cube, "", R"(, "extensionsUsed": ["EXT_meshopt_compression"])"),
+            R"("bufferViews": [{"buffer": 0, )",
+            R"("bufferViews": [{"buffer": 1, "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteLength": 432,
+                "byteStride": 12, "count": 36, "mode": "ATTRIBUTES"}}, )");
+        const std::string marked = R"("extensions": {"EXT_meshopt_compression": {"fallback": true}})";
+        const std::string withFallback = WriteTemporary(folder, "meshopt_fallback.gltf", Replaced(meshopt, R"("}], "extensionsUsed")",
+            R"("}, {"byteLength": 432, "uri": "data:application/octet-stream;base64,)" + Base64(bytes) + "\", " + marked +
+                R"(}], "extensionsUsed")"));
+        GltfLoadReport report;
+        CHECK(LoadGltfScene(withFallback, &report).mTriangles.size() == 12);
+        CHECK(ignored(report, "EXT_meshopt_compression"));
+        const std::string without = WriteTemporary(folder, "meshopt_only.gltf", Replaced(meshopt, R"("}], "extensionsUsed")",
+            R"("}, {"byteLength": 432, )" + marked + R"(}], "extensionsUsed")"));
+        CHECK_THAT(LoadError(without), Catch::StartsWith(without + ": EXT_meshopt_compression is not supported, and bufferView 0 has "
+                                                         "no uncompressed fallback to read instead (its buffer 1 has no URI: it holds no "
+                                                         "data): its buffers are meshopt-compressed"));
     }
 }
 
@@ -1370,4 +1471,66 @@ TEST_CASE("The load report says how long reading and Scene::Finalize took", "[gl
     CHECK(report.mReadSeconds > 0.0);
     CHECK(report.mFinalizeSeconds > 0.0);
     CHECK(report.mReadSeconds + report.mFinalizeSeconds <= total);
+}
+
+TEST_CASE("Buffer and image URIs name files exactly as they percent-decode: spaces, trailing spaces and '+' stay", "[gltf][textures]") {
+    // The textured floor above with its two files renamed: {image file, its URI, buffer
+    // file, its URI}. tinygltf decodes a buffer URI's '+' to a space, as HTML forms do; a
+    // URI's '+' is a plus (RFC 3986).
+    const struct {
+        const char *mImage, *mImageUri, *mBuffer, *mBufferUri;
+    } cases[] = {
+        {"tex.png ", "tex.png ", "floor.bin ", "floor.bin "},
+        {"name with trailing space .png", "name with trailing space .png", "a b.bin", "a%20b.bin"},
+        {"x+y.png", "x+y.png", "c++.bin", "c++.bin"},
+        {"my image.png", "my%20image.png", "50%.bin", "50%25.bin"},
+    };
+    Image image(1, 1);
+    image.mPixels = {Vec3(1.f, 0.f, 0.f)};
+    for (const auto& c : cases) {
+        INFO("image '" << c.mImage << "', buffer '" << c.mBuffer << "'");
+        TemporaryFolder folder;
+        std::string text = ReadText(WriteTexturedFloor(folder, image, 10497, 1.f));
+        std::filesystem::rename(folder / "base colour.png", folder / c.mImage);
+        std::filesystem::rename(folder / "floor.bin", folder / c.mBuffer);
+        text = Replaced(text, R"("base%20colour.png")", std::string("\"") + c.mImageUri + "\"");
+        std::ofstream(folder / "floor.gltf") << Replaced(text, R"("floor.bin")", std::string("\"") + c.mBufferUri + "\"");
+        const Scene scene = LoadGltfScene(folder / "floor.gltf");
+        CHECK(scene.mTriangles.size() == 2);
+        CHECK(TexelAt(scene, 0.5f, 0.5f) == image.mPixels[0]);
+    }
+}
+
+TEST_CASE("Two buffer URIs that tinygltf decodes alike each read their own file", "[gltf]") {
+    // "p+q.bin" and "p%20q.bin" both reach the file reader as "p q.bin": buffer 0 must get
+    // p+q.bin (the cube), buffer 1 p q.bin (the cube moved by 10, unused).
+    TemporaryFolder folder;
+    const auto write = [&](const std::string& aName, const std::vector<float>& aFloats) {
+        std::ofstream(folder / aName, std::ios::binary).write(reinterpret_cast<const char*>(aFloats.data()),
+                                                               std::streamsize(aFloats.size() * sizeof(float)));
+    };
+    write("p+q.bin", Cube(Vec3(0.f)));
+    write("p q.bin", Cube(Vec3(10.f)));
+    const std::string gltf = MeshGltf(Cube(Vec3(0.f)));
+    const size_t uri = gltf.find(R"("uri": ")");
+    const size_t end = gltf.find('"', uri + 8);
+    const std::string path = WriteTemporary(folder, "twins.gltf", gltf.substr(0, uri) + R"("uri": "p+q.bin"}, {"byteLength": 432,
+        "uri": "p%20q.bin")" + gltf.substr(end + 1));
+    const Scene scene = LoadGltfScene(path);
+    REQUIRE(scene.mTriangles.size() == 12);
+    for (const Triangle& triangle : scene.mTriangles) CHECK(MaxComponent(triangle.mP0) <= 1.f);
+}
+
+TEST_CASE("A URI that decodes to a NUL byte is refused: no file name holds one", "[gltf][textures]") {
+    TemporaryFolder folder;
+    Image image(1, 1);
+    image.mPixels = {Vec3(1.f)};
+    const std::string text = ReadText(WriteTexturedFloor(folder, image, 10497, 1.f));
+    // Read up to the NUL, "floor.bin%00.txt" would name floor.bin, which exists.
+    std::ofstream(folder / "buffer.gltf") << Replaced(text, R"("floor.bin")", R"("floor.bin%00.txt")");
+    CHECK(LoadError(folder / "buffer.gltf") == folder / "buffer.gltf" + ": buffer URI 'floor.bin?.txt': the URI decodes to a NUL "
+                                                                       "byte, which no file name holds");
+    std::ofstream(folder / "image.gltf") << Replaced(text, R"("base%20colour.png")", R"("base%20colour.png%00.txt")");
+    CHECK(LoadError(folder / "image.gltf") == folder / "image.gltf" + ": image 0 'base%20colour.png%00.txt': the URI decodes to a "
+                                                                     "NUL byte, which no file name holds");
 }

@@ -547,6 +547,61 @@ bad("extension_required_draco.gltf", "a Draco-compressed floor (KHR_draco_mesh_c
     "buffer file is absent, so reading buffers first would fail differently)",
     "required extension KHR_draco_mesh_compression is not supported: its meshes are Draco-compressed: "
     "decompress the file first")(lambda: modified(draco_compressed))
+bad("extension_required_several.gltf", "extensionsRequired names KHR_draco_mesh_compression, EXT_unknown_feature "
+    "and KHR_texture_basisu: all three are named in one line, each with its hint",
+    "required extensions KHR_draco_mesh_compression, 'EXT_unknown_feature' and KHR_texture_basisu are not "
+    "supported: KHR_draco_mesh_compression: its meshes are Draco-compressed")(
+    lambda: modified(lambda d: (d.update(extensionsRequired=["KHR_draco_mesh_compression", "EXT_unknown_feature",
+                                                             "KHR_texture_basisu"]),
+                                d.update(extensionsUsed=sorted(d.get("extensionsUsed", []) + d["extensionsRequired"])))))
+
+
+def draco_without_fallback(d):
+    # Only used, not required, yet the floor's accessors have no bufferView: the data is
+    # only in the Draco stream, which the specification allows only with the extension
+    # required.
+    draco_compressed(d)
+    del d["extensionsRequired"]
+    d["buffers"].pop()
+    for accessor in (0, 1):
+        del d["accessors"][accessor]["bufferView"]
+
+
+bad("draco_used_without_fallback.gltf", "a Draco-compressed floor whose accessors have no bufferView (no "
+    "uncompressed fallback), the extension only used",
+    "KHR_draco_mesh_compression is not supported, and mesh 0 primitive 0 has no uncompressed fallback to read "
+    "instead (accessor 1, its indices, has no bufferView)")(lambda: modified(draco_without_fallback))
+
+
+def meshopt_without_fallback(d):
+    # The floor's buffer views compressed: each reads its bytes from buffer 0 through
+    # EXT_meshopt_compression (here the plain bytes: the loader must refuse the file before
+    # decoding anything) and stands in buffer 1, a fallback buffer without a URI. The
+    # extension is only used, which the specification allows only when the fallback has data.
+    for view, stride, count, mode in ((0, 12, 4, "ATTRIBUTES"), (1, 4, 6, "INDICES")):
+        v = d["bufferViews"][view]
+        v["extensions"] = {"EXT_meshopt_compression": {
+            "buffer": 0, "byteOffset": v["byteOffset"], "byteLength": v["byteLength"], "byteStride": stride,
+            "count": count, "mode": mode}}
+        v["buffer"] = 1
+    d["buffers"].append({"byteLength": d["buffers"][0]["byteLength"],
+                         "extensions": {"EXT_meshopt_compression": {"fallback": True}}})
+    d["extensionsUsed"] = sorted(d.get("extensionsUsed", []) + ["EXT_meshopt_compression"])
+
+
+MESHOPT_WITHOUT_FALLBACK = ("EXT_meshopt_compression is not supported, and bufferView 0 has no uncompressed fallback "
+                            "to read instead (its buffer 1 has no URI: it holds no data)")
+bad("meshopt_used_without_fallback.gltf", "the floor's buffer views meshopt-compressed, their fallback buffer "
+    "without a URI, the extension only used", MESHOPT_WITHOUT_FALLBACK)(lambda: modified(meshopt_without_fallback))
+bad("meshopt_used_without_fallback.glb", "the same as a .glb (tinygltf would copy the BIN chunk, the compressed "
+    "bytes, into the fallback buffer and render them)", MESHOPT_WITHOUT_FALLBACK)(
+    lambda: make_glb(modified(meshopt_without_fallback)))
+bad("buffer_without_uri.glb", "a .glb whose second buffer has no URI (only the first stands for the BIN chunk; "
+    "tinygltf would copy the BIN chunk into it)", "buffer 1 has no URI")(
+    lambda: make_glb(modified(lambda d: d["buffers"].append({"byteLength": d["buffers"][0]["byteLength"]}))))
+bad("lights_emit_nothing.gltf", "the only light is a point light of intensity 0 (the image would be black)",
+    "the scene has no light: the file's 1 light emits nothing")(
+    lambda: modified(with_punctual({"type": "point", "intensity": 0.0}), light=False))
 bad("no_geometry.gltf", "a camera and a point light, nothing else", "the scene has no geometry")(
     lambda: no_geometry())
 bad("node_cycle.gltf", "the floor node is its own child", "cycle")(
