@@ -4,7 +4,7 @@ SHELL := /bin/bash
 #   make test   installs missing Debian packages, builds and runs every test
 #   make deps   only the package check/installation
 # Objects go to build/. The two slow translation units (Catch2's main, ~15 s, and the
-# implementation unit with tinygltf and stb, ~10 s) compile once and are reused.
+# implementation unit with tinygltf, stb and tinyexr, ~10 s) compile once and are reused.
 
 CXX      ?= g++
 # The BVH's vector width follows the build machine ([SECTION] Appendix: BVH): on a CPU with
@@ -28,7 +28,9 @@ DEFAULT_IS_AVX2 := $(shell $(CXX) $(CXXFLAGS) -dM -E -x c++ /dev/null 2>/dev/nul
 # (make check's sanitizer build, build/check/, keeps -g as well).
 TEST_CXXFLAGS ?= $(filter-out -g,$(CXXFLAGS))
 CPPFLAGS += -I.
-LDFLAGS  += -pthread
+# Every program that links the implementation unit links Debian's tinyexr too (the
+# OpenEXR reader and writer; the library brings zlib itself).
+LDFLAGS  += -pthread -ltinyexr
 BUILD    := build
 # Programs and tests build in parallel, one job per core.
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
@@ -39,7 +41,7 @@ JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 # disagree about it.
 FLAGS_STAMP := $(BUILD)/cxxflags.txt
 
-DEB_PACKAGES := g++ make libglm-dev libtinygltf-dev libstb-dev catch2 nlohmann-json3-dev
+DEB_PACKAGES := g++ make libglm-dev libtinygltf-dev libstb-dev libtinyexr-dev catch2 nlohmann-json3-dev
 
 HEADER   := smallvcm.hpp
 IMPL_OBJ := $(BUILD)/smallvcm_impl.o

@@ -26,7 +26,8 @@
 //      #define SMALLVCM_IMPLEMENTATION
 //      #include "smallvcm.hpp"
 //  That unit compiles the parts with heavy dependencies: the glTF loader (tinygltf,
-//  nlohmann-json) and the image writers (stb_image_write). Everything else is inline.
+//  nlohmann-json) and the image writers and readers (stb_image_write; OpenEXR through
+//  Debian's compiled tinyexr library: link with -ltinyexr). Everything else is inline.
 //
 //  Link errors you may meet:
 //    "undefined reference to smallvcm::LoadGltfScene / WriteImage"
@@ -34,6 +35,8 @@
 //    "multiple definition of tinygltf::... / stbi_write_..."
 //        -> two translation units define SMALLVCM_IMPLEMENTATION.
 //    "undefined reference to pthread_create"  -> link with -pthread.
+//    "undefined reference to SaveEXRImageToMemory / LoadEXRImageFromMemory"
+//        -> link with -ltinyexr (after the objects).
 //
 //  A minimal program (examples/minimal.cpp is this, character for character; a test
 //  keeps the two the same, and `make` builds it: run it from the repository's folder):
@@ -5850,10 +5853,11 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions) {
 // Provides: image metrics (mean, RMSE, relative MSE against a reference), the display
 // mapping of PNGs (exposure and tone curve) and, compiled under SMALLVCM_IMPLEMENTATION,
 // the writers: PNG (exposed, tone-mapped, sRGB-encoded), Radiance .hdr (RGBE, top row
-// first as the format expects) and PFM (exact floats, bottom row first as the PFM
-// convention requires), plus readers of PFM and .hdr. Every writer writes temporary
-// files and renames them, so a failed write never leaves a partial image (nor half of a
-// set of files written together) under the requested names.
+// first as the format expects), PFM (exact floats, bottom row first as the PFM
+// convention requires) and OpenEXR (exact floats, through Debian's tinyexr library, with
+// optional named layers), plus readers of PFM, .hdr and OpenEXR. Every writer writes
+// temporary files and renames them, so a failed write never leaves a partial image (nor
+// half of a set of files written together) under the requested names.
 
 // Average over pixels and channels.
 inline double MeanValue(const Image& aImage) {
@@ -5893,7 +5897,7 @@ inline double RelativeMse(const Image& aImage, const Image& aReference) {
     return sum / (3.0 * double(std::max<size_t>(1, aImage.mPixels.size())));
 }
 
-enum class ImageFormat { kUnknown, kPng, kHdr, kPfm };
+enum class ImageFormat { kUnknown, kPng, kHdr, kPfm, kExr };
 
 // The format an image path asks for, by its extension in any case (.png, .PNG, ...).
 inline ImageFormat ImageFormatOf(const std::string& aPath) {
@@ -5904,14 +5908,15 @@ inline ImageFormat ImageFormatOf(const std::string& aPath) {
     if (extension == "png") return ImageFormat::kPng;
     if (extension == "hdr") return ImageFormat::kHdr;
     if (extension == "pfm") return ImageFormat::kPfm;
+    if (extension == "exr") return ImageFormat::kExr;
     return ImageFormat::kUnknown;
 }
 inline bool IsSupportedImagePath(const std::string& aPath) { return ImageFormatOf(aPath) != ImageFormat::kUnknown; }
 
 // How a PNG shows radiance. A PNG holds 8-bit sRGB values in [0, 1], so each channel is
 // scaled by 2^exposure (EV, photographic stops), mapped into [0, 1] by the tone curve,
-// then sRGB-encoded. HDR and PFM ignore these options: they keep linear radiance, exactly
-// as rendered, so that images can be measured, compared and merged.
+// then sRGB-encoded. HDR, PFM and EXR ignore these options: they keep linear radiance, as
+// rendered, so that images can be measured, compared and merged.
 //   kClamp  min(max(x, 0), 1). The default: at exposure 0 a PNG is byte for byte what it
 //           was before these options existed.
 //   kAces   a filmic curve with a toe and a soft shoulder, so bright lights and caustics
@@ -5960,9 +5965,21 @@ struct OutputFile {
     std::vector<unsigned char> mBytes;
 };
 
-// The bytes of aImage in the format of aPath's extension (.png, .hdr, .pfm); aOptions
-// apply to PNG only. Throws Error on failure.
+// The bytes of aImage in the format of aPath's extension (.png, .hdr, .pfm, .exr);
+// aOptions apply to PNG only. Throws Error on failure.
 std::vector<unsigned char> EncodeImage(const std::string& aPath, const Image& aImage, const ImageWriteOptions& aOptions = {});
+// An image stored beside the main one in a multi-layer OpenEXR file. Its name is the
+// prefix of its channels, NAME.R, NAME.G, NAME.B (OpenEXR's naming of layers, "Technical
+// Introduction to OpenEXR", Layers): 1 to 250 bytes, no control characters.
+struct ExrLayer {
+    std::string mName;
+    const Image* mImage = nullptr;
+};
+// The bytes of an OpenEXR file (one part, scanlines, ZIP compression, which is lossless)
+// holding aImage as the channels R, G, B and each of aLayers as NAME.R, NAME.G, NAME.B,
+// every channel 32-bit float: the values are kept bit for bit, as in a PFM. The layers
+// must have aImage's size and distinct names. Throws Error naming aPath on failure.
+std::vector<unsigned char> EncodeExr(const std::string& aPath, const Image& aImage, const std::vector<ExrLayer>& aLayers = {});
 // Writes every file, or none. Each file's bytes go to a new temporary file of a unique
 // name in its folder (created exclusively: never an existing file, never through a
 // symlink); once all are complete they are renamed onto their paths, each in one step.
@@ -5972,7 +5989,7 @@ std::vector<unsigned char> EncodeImage(const std::string& aPath, const Image& aI
 // complete files. SIGINT, SIGTERM and SIGHUP are held back on the calling thread while
 // temporary files exist, so a signal cannot leave one behind. Throws Error naming the file.
 void WriteFilesTogether(const std::vector<OutputFile>& aFiles);
-// Writes .png, .hdr or .pfm by the file's extension (WriteFilesTogether with one file):
+// Writes .png, .hdr, .pfm or .exr by the file's extension (WriteFilesTogether with one file):
 // aPath holds the old file or the whole new image. Throws Error on failure.
 void WriteImage(const std::string& aPath, const Image& aImage, const ImageWriteOptions& aOptions = {});
 // Throws Error naming aPath unless an image can be written there: a known extension, an
@@ -5984,8 +6001,16 @@ Image ReadPfm(const std::string& aPath);
 // Reads a Radiance .hdr in RGBE (flat or run-length encoded scanlines, -Y H +X W), as
 // WriteImage writes it: each value to within 1/256 of itself. Throws Error on failure.
 Image ReadHdr(const std::string& aPath);
-// Reads linear radiance from a .pfm or .hdr, by the extension in any case; a .png is
-// refused (its values are exposed, tone-mapped and 8-bit: not radiance).
+// Reads the channels R, G, B of an OpenEXR file (aLayer empty), or those of the layer
+// aLayer, NAME.R, NAME.G, NAME.B; half floats are converted to float exactly, any other
+// channel (A, other layers) is ignored. Only single-part scanline files whose data window
+// is the whole image (the display window) are read, of at most 65536x65536 pixels whose
+// channels take at most 4 GiB once decoded (tinyexr decodes every channel of the file at
+// once: a few bytes of header must not make it allocate more); a luminance-only (Y)
+// image is refused, not converted. Throws Error naming aPath and the problem.
+Image ReadExr(const std::string& aPath, const std::string& aLayer = "");
+// Reads linear radiance from a .pfm, .hdr or .exr (its R, G, B), by the extension in any
+// case; a .png is refused (its values are exposed, tone-mapped and 8-bit: not radiance).
 Image ReadImage(const std::string& aPath);
 
 // =====================================================================================
@@ -6059,6 +6084,9 @@ Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr,
 #define STBI_ONLY_PNG   // the two image formats glTF 2.0 allows
 #define STBI_ONLY_JPEG
 #include <stb/stb_image.h>
+// Debian's libtinyexr-dev is a compiled library (libtinyexr.so, which brings its own zlib):
+// the header only declares it, so no TINYEXR_IMPLEMENTATION here; programs link -ltinyexr.
+#include <tinyexr.h>
 
 #include <cctype>
 #include <cstring>
@@ -6160,10 +6188,67 @@ inline bool EndsWithIgnoringCase(const std::string& aText, const std::string& aS
     return true;
 }
 
+// tinyexr's error message, which may span lines, as one line of at most 160 characters;
+// frees it (tinyexr allocates it).
+inline std::string TinyexrMessage(const char* aMessage) {
+    std::string line;
+    for (const char* c = aMessage; c && *c && line.size() < 160; c++) {
+        const bool control = static_cast<unsigned char>(*c) < 0x20 || *c == 0x7f;
+        if (!control) line += *c;
+        else if (!line.empty() && line.back() != ' ') line += ' ';
+    }
+    FreeEXRErrorMessage(aMessage);
+    while (!line.empty() && line.back() == ' ') line.pop_back();
+    return line.empty() ? std::string("no details") : line;
+}
+
+// The value of the "type" attribute of a single-part OpenEXR file's header ("" if it has
+// none). tinyexr 1.0.1 stops the program (a failed assert) on a type other than the four
+// OpenEXR defines, or one the version field contradicts, so the reader checks it first.
+// The attributes are walked as tinyexr walks them: each is a name, a type name (both
+// NUL-terminated), a 4-byte little-endian size and the value, and an empty name ends the
+// header (OpenEXR File Layout, Header). Where the walk stops early tinyexr's parse fails too.
+inline std::string ExrTypeAttribute(const std::vector<unsigned char>& aBytes) {
+    std::string type;
+    size_t position = 8;  // after the magic number and the version field
+    for (int attribute = 0; attribute < 1024 && position < aBytes.size() && aBytes[position] != 0; attribute++) {
+        std::string strings[2];  // the attribute's name and its type's name
+        for (std::string& text : strings) {
+            const auto end = std::find(aBytes.begin() + long(position), aBytes.end(), 0);
+            if (end == aBytes.end()) return type;
+            text.assign(aBytes.begin() + long(position), end);
+            position = size_t(end - aBytes.begin()) + 1;
+        }
+        if (aBytes.size() - position < 4) return type;
+        uint32_t size;
+        std::memcpy(&size, &aBytes[position], 4);  // little endian, as the machines we build on
+        position += 4;
+        if (aBytes.size() - position < size) return type;
+        if (strings[0] == "type" && size > 0 && aBytes[position] != 0) {
+            const auto begin = aBytes.begin() + long(position);
+            type.assign(begin, std::find(begin, begin + long(size), 0));
+        }
+        position += size;
+    }
+    return type;
+}
+
+// The bytes of the regular file aPath; one larger than aMaxBytes is refused with
+// aTooLarge before a byte is read.
+inline std::vector<unsigned char> ReadImageFile(const std::string& aPath, uint64_t aMaxBytes, const std::string& aTooLarge) {
+    struct stat info;
+    if (::stat(aPath.c_str(), &info) != 0) throw Error(aPath + ": cannot open (" + std::strerror(errno) + ")");
+    if (!S_ISREG(info.st_mode)) throw Error(aPath + ": not a regular file");
+    if (uint64_t(info.st_size) > aMaxBytes) throw Error(aPath + ": " + aTooLarge);
+    std::ifstream file(aPath, std::ios::binary);
+    if (!file) throw Error(aPath + ": cannot open");
+    return std::vector<unsigned char>((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+}
+
 } // namespace detail
 
 void CheckOutputPath(const std::string& aPath) {
-    if (!IsSupportedImagePath(aPath)) throw Error(aPath + ": unknown image format (use .png, .hdr or .pfm)");
+    if (!IsSupportedImagePath(aPath)) throw Error(aPath + ": unknown image format (use .png, .hdr, .pfm or .exr)");
     struct stat info;
     if (::stat(aPath.c_str(), &info) == 0 && S_ISDIR(info.st_mode)) throw Error(aPath + ": is a directory");
     const std::filesystem::path parent = std::filesystem::path(aPath).parent_path();
@@ -6225,9 +6310,80 @@ std::vector<unsigned char> EncodeImage(const std::string& aPath, const Image& aI
         unsigned char* out = bytes.data() + header.size();
         for (int y = aImage.mHeight - 1; y >= 0; y--, out += rowBytes)
             std::memcpy(out, &aImage.At(0, y), rowBytes);  // the machines we build on are little endian
+    } else if (format == ImageFormat::kExr) {
+        bytes = EncodeExr(aPath, aImage);
     } else {
-        throw Error(aPath + ": unknown image format (use .png, .hdr or .pfm)");
+        throw Error(aPath + ": unknown image format (use .png, .hdr, .pfm or .exr)");
     }
+    return bytes;
+}
+
+std::vector<unsigned char> EncodeExr(const std::string& aPath, const Image& aImage, const std::vector<ExrLayer>& aLayers) {
+    if (aImage.mWidth <= 0 || aImage.mHeight <= 0) throw Error(aPath + ": the image is empty");
+    // One plane of floats per channel, as tinyexr takes them. OpenEXR keeps a file's
+    // channels sorted by name, and its pixel data in that order (OpenEXR File Layout, the
+    // "channels" attribute): readers that sort the list must find the data where they expect it.
+    std::map<std::string, std::vector<float>> channels;
+    auto addChannels = [&](const std::string& aPrefix, const Image& aSource) {
+        for (int c = 0; c < 3; c++) {
+            std::vector<float>& plane = channels[aPrefix + "RGB"[c]];
+            plane.resize(aSource.mPixels.size());
+            for (size_t i = 0; i < aSource.mPixels.size(); i++) plane[i] = aSource.mPixels[i][c];
+        }
+    };
+    addChannels("", aImage);
+    std::set<std::string> names;
+    for (const ExrLayer& layer : aLayers) {
+        const bool printable = std::none_of(layer.mName.begin(), layer.mName.end(), [](char c) {
+            return static_cast<unsigned char>(c) < 0x20 || c == 0x7f;
+        });
+        if (layer.mName.empty() || layer.mName.size() > 250 || !printable)
+            throw Error(aPath + ": the layer name '" + layer.mName.substr(0, 64) + "' is not 1 to 250 printable bytes");
+        if (!names.insert(layer.mName).second) throw Error(aPath + ": two layers are named '" + layer.mName.substr(0, 64) + "'");
+        if (!layer.mImage || layer.mImage->mWidth != aImage.mWidth || layer.mImage->mHeight != aImage.mHeight)
+            throw Error(aPath + ": the layer '" + layer.mName.substr(0, 64) + "' is not the image's size");
+        addChannels(layer.mName + ".", *layer.mImage);
+    }
+    std::vector<EXRChannelInfo> infos(channels.size());
+    std::vector<int> pixelTypes(channels.size(), TINYEXR_PIXELTYPE_FLOAT);
+    std::vector<unsigned char*> planes;
+    bool longNames = false;
+    size_t c = 0;
+    for (auto& [name, plane] : channels) {
+        std::memset(&infos[c], 0, sizeof(EXRChannelInfo));
+        std::memcpy(infos[c].name, name.c_str(), name.size() + 1);
+        infos[c].pixel_type = TINYEXR_PIXELTYPE_FLOAT;
+        infos[c].x_sampling = infos[c].y_sampling = 1;
+        planes.push_back(reinterpret_cast<unsigned char*>(plane.data()));
+        longNames = longNames || name.size() > 31;  // the version field's long-names flag (OpenEXR File Layout)
+        c++;
+    }
+    EXRHeader header;
+    InitEXRHeader(&header);
+    header.num_channels = int(infos.size());
+    header.channels = infos.data();
+    header.pixel_types = pixelTypes.data();            // what the planes hold
+    header.requested_pixel_types = pixelTypes.data();  // what the file stores
+    header.compression_type = TINYEXR_COMPRESSIONTYPE_ZIP;
+    header.long_name = longNames ? 1 : 0;
+    EXRImage image;
+    InitEXRImage(&image);
+    image.images = planes.data();
+    image.width = aImage.mWidth;
+    image.height = aImage.mHeight;
+    image.num_channels = int(planes.size());
+    // The header and image point into the vectors above, which free them: no FreeEXRHeader
+    // or FreeEXRImage here. tinyexr mallocs the file's bytes and its message.
+    unsigned char* memory = nullptr;
+    const char* message = nullptr;
+    const size_t size = SaveEXRImageToMemory(&image, &header, &memory, &message);
+    if (size == 0 || !memory) {
+        const std::string problem = detail::TinyexrMessage(message);
+        std::free(memory);
+        throw Error(aPath + ": OpenEXR encoding failed (tinyexr: " + problem + ")");
+    }
+    std::vector<unsigned char> bytes(memory, memory + size);
+    std::free(memory);
     return bytes;
 }
 
@@ -6262,13 +6418,8 @@ Image ReadPfm(const std::string& aPath) {
 }
 
 Image ReadHdr(const std::string& aPath) {
-    struct stat info;
-    if (::stat(aPath.c_str(), &info) != 0) throw Error(aPath + ": cannot open (" + std::strerror(errno) + ")");
-    if (!S_ISREG(info.st_mode)) throw Error(aPath + ": not a regular file");
-    if (uint64_t(info.st_size) > (uint64_t(1) << 34)) throw Error(aPath + ": larger than any .hdr of at most 65536x65536 pixels");
-    std::ifstream file(aPath, std::ios::binary);
-    if (!file) throw Error(aPath + ": cannot open");
-    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    const std::vector<unsigned char> bytes =
+        detail::ReadImageFile(aPath, uint64_t(1) << 34, "larger than any .hdr of at most 65536x65536 pixels");
     const Error notRgbe(aPath + ": not a Radiance RGBE .hdr file");
     // The header: "#?RADIANCE" (or "#?RGBE"), lines of variables, an empty line, then the
     // resolution line; only the orientation writers use, top row first: "-Y H +X W".
@@ -6334,12 +6485,122 @@ Image ReadHdr(const std::string& aPath) {
     return image;
 }
 
+Image ReadExr(const std::string& aPath, const std::string& aLayer) {
+    // The file is read whole, so its size is bounded first, as the .hdr reader bounds it.
+    const std::vector<unsigned char> bytes = detail::ReadImageFile(aPath, uint64_t(1) << 34, "larger than 16 GiB: not read as an OpenEXR file");
+    auto fail = [&](const std::string& aProblem) { return Error(aPath + ": " + aProblem); };
+    // The version field (magic number and flags) first, then the header; both are parsed
+    // from the bytes without allocating pixels, so every bound below holds before tinyexr
+    // allocates the image.
+    EXRVersion version;
+    if (ParseEXRVersionFromMemory(&version, bytes.data(), bytes.size()) != TINYEXR_SUCCESS)
+        throw fail(bytes.size() >= 4 && bytes[0] == 0x76 && bytes[1] == 0x2f && bytes[2] == 0x31 && bytes[3] == 0x01
+                       ? "the OpenEXR version field is truncated or unknown" : "not an OpenEXR file (no OpenEXR magic number)");
+    if (version.multipart) throw fail("a multi-part OpenEXR file: only single-part files are read");
+    if (version.non_image) throw fail("a deep OpenEXR file: only flat images are read");
+    if (version.tiled) throw fail("a tiled OpenEXR file: only scanline files are read");
+    const std::string type = detail::ExrTypeAttribute(bytes);
+    if (!type.empty() && type != "scanlineimage") {
+        std::string shown;
+        for (char c : type.substr(0, 40)) shown += static_cast<unsigned char>(c) < 0x20 || c == 0x7f ? '?' : c;
+        throw fail("its type attribute is '" + shown + "': only scanline images are read");
+    }
+    struct HeaderOwner {
+        EXRHeader mHeader;
+        HeaderOwner() { InitEXRHeader(&mHeader); }
+        ~HeaderOwner() { FreeEXRHeader(&mHeader); }
+    } owner;
+    EXRHeader& header = owner.mHeader;
+    const char* headerMessage = nullptr;
+    const int parsed = ParseEXRHeaderFromMemory(&header, &version, bytes.data(), bytes.size(), &headerMessage);
+    if (parsed == TINYEXR_ERROR_UNSUPPORTED_FORMAT || parsed == TINYEXR_ERROR_UNSUPPORTED_FEATURE)
+        throw fail("uses what tinyexr does not read; the compressions read are none, RLE, ZIPS, ZIP and PIZ (tinyexr: " +
+                   detail::TinyexrMessage(headerMessage) + ")");
+    if (parsed != TINYEXR_SUCCESS)
+        throw fail("its OpenEXR header is truncated or invalid (tinyexr: " + detail::TinyexrMessage(headerMessage) + ")");
+    FreeEXRErrorMessage(headerMessage);
+    if (header.tiled) throw fail("a tiled OpenEXR file: only scanline files are read");
+    const EXRBox2i& data = header.data_window;
+    const EXRBox2i& display = header.display_window;
+    const int64_t width = int64_t(data.max_x) - int64_t(data.min_x) + 1, height = int64_t(data.max_y) - int64_t(data.min_y) + 1;
+    if (width < 1 || height < 1 || width > 65536 || height > 65536)
+        throw fail("the OpenEXR header claims " + std::to_string(width) + "x" + std::to_string(height) +
+                   " pixels: only sizes in [1, 65536] are read");
+    if (data.min_x != display.min_x || data.min_y != display.min_y || data.max_x != display.max_x || data.max_y != display.max_y)
+        throw fail("its data window differs from its display window: only whole images are read");
+    // tinyexr flips the rows of a file stored bottom block first; every common writer
+    // stores increasing y.
+    if (header.line_order != 0) throw fail("its line order is not increasing y: only increasing-y files are read");
+    // A scanline file has one chunk per block of 1 (no compression, RLE, ZIPS), 16 (ZIP)
+    // or 32 (PIZ) rows; a chunkCount attribute that says otherwise would size tinyexr's
+    // offset table.
+    const int64_t rowsPerChunk = header.compression_type == TINYEXR_COMPRESSIONTYPE_ZIP ? 16
+                                 : header.compression_type == TINYEXR_COMPRESSIONTYPE_PIZ ? 32 : 1;
+    if (header.chunk_count != 0 && int64_t(header.chunk_count) != (height + rowsPerChunk - 1) / rowsPerChunk)
+        throw fail("its chunkCount attribute does not match the image's height");
+    // Every channel is decoded, so every channel must be one tinyexr can decode, and all
+    // of them together must fit the bound.
+    const std::string prefix = aLayer.empty() ? std::string() : aLayer + ".";
+    int rgb[3] = {-1, -1, -1};
+    std::string names;
+    uint64_t decodedBytes = 0;
+    for (int c = 0; c < header.num_channels; c++) {
+        const EXRChannelInfo& channel = header.channels[c];
+        const std::string name(channel.name, strnlen(channel.name, sizeof(channel.name)));
+        if (names.size() < 80) names += (names.empty() ? "" : ", ") + name.substr(0, 40);
+        const int pixelType = header.pixel_types[c];
+        if (pixelType != TINYEXR_PIXELTYPE_UINT && pixelType != TINYEXR_PIXELTYPE_HALF && pixelType != TINYEXR_PIXELTYPE_FLOAT)
+            throw fail("its channel '" + name.substr(0, 40) + "' has an unknown pixel type");
+        if (channel.x_sampling != 1 || channel.y_sampling != 1)
+            throw fail("its channel '" + name.substr(0, 40) + "' is subsampled: only full-resolution channels are read");
+        for (int k = 0; k < 3; k++)
+            if (name == prefix + "RGB"[k]) {
+                if (rgb[k] >= 0) throw fail("its channel '" + name.substr(0, 40) + "' appears twice");
+                if (pixelType == TINYEXR_PIXELTYPE_UINT) throw fail("its channel '" + name.substr(0, 40) + "' holds integers, not radiance");
+                rgb[k] = c;
+                header.requested_pixel_types[c] = TINYEXR_PIXELTYPE_FLOAT;  // half to float is exact
+            }
+        decodedBytes += uint64_t(width) * uint64_t(height) * (header.requested_pixel_types[c] == TINYEXR_PIXELTYPE_HALF ? 2 : 4);
+    }
+    if (rgb[0] < 0 || rgb[1] < 0 || rgb[2] < 0) {
+        const std::string wanted = aLayer.empty() ? std::string("R, G, B") : prefix + "R, " + prefix + "G, " + prefix + "B";
+        throw fail("has no channels " + wanted.substr(0, 200) + " (its channels: " + (names.empty() ? std::string("none") : names) +
+                   "); only RGB radiance is read, a luminance-only (Y) image is not converted");
+    }
+    if (decodedBytes > (uint64_t(1) << 32))
+        throw fail("its " + std::to_string(header.num_channels) + " channels of " + std::to_string(width) + "x" + std::to_string(height) +
+                   " pixels would take more than 4 GiB to decode: not read");
+    struct ImageOwner {
+        EXRImage mImage;
+        bool mLoaded = false;  // when loading fails, tinyexr frees what it allocated itself
+        ImageOwner() { InitEXRImage(&mImage); }
+        ~ImageOwner() { if (mLoaded) FreeEXRImage(&mImage); }
+    } pixels;
+    // tinyexr 1.0.1 frees a failed load's channels up to the image's num_channels, which it
+    // sets only on success: set it first, or every corrupt file leaks its channels.
+    pixels.mImage.num_channels = header.num_channels;
+    const char* pixelMessage = nullptr;
+    if (LoadEXRImageFromMemory(&pixels.mImage, &header, bytes.data(), bytes.size(), &pixelMessage) != TINYEXR_SUCCESS)
+        throw fail("its OpenEXR pixel data is truncated or corrupt (tinyexr: " + detail::TinyexrMessage(pixelMessage) + ")");
+    pixels.mLoaded = true;
+    FreeEXRErrorMessage(pixelMessage);
+    if (pixels.mImage.width != width || pixels.mImage.height != height || !pixels.mImage.images)
+        throw fail("tinyexr decoded an image of another size than its header's");
+    Image image(pixels.mImage.width, pixels.mImage.height);
+    for (int k = 0; k < 3; k++) {
+        const float* plane = reinterpret_cast<const float*>(pixels.mImage.images[rgb[k]]);
+        for (size_t i = 0; i < image.mPixels.size(); i++) image.mPixels[i][k] = plane[i];
+    }
+    return image;
+}
+
 Image ReadImage(const std::string& aPath) {
     switch (ImageFormatOf(aPath)) {
     case ImageFormat::kPfm: return ReadPfm(aPath);
     case ImageFormat::kHdr: return ReadHdr(aPath);
-    case ImageFormat::kPng: throw Error(aPath + ": a PNG holds exposed, tone-mapped 8-bit values, not radiance (use the .pfm or .hdr)");
-    default: throw Error(aPath + ": unknown image format (use .pfm or .hdr)");
+    case ImageFormat::kExr: return ReadExr(aPath);
+    case ImageFormat::kPng: throw Error(aPath + ": a PNG holds exposed, tone-mapped 8-bit values, not radiance (use the .pfm, .hdr or .exr)");
+    default: throw Error(aPath + ": unknown image format (use .pfm, .hdr or .exr)");
     }
 }
 

@@ -1,7 +1,8 @@
 // The command line's image sidecars and `smallvcm merge`.
 //
-// Every image the command line writes gets a sidecar, IMAGE.json beside IMAGE.png/.hdr/.pfm,
-// written together with it (WriteFilesTogether: both files or neither). It says how the
+// Every image the command line writes gets a sidecar, IMAGE.json beside
+// IMAGE.png/.hdr/.pfm/.exr, written together with it (WriteFilesTogether: both files or
+// neither). It says how the
 // image was made, so that a figure or a merge can always tell:
 //   "format"          "smallvcm image sidecar 1"
 //   "image"           the image's file name; "image_fnv1a64": FNV-1a of its bytes, so a
@@ -90,10 +91,12 @@ inline std::string FileName(const std::string& aPath) {
 inline std::string SidecarPath(const std::string& aImagePath) { return aImagePath + ".json"; }
 
 // The image's bytes and its sidecar (aRecord completed with the image's name, mean and
-// fingerprint) appended to aFiles, to be written together.
+// fingerprint) appended to aFiles, to be written together. aLayers (an .exr only) go
+// into the same file as channels NAME.R, NAME.G, NAME.B; the sidecar describes the image.
 inline void AddImage(std::vector<smallvcm::OutputFile>& aFiles, const std::string& aPath, const smallvcm::Image& aImage,
-                     const smallvcm::ImageWriteOptions& aWrite, Json aRecord) {
-    std::vector<unsigned char> bytes = smallvcm::EncodeImage(aPath, aImage, aWrite);
+                     const smallvcm::ImageWriteOptions& aWrite, Json aRecord, const std::vector<smallvcm::ExrLayer>& aLayers = {}) {
+    std::vector<unsigned char> bytes =
+        aLayers.empty() ? smallvcm::EncodeImage(aPath, aImage, aWrite) : smallvcm::EncodeExr(aPath, aImage, aLayers);
     aRecord["image"] = FileName(aPath);
     aRecord["image_fnv1a64"] = Fnv1a64(bytes.data(), bytes.size());
     aRecord["mean"] = smallvcm::MeanValue(aImage);
@@ -130,11 +133,12 @@ struct Run {
     std::vector<uint64_t> mSeeds;
 };
 
-// Reads aPath (.pfm or .hdr) and its sidecar and checks that they belong together.
+// Reads aPath (.pfm, .hdr or .exr: its R, G, B) and its sidecar and checks that they
+// belong together.
 inline Run ReadRun(const std::string& aPath) {
     if (smallvcm::ImageFormatOf(aPath) == smallvcm::ImageFormat::kPng)
-        throw Error(aPath + ": a PNG holds exposed, tone-mapped 8-bit values, not radiance: merge the runs' .pfm or .hdr files");
-    if (!smallvcm::IsSupportedImagePath(aPath)) throw Error(aPath + ": unknown image format (merge .pfm or .hdr files)");
+        throw Error(aPath + ": a PNG holds exposed, tone-mapped 8-bit values, not radiance: merge the runs' .pfm, .hdr or .exr files");
+    if (!smallvcm::IsSupportedImagePath(aPath)) throw Error(aPath + ": unknown image format (merge .pfm, .hdr or .exr files)");
     RequireRegularFile(aPath, "the image");
     const std::string sidecarPath = SidecarPath(aPath);
     RequireRegularFile(sidecarPath, "the sidecar");

@@ -90,11 +90,12 @@ void PrintHelp() {
         "  -i ITERATIONS       number of iterations, one sample per pixel each (default 1)\n"
         "  -t SECONDS          time budget: without -i, runs until the time is up; with -i too, stops\n"
         "                        at whichever limit comes first (iterations done or time up)\n"
-        "  -o FILE             output image: .png, .hdr or .pfm, in any case (default smallvcm.png),\n"
-        "                        written with a sidecar FILE.json saying how it was made\n"
+        "  -o FILE             output image: .png, .hdr, .pfm or .exr, in any case (default smallvcm.png),\n"
+        "                        written with a sidecar FILE.json saying how it was made; .exr holds\n"
+        "                        R, G, B as 32-bit floats (not half: the values bit for bit, as .pfm)\n"
         "  --exposure EV       PNG only: scale radiance by 2^EV before tone mapping (default 0, in [-32, 32])\n"
         "  --tonemap T         PNG only: clamp (default: to [0, 1]) or aces (a filmic curve that keeps\n"
-        "                        highlights); .hdr and .pfm always hold linear radiance\n"
+        "                        highlights); .hdr, .pfm and .exr always hold linear radiance\n"
         "  -r WIDTHxHEIGHT     resolution (default 512x512)\n"
         "  -j THREADS          threads (default: all cores; at most 4 per core)\n"
         "  --seed N            base random seed (default 1234)\n"
@@ -107,7 +108,8 @@ void PrintHelp() {
         "  --knn K             pm, pmfg: nearest photons per estimate (default 100)\n"
         "  --max-radius F      pm, pmfg: largest search radius, fraction of the scene radius (default 0.05, at most 1)\n"
         "  --layers            also write per-technique layers as FILE-stem.LAYER.ext (those that received\n"
-        "                        any contribution) and their list, FILE-stem.layers.json\n"
+        "                        any contribution) and their list, FILE-stem.layers.json; with -o FILE.exr\n"
+        "                        the layers go into FILE.exr itself, as channels LAYER.R, LAYER.G, LAYER.B\n"
         "  --camera N          the N-th camera node of the file (default: the first; a file without\n"
         "                        cameras gets one that frames the whole scene from the front)\n"
         "  --background R,G,B  add (or replace the file's) uniform background of this linear radiance;\n"
@@ -118,8 +120,9 @@ void PrintHelp() {
         "Ctrl-C or SIGTERM writes the iterations done so far (exit 130 or 143); a second one stops at once.\n"
         "\n"
         "Usage: smallvcm merge [-q] [--exposure EV] [--tonemap clamp|aces] OUT RUN1 RUN2 ...\n"
-        "  Averages runs (.pfm or .hdr, each with its sidecar) of one scene, algorithm, resolution\n"
-        "  and settings, with different --seed, weighted by their iterations; OUT gets a sidecar too.\n");
+        "  Averages runs (.pfm, .hdr or .exr, each with its sidecar) of one scene, algorithm, resolution\n"
+        "  and settings, with different --seed, weighted by their iterations; OUT (.pfm, .hdr, .exr or\n"
+        "  .png) gets a sidecar too. From an .exr only R, G, B are read: its layers are not merged.\n");
 }
 
 // The repository's scenes/ folder: $SMALLVCM_SCENES if set, else found by walking up
@@ -254,7 +257,7 @@ CommandLine Parse(int argc, char** argv) {
         else if (arg == "-o") {
             cl.mOutput = value(i);
             if (!smallvcm::IsSupportedImagePath(cl.mOutput))
-                throw Error("-o: '" + cl.mOutput + "' has an unknown image format (use .png, .hdr or .pfm, in any case)");
+                throw Error("-o: '" + cl.mOutput + "' has an unknown image format (use .png, .hdr, .pfm or .exr, in any case)");
         }
         else if (arg == "-r") {
             const std::string text = value(i);
@@ -370,12 +373,26 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
     return record;
 }
 
+// What a render writes: the files (all or none) and how many layers they hold.
+struct Outputs {
+    std::vector<smallvcm::OutputFile> mFiles;
+    size_t mLayers = 0;
+};
+
 // The image, each layer that received any contribution and, with --layers, the index
-// FILE-stem.layers.json of what was written, every one with its sidecar: all files or none.
-std::vector<smallvcm::OutputFile> OutputFiles(const CommandLine& aCl, const smallvcm::RenderResult& aResult, const sidecar::Json& aRecord) {
-    std::vector<smallvcm::OutputFile> files;
-    sidecar::AddImage(files, aCl.mOutput, aResult.mImage, aCl.mWrite, aRecord);
-    if (!aCl.mOptions.mTechniqueLayers) return files;
+// FILE-stem.layers.json of what was written, every image with its sidecar. A layer is a
+// file of its own, FILE-stem.LAYER.ext with its sidecar, except with an .exr: there all
+// layers go into the one file, as channels LAYER.R, LAYER.G, LAYER.B beside the image's
+// R, G, B, and the index names the file and the channels of each.
+Outputs OutputFiles(const CommandLine& aCl, const smallvcm::RenderResult& aResult, const sidecar::Json& aRecord) {
+    Outputs outputs;
+    if (!aCl.mOptions.mTechniqueLayers) {
+        sidecar::AddImage(outputs.mFiles, aCl.mOutput, aResult.mImage, aCl.mWrite, aRecord);
+        return outputs;
+    }
+    const bool oneFile = smallvcm::ImageFormatOf(aCl.mOutput) == smallvcm::ImageFormat::kExr;
+    std::vector<smallvcm::ExrLayer> exrLayers;
+    std::vector<smallvcm::OutputFile> layerFiles;
     sidecar::Json written = sidecar::Json::array(), empty = sidecar::Json::array();
     for (const auto& [name, image] : aResult.mLayers) {
         const bool contributed = std::any_of(image.mPixels.begin(), image.mPixels.end(),
@@ -384,22 +401,34 @@ std::vector<smallvcm::OutputFile> OutputFiles(const CommandLine& aCl, const smal
             empty.push_back(name);
             continue;
         }
-        const std::string path = WithLayerName(aCl.mOutput, name);
-        sidecar::Json record = aRecord;
-        record["estimator"]["layer"] = name;
-        sidecar::AddImage(files, path, image, aCl.mWrite, record);
-        written.push_back({{"layer", name}, {"file", sidecar::FileName(path)}, {"mean", smallvcm::MeanValue(image)}});
+        sidecar::Json entry = {{"layer", name}};
+        if (oneFile) {
+            exrLayers.push_back({name, &image});
+            entry["file"] = sidecar::FileName(aCl.mOutput);
+            entry["channels"] = {name + ".R", name + ".G", name + ".B"};
+        } else {
+            const std::string path = WithLayerName(aCl.mOutput, name);
+            sidecar::Json record = aRecord;
+            record["estimator"]["layer"] = name;
+            sidecar::AddImage(layerFiles, path, image, aCl.mWrite, record);
+            entry["file"] = sidecar::FileName(path);
+        }
+        entry["mean"] = smallvcm::MeanValue(image);
+        written.push_back(entry);
     }
+    sidecar::AddImage(outputs.mFiles, aCl.mOutput, aResult.mImage, aCl.mWrite, aRecord, exrLayers);
+    for (smallvcm::OutputFile& file : layerFiles) outputs.mFiles.push_back(std::move(file));
     const sidecar::Json index = {{"image", sidecar::FileName(aCl.mOutput)}, {"layers", written}, {"layers_without_contribution", empty}};
     const std::string text = index.dump(2) + "\n";
-    files.push_back({LayerIndexPath(aCl.mOutput), std::vector<unsigned char>(text.begin(), text.end())});
-    return files;
+    outputs.mFiles.push_back({LayerIndexPath(aCl.mOutput), std::vector<unsigned char>(text.begin(), text.end())});
+    outputs.mLayers = written.size();
+    return outputs;
 }
 
 // For the summary line: " (+ N layers, listed in FILE-stem.layers.json)" when --layers.
-std::string LayersWritten(const CommandLine& aCl, const std::vector<smallvcm::OutputFile>& aFiles) {
+std::string LayersWritten(const CommandLine& aCl, const Outputs& aOutputs) {
     if (!aCl.mOptions.mTechniqueLayers) return "";
-    const size_t layers = (aFiles.size() - 3) / 2;  // the image, its sidecar and the index are not layers
+    const size_t layers = aOutputs.mLayers;
     return " (+ " + std::to_string(layers) + " layer" + (layers == 1 ? "" : "s") + ", listed in " + LayerIndexPath(aCl.mOutput) + ")";
 }
 
@@ -422,7 +451,7 @@ int MergeMain(int argc, char** argv) {
         }
         if (paths.size() < 2) throw Error("merge: needs an output and at least one run (smallvcm merge OUT.pfm RUN1.pfm RUN2.pfm ...)");
         if (!smallvcm::IsSupportedImagePath(paths[0]))
-            throw Error(paths[0] + ": unknown image format for the merged image (use .pfm, .hdr or .png)");
+            throw Error(paths[0] + ": unknown image format for the merged image (use .pfm, .hdr, .exr or .png)");
     } catch (const Error& e) {
         std::fprintf(stderr, "smallvcm: %s\n", e.what());
         return 2;
@@ -490,14 +519,14 @@ int main(int argc, char** argv) {
         if (result.mStopped)
             std::fprintf(stderr, "smallvcm: interrupted (%s): writing the %d iteration%s accumulated so far\n",
                          stopSignal == SIGTERM ? "SIGTERM" : "SIGINT", result.mIterations, result.mIterations == 1 ? "" : "s");
-        const std::vector<smallvcm::OutputFile> files = OutputFiles(cl, result, RenderRecord(cl, report, result, threads, stopSignal));
-        smallvcm::WriteFilesTogether(files);
+        const Outputs outputs = OutputFiles(cl, result, RenderRecord(cl, report, result, threads, stopSignal));
+        smallvcm::WriteFilesTogether(outputs.mFiles);
         if (!cl.mQuiet)
             std::printf("%s: %s, %dx%d, %d iteration%s in %.2f s (%.3f s/iteration), mean %.6f -> %s%s; %zu triangles and %zu "
                         "spheres loaded in %.2f s (reading %.2f s, BVH build and checks %.2f s); %s\n", scenePath.c_str(),
                         cl.mIntegrator->mName.c_str(), cl.mWidth, cl.mHeight, result.mIterations,
                         result.mIterations == 1 ? "" : "s", result.mSeconds, result.mSeconds / std::max(1, result.mIterations),
-                        smallvcm::MeanValue(result.mImage), cl.mOutput.c_str(), LayersWritten(cl, files).c_str(),
+                        smallvcm::MeanValue(result.mImage), cl.mOutput.c_str(), LayersWritten(cl, outputs).c_str(),
                         scene.mTriangles.size(), scene.mSpheres.size(), loadSeconds, report.mReadSeconds,
                         report.mFinalizeSeconds, report.mCamera.c_str());
         // A signal that came while the image was written (held back until then) counts too.

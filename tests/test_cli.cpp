@@ -24,6 +24,7 @@
 #include <algorithm>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -828,6 +829,46 @@ TEST_CASE("merge refuses mismatched runs, bad sidecars, PNGs and bad paths with 
     }
 }
 
+TEST_CASE("merge reads and writes OpenEXR: two runs as .exr merge to the image the same runs as .pfm merge to, bit for bit; "
+          "a bad .exr is refused in one line", "[cli][merge]") {
+    TemporaryFolder folder;
+    // One thread and the same seed: a run's .exr and .pfm hold the same floats.
+    const std::string a = RenderRun(folder, "a.exr", 2, 1), b = RenderRun(folder, "b.exr", 3, 2);
+    const std::string pa = RenderRun(folder, "a.pfm", 2, 1), pb = RenderRun(folder, "b.pfm", 3, 2);
+    const std::string merged = folder / "merged.exr", mergedPfm = folder / "merged.pfm";
+    const Run run = RunProgram(MergeCommand(merged, {a, b}));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    CHECK(StartsWith(run.mStdout, "merged 2 runs of pt: 5 iterations, mean "));
+    REQUIRE(RunProgram(MergeCommand(mergedPfm, {pa, pb})).mExitCode == 0);
+    const smallvcm::Image fromExr = smallvcm::ReadExr(merged), fromPfm = smallvcm::ReadPfm(mergedPfm);
+    REQUIRE(fromExr.mPixels.size() == fromPfm.mPixels.size());
+    CHECK(std::memcmp(fromExr.mPixels.data(), fromPfm.mPixels.data(), fromExr.mPixels.size() * sizeof(smallvcm::Vec3)) == 0);
+    const Json s = ReadJson(merged + ".json");
+    CHECK(s["iterations"] == 5);
+    CHECK(s["image"] == "merged.exr");
+    CHECK(s["image_fnv1a64"] == Fnv1a64(ReadFileBytes(merged)));
+    CHECK(s["mean"] == ReadJson(mergedPfm + ".json")["mean"]);
+    // Formats mix: an .exr and a .pfm run merge too.
+    const std::string mixed = folder / "mixed.exr";
+    REQUIRE(RunProgram(MergeCommand(mixed, {a, pb})).mExitCode == 0);
+    // A truncated .exr, with a sidecar that fingerprints the truncated bytes (so the image
+    // itself is what is refused), and a file that is not an OpenEXR file at all.
+    std::vector<unsigned char> bytes = ReadFileBytes(b);
+    bytes.resize(bytes.size() / 2);
+    const std::string cut = folder / "cut.exr";
+    std::ofstream(cut, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), long(bytes.size()));
+    Json sidecar = ReadJson(b + ".json");
+    sidecar["image_fnv1a64"] = Fnv1a64(bytes);
+    std::ofstream(cut + ".json") << sidecar.dump(2);
+    const std::string output = folder / "out.exr";
+    CheckMergeFailure(RunProgram(MergeCommand(output, {a, cut})), 1, cut, output, "its OpenEXR pixel data is truncated or corrupt");
+    const std::string foreign = folder / "foreign.exr";
+    fs::copy_file(pa, foreign);
+    fs::copy_file(pa + ".json", foreign + ".json");
+    CheckMergeFailure(RunProgram(MergeCommand(output, {a, foreign})), 1, foreign, output, "not an OpenEXR file");
+}
+
 TEST_CASE("A merge of runs of 4, 12, 24 and 88 iterations agrees with one run of 128 within the per-pixel noise; "
           "an unweighted average does not", "[cli][merge]") {
     // Path tracing of the diffuse box (diffuse walls, an area light: light-tailed noise, so
@@ -936,6 +977,39 @@ TEST_CASE("--layers writes only layers that received a contribution, each with a
     CHECK(index["layers_without_contribution"] == Json::array({"emitted", "direct_specular", "indirect_specular"}));
     std::sort(expected.begin(), expected.end());
     CHECK(FolderEntries(folder) == expected);
+}
+
+TEST_CASE("--layers with an .exr writes one multi-layer file, channels LAYER.R, LAYER.G, LAYER.B, and an index naming them",
+          "[cli][sidecar]") {
+    TemporaryFolder folder;
+    // The same render as separate .pfm files first, to compare with; the .exr run's index
+    // then replaces theirs (both are pt.layers.json).
+    const std::string pfm = folder / "pt.pfm";
+    REQUIRE(RunProgram("-s 2 -a pt -i 2 -r 16x12 -j 1 -q --layers -o " + Quote(pfm)).mExitCode == 0);
+    const std::string output = folder / "pt.exr";
+    const Run run = RunProgram("-s 2 -a pt -i 2 -r 16x12 -j 1 --layers -o " + Quote(output));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    CHECK(run.mStdout.find("-> " + output + " (+ 2 layers, listed in " + folder / "pt.layers.json" + ")") != std::string::npos);
+    const Json exrIndex = ReadJson(folder / "pt.layers.json");
+    INFO(exrIndex.dump(2));
+    CHECK(exrIndex["image"] == "pt.exr");
+    REQUIRE(exrIndex["layers"].size() == 2);
+    CHECK(exrIndex["layers_without_contribution"] == Json::array({"emitted", "direct_specular", "indirect_specular"}));
+    CHECK(smallvcm::ReadExr(output).mPixels == smallvcm::ReadPfm(pfm).mPixels);
+    for (const Json& layer : exrIndex["layers"]) {
+        const std::string name = layer["layer"];
+        CHECK(layer["file"] == "pt.exr");
+        CHECK(layer["channels"] == Json::array({name + ".R", name + ".G", name + ".B"}));
+        const smallvcm::Image image = smallvcm::ReadExr(output, name);
+        CHECK(image.mPixels == smallvcm::ReadPfm(folder / ("pt." + name + ".pfm")).mPixels);
+        CHECK(layer["mean"].get<double>() == Approx(smallvcm::MeanValue(image)).epsilon(1e-12));
+    }
+    // The one sidecar describes the image (R, G, B); no file per layer was written.
+    const Json sidecar = ReadJson(output + ".json");
+    CHECK(sidecar["estimator"]["layer"] == nullptr);
+    CHECK(sidecar["image_fnv1a64"] == Fnv1a64(ReadFileBytes(output)));
+    for (const std::string& entry : FolderEntries(folder)) CHECK(entry.find("pt.direct_nonspecular.exr") == std::string::npos);
 }
 
 TEST_CASE("The sidecar of a linked-in integrator names it and records every setting it might read", "[cli][sidecar]") {

@@ -77,7 +77,7 @@ mkdir -p "$OUT" "$CORPUS" "$ARTIFACTS"
 if [ ! -x "$BIN" ] || [ tests/fuzz/fuzz_gltf.cpp -nt "$BIN" ] || [ smallvcm.hpp -nt "$BIN" ] || [ "$0" -nt "$BIN" ]; then
     echo "run_fuzzer.sh: building $BIN with $CLANGXX (about a minute)"
     "$CLANGXX" -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
-        -I. tests/fuzz/fuzz_gltf.cpp -o "$BIN" -pthread
+        -I. tests/fuzz/fuzz_gltf.cpp -o "$BIN" -pthread -ltinyexr
 fi
 
 # --- 3. seeds ----------------------------------------------------------------------
