@@ -296,6 +296,19 @@ MUTANTS = [
     dict(id="M86", cls="lights", what="sky light sub-paths forget the pdf of their direction",
          find="emission.mEmissionPdfW = directionPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;",
          replace="emission.mEmissionPdfW = ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;"),
+    # --- textures and normal maps ----------------------------------------------------------
+    dict(id="M87", cls="textures", what="KHR_texture_transform rotation turning the other way",
+         find="t.mU = aScale.x * Vec2(c, -s);\n        t.mV = aScale.y * Vec2(s, c);",
+         replace="t.mU = aScale.x * Vec2(c, s);\n        t.mV = aScale.y * Vec2(-s, c);"),
+    dict(id="M88", cls="textures", what="normal map bitangent without the tangent's handedness",
+         find="const Vec3 b = (tangent.w < 0.f ? -1.f : 1.f) * glm::cross(aNormal, t);",
+         replace="const Vec3 b = glm::cross(aNormal, t);"),
+    dict(id="M89", cls="textures", what="generated tangents with the image's up along +v (a frame flipped in v)",
+         find="const glm::dvec3 tangent = dPdu / tLength, up = -dPdv / vLength;",
+         replace="const glm::dvec3 tangent = dPdu / tLength, up = dPdv / vLength;"),
+    dict(id="M90", cls="textures", what="normal map decoded as sRGB colour",
+         find="source.normalTexture.extensions, false, \"normalTexture\", what);",
+         replace="source.normalTexture.extensions, true, \"normalTexture\", what);"),
 ]
 for _m in MUTANTS:
     _m["class"] = _m.pop("cls")
