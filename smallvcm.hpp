@@ -389,6 +389,82 @@ inline Vec2 SampleConcentricDisc(const Vec2& aSamples) {
 }
 inline float ConcentricDiscPdfA() { return kInvPi; }
 
+// --- Piecewise-constant density on the unit square (pbrt, "Piecewise-Constant 2D
+// Distributions"): a grid of W x H cells with non-negative values f. A sample picks a row
+// by the marginal density (each row's sum) and then a cell of that row by its conditional
+// density, each by inverting a cumulative sum with a binary search, so sampling costs
+// O(log W + log H). Inside the cell the point is uniform; the pdf on the unit square is
+//     p(u, v) = f(cell) / mean(f).
+class PiecewiseConstant2D {
+public:
+    PiecewiseConstant2D() = default;
+    // aValues holds the rows one after another, aWidth values each; every value must be
+    // finite and non-negative and their sum positive (the caller checks and says why).
+    PiecewiseConstant2D(int aWidth, int aHeight, std::vector<float> aValues)
+        : mWidth(aWidth), mHeight(aHeight), mValues(std::move(aValues)) {
+        mConditionalCdf.resize(mValues.size());
+        mMarginalCdf.resize(size_t(mHeight));
+        double total = 0.0;
+        for (int row = 0; row < mHeight; row++) {
+            const float* values = &mValues[size_t(row) * size_t(mWidth)];
+            float* cdf = &mConditionalCdf[size_t(row) * size_t(mWidth)];
+            double rowSum = 0.0;
+            for (int column = 0; column < mWidth; column++) rowSum += double(values[column]);
+            // A row of zeros is never picked; its cdf is uniform so that it is still valid.
+            double running = 0.0;
+            for (int column = 0; column < mWidth; column++) {
+                running += rowSum > 0.0 ? double(values[column]) : 1.0;
+                cdf[column] = float(running / (rowSum > 0.0 ? rowSum : double(mWidth)));
+            }
+            cdf[mWidth - 1] = 1.f;
+            total += rowSum;
+            mMarginalCdf[size_t(row)] = float(total);
+        }
+        for (float& value : mMarginalCdf) value = float(double(value) / total);
+        mMarginalCdf.back() = 1.f;
+        mInvMean = float(double(mWidth) * double(mHeight) / total);
+    }
+
+    struct Sample {
+        Vec2 mPoint{0.f};   // in [0, 1)^2: u along a row, v across the rows
+        float mPdf = 0.f;   // p(u, v) on the unit square
+    };
+    Sample SampleContinuous(const Vec2& aRnd) const {
+        const CdfCell row = InvertCdf(mMarginalCdf.data(), mHeight, aRnd.y);
+        const CdfCell column = InvertCdf(&mConditionalCdf[size_t(row.mIndex) * size_t(mWidth)], mWidth, aRnd.x);
+        Sample sample;
+        sample.mPoint = Vec2((float(column.mIndex) + column.mOffset) / float(mWidth), (float(row.mIndex) + row.mOffset) / float(mHeight));
+        sample.mPdf = CellPdf(column.mIndex, row.mIndex);
+        return sample;
+    }
+    float Pdf(const Vec2& aPoint) const {
+        return CellPdf(std::min(int(aPoint.x * float(mWidth)), mWidth - 1), std::min(int(aPoint.y * float(mHeight)), mHeight - 1));
+    }
+    float CellPdf(int aColumn, int aRow) const { return mValues[size_t(aRow) * size_t(mWidth) + size_t(aColumn)] * mInvMean; }
+
+private:
+    // The first of aCount entries whose cumulative value exceeds aRnd (so a cell of zero
+    // width is never picked), and where aRnd lies inside it, rescaled to [0, 1).
+    struct CdfCell {
+        int mIndex = 0;
+        float mOffset = 0.f;
+    };
+    static CdfCell InvertCdf(const float* aCdf, int aCount, float aRnd) {
+        CdfCell cell;
+        cell.mIndex = int(std::upper_bound(aCdf, aCdf + aCount - 1, aRnd) - aCdf);
+        const float lower = cell.mIndex > 0 ? aCdf[cell.mIndex - 1] : 0.f;
+        const float width = aCdf[cell.mIndex] - lower;
+        cell.mOffset = width > 0.f ? std::min(std::max((aRnd - lower) / width, 0.f), 0.99999994f) : 0.f;
+        return cell;
+    }
+
+    int mWidth = 0, mHeight = 0;
+    std::vector<float> mValues;          // f, row by row
+    std::vector<float> mConditionalCdf;  // each row's cumulative sum, normalised to 1
+    std::vector<float> mMarginalCdf;     // the rows' cumulative sums, normalised to 1
+    float mInvMean = 0.f;
+};
+
 // --- Measure conversions: p_A = p_W |cos| / d^2 ---------------------------------------
 inline float PdfWtoA(float aPdfW, float aDist, float aCosThere) {
     return aPdfW * std::abs(aCosThere) / Sqr(aDist);
@@ -802,6 +878,110 @@ struct SceneSphere {
     float mInvRadiusSqr = 1.f;
 };
 
+// Image-based light at infinity: an equirectangular (latitude-longitude) image of the
+// radiance arriving from every direction. Mapping, in glTF's frame (+Y up), as Blender's
+// world and the glTF viewers map such an image: the image's centre faces +X, u grows
+// towards +Z, the top row is the zenith (+Y) and the bottom row the nadir (-Y):
+//     phi = atan2(z, x),  u = 1/2 + phi / (2 pi),   theta = acos(y),  v = theta / pi.
+// A rotation a turns the environment about +Y, counter-clockwise seen from above (the
+// right-hand rule): what faced +X then faces (cos a, 0, -sin a).
+//
+// The radiance from a direction is its texel's (nearest, not filtered), so the radiance
+// is constant on each texel's patch of the sphere; directions are sampled in proportion
+// to luminance x sin(theta) of the texel (PiecewiseConstant2D), which makes the pdf in
+// solid angle exactly (dOmega = 2 pi^2 sin(theta) du dv)
+//     p(omega) = p(u, v) / (2 pi^2 sin(theta)),
+// positive wherever the radiance is (luminance > 0 when any channel is > 0), so every
+// estimator that samples it stays unbiased and its MIS weights see the true pdf.
+class EnvironmentMap {
+public:
+    EnvironmentMap() = default;
+    // aTexels: aWidth x aHeight linear RGB radiance, top row first. Throws Error (starting
+    // with aWhere) for a size that is not 2:1, a negative or non-finite texel, or a black
+    // image.
+    EnvironmentMap(const std::string& aWhere, int aWidth, int aHeight, std::vector<Vec3> aTexels, float aRotationDegrees)
+        : mWidth(aWidth), mHeight(aHeight), mTexels(std::move(aTexels)) {
+        if (aWidth < 2 || aHeight < 1 || aWidth != 2 * aHeight || mTexels.size() != size_t(aWidth) * size_t(aHeight))
+            throw Error(aWhere + ": an equirectangular map is twice as wide as high; this one is " + std::to_string(aWidth) +
+                        "x" + std::to_string(aHeight));
+        if (!std::isfinite(aRotationDegrees)) throw Error(aWhere + ": the rotation is not finite");
+        const double radians = double(aRotationDegrees) * 3.14159265358979323846 / 180.0;
+        mCosRotation = float(std::cos(radians));
+        mSinRotation = float(std::sin(radians));
+        std::vector<float> importance(mTexels.size());
+        for (int row = 0; row < mHeight; row++) {
+            const float sinTheta = std::sin(kPi * (float(row) + 0.5f) / float(mHeight));
+            for (int column = 0; column < mWidth; column++) {
+                const size_t index = size_t(row) * size_t(mWidth) + size_t(column);
+                const Vec3& texel = mTexels[index];
+                if (!IsFinite(texel) || texel.x < 0.f || texel.y < 0.f || texel.z < 0.f)
+                    throw Error(aWhere + ": texel (" + std::to_string(column) + ", " + std::to_string(row) +
+                                ") is negative or not finite");
+                mBrightestTexel = glm::max(mBrightestTexel, texel);
+                importance[index] = Luminance(texel) * sinTheta;
+            }
+        }
+        if (IsBlack(mBrightestTexel)) throw Error(aWhere + ": the environment map is black (it emits nothing)");
+        mDistribution = PiecewiseConstant2D(mWidth, mHeight, std::move(importance));
+    }
+
+    // The radiance arriving from direction aDirection (unit length, pointing away from the scene).
+    Vec3 Radiance(const Vec3& aDirection) const {
+        const Vec2 uv = ToUv(ToMap(aDirection));
+        return mTexels[size_t(Row(uv.y)) * size_t(mWidth) + size_t(Column(uv.x))];
+    }
+    // The pdf, in solid angle, with which Sample returns aDirection.
+    float PdfW(const Vec3& aDirection) const {
+        const Vec3 local = ToMap(aDirection);
+        const float sinTheta = std::sqrt(local.x * local.x + local.z * local.z);
+        if (!(sinTheta > 0.f)) return 0.f;
+        return mDistribution.Pdf(ToUv(local)) / (2.f * kPi * kPi * sinTheta);
+    }
+    struct DirectionSample {
+        Vec3 mDirection{0.f};  // towards the environment
+        Vec3 mRadiance{0.f};   // arriving from it
+        float mPdfW = 0.f;
+    };
+    // A direction in proportion to luminance x sin(theta); nothing at the poles (sin = 0).
+    std::optional<DirectionSample> Sample(const Vec2& aRnd) const {
+        const PiecewiseConstant2D::Sample uv = mDistribution.SampleContinuous(aRnd);
+        const float phi = 2.f * kPi * (uv.mPoint.x - 0.5f), theta = kPi * uv.mPoint.y;
+        const float sinTheta = std::sin(theta);
+        if (!(sinTheta > 0.f) || !(uv.mPdf > 0.f)) return std::nullopt;
+        const Vec3 local(sinTheta * std::cos(phi), std::cos(theta), sinTheta * std::sin(phi));
+        DirectionSample sample;
+        sample.mDirection = Vec3(mCosRotation * local.x + mSinRotation * local.z, local.y,
+                                 -mSinRotation * local.x + mCosRotation * local.z);
+        sample.mRadiance = mTexels[size_t(Row(uv.mPoint.y)) * size_t(mWidth) + size_t(Column(uv.mPoint.x))];
+        sample.mPdfW = uv.mPdf / (2.f * kPi * kPi * sinTheta);
+        return sample;
+    }
+
+    int Width() const { return mWidth; }
+    int Height() const { return mHeight; }
+    const Vec3& BrightestTexel() const { return mBrightestTexel; }
+
+private:
+    // World direction to the map's frame: the rotation undone.
+    Vec3 ToMap(const Vec3& aDirection) const {
+        return Vec3(mCosRotation * aDirection.x - mSinRotation * aDirection.z, aDirection.y,
+                    mSinRotation * aDirection.x + mCosRotation * aDirection.z);
+    }
+    static Vec2 ToUv(const Vec3& aLocal) {
+        const float u = 0.5f + std::atan2(aLocal.z, aLocal.x) * (0.5f * kInvPi);
+        const float v = std::acos(std::min(std::max(aLocal.y, -1.f), 1.f)) * kInvPi;
+        return Vec2(u, v);
+    }
+    int Column(float aU) const { return std::min(std::max(int(aU * float(mWidth)), 0), mWidth - 1); }
+    int Row(float aV) const { return std::min(std::max(int(aV * float(mHeight)), 0), mHeight - 1); }
+
+    int mWidth = 0, mHeight = 0;
+    std::vector<Vec3> mTexels;
+    float mCosRotation = 1.f, mSinRotation = 0.f;
+    Vec3 mBrightestTexel{0.f};
+    PiecewiseConstant2D mDistribution;
+};
+
 enum class LightType { kArea, kSphere, kPoint, kSpot, kDirectional, kBackground };
 inline const char* LightTypeName(LightType aType) {
     switch (aType) {
@@ -909,6 +1089,9 @@ struct Light {
     // Sphere light.
     Vec3 mSphereCenter{0.f};
     float mSphereRadius = 0.f;
+    // Background light: its radiance from each direction is mEmission times this map's
+    // (shared: copies of a scene share one map); none, and it is mEmission everywhere.
+    std::shared_ptr<const EnvironmentMap> mEnvironment;
 
     bool IsDelta() const { return mType == LightType::kPoint || mType == LightType::kSpot || mType == LightType::kDirectional; }
 
@@ -995,10 +1178,10 @@ struct Light {
             return result;
         }
         case LightType::kBackground: {
-            const float directPdf = UniformSpherePdfW();
+            const float directPdf = mEnvironment ? mEnvironment->PdfW(aRayDirection) : UniformSpherePdfW();
             result.mDirectPdfA = directPdf;
             result.mEmissionPdfW = directPdf * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
-            result.mRadiance = mEmission;
+            result.mRadiance = mEnvironment ? mEmission * mEnvironment->Radiance(aRayDirection) : mEmission;
             return result;
         }
         default:  // delta lights cannot be hit
@@ -1053,14 +1236,22 @@ private:
     }
 
     // Directional and background lights: a direction (the background's uniform over the
-    // sphere, as SmallVCM does); emission would have started the ray on the disc of the
-    // scene's radius (pdf 1 / (pi R^2)) across it.
+    // sphere, as SmallVCM does, or by its environment map's density); emission would have
+    // started the ray on the disc of the scene's radius (pdf 1 / (pi R^2)) across it.
     std::optional<LightSample> IlluminateFromInfinity(const SceneSphere& aSceneSphere, const Vec2& aRnd) const {
         LightSample sample;
+        sample.mRadiance = mEmission;
         if (mType == LightType::kDirectional) {
             sample.mDirToLight = -mDirection;
             sample.mDirectPdfW = 1.f;
             sample.mEmissionPdfW = ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+        } else if (mEnvironment) {
+            const std::optional<EnvironmentMap::DirectionSample> direction = mEnvironment->Sample(aRnd);
+            if (!direction) return std::nullopt;
+            sample.mDirToLight = direction->mDirection;
+            sample.mDirectPdfW = direction->mPdfW;
+            sample.mEmissionPdfW = sample.mDirectPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
+            sample.mRadiance = mEmission * direction->mRadiance;
         } else {
             sample.mDirToLight = SampleUniformSphereW(aRnd);
             sample.mDirectPdfW = UniformSpherePdfW();
@@ -1068,7 +1259,6 @@ private:
         }
         sample.mDistance = std::numeric_limits<float>::infinity();
         sample.mCosAtLight = 1.f;
-        sample.mRadiance = mEmission;
         return sample;
     }
 
@@ -1132,7 +1322,15 @@ private:
                                                   const Vec2& aRndPosition) const {
         float directionPdfW = 1.f;
         Vec3 direction = mDirection;
-        if (mType == LightType::kBackground) {
+        Vec3 energy = mEmission;
+        if (mType == LightType::kBackground && mEnvironment) {
+            // Light travels opposite to the direction it arrives from.
+            const std::optional<EnvironmentMap::DirectionSample> arriving = mEnvironment->Sample(aRndDirection);
+            if (!arriving) return std::nullopt;
+            direction = -arriving->mDirection;
+            directionPdfW = arriving->mPdfW;
+            energy = mEmission * arriving->mRadiance;
+        } else if (mType == LightType::kBackground) {
             direction = -SampleUniformSphereW(aRndDirection);
             directionPdfW = UniformSpherePdfW();
         }
@@ -1144,7 +1342,7 @@ private:
         emission.mEmissionPdfW = directionPdfW * ConcentricDiscPdfA() * aSceneSphere.mInvRadiusSqr;
         emission.mDirectPdfA = directionPdfW;  // NEE picks the direction with this pdf
         emission.mCosAtLight = 1.f;
-        emission.mEnergy = mEmission;
+        emission.mEnergy = energy;
         return emission;
     }
 
@@ -1355,6 +1553,12 @@ public:
         light.mEmission = aRadiance;
         mLights.push_back(light);
         return int(mLights.size()) - 1;
+    }
+    // A background whose radiance from each direction is aScale times aMap's.
+    int AddEnvironmentLight(std::shared_ptr<const EnvironmentMap> aMap, float aScale = 1.f) {
+        const int id = AddBackgroundLight(Vec3(aScale));
+        mLights.back().mEnvironment = std::move(aMap);
+        return id;
     }
 
     // Validates the scene and builds everything derived from it: triangle normals, the
@@ -1754,7 +1958,7 @@ private:
     void CheckLightRange(const std::string& aWhere, size_t aId) const {
         const Light& light = mLights[aId];
         // A textured light's radiance is at most its emission times the brightest texel.
-        const Vec3 peak = light.mEmission * light.mBrightestEmissionTexel;
+        const Vec3 peak = light.mEmission * (light.mEnvironment ? light.mEnvironment->BrightestTexel() : light.mBrightestEmissionTexel);
         const double brightest = std::max({double(peak.x), double(peak.y), double(peak.z)});
         const double discArea = double(kPi) * Sqr(double(mSceneSphere.mRadius));
         double power = 0.0;
@@ -5996,11 +6200,14 @@ void WriteImage(const std::string& aPath, const Image& aImage, const ImageWriteO
 // existing folder in which files can be created, and no directory of that name. Call it
 // before a long render; it leaves nothing behind.
 void CheckOutputPath(const std::string& aPath);
+// The readers below take aMaxPixels, a bound on width x height checked from the header,
+// before the pixels are allocated or decoded (by default the largest image they read).
+inline constexpr uint64_t kMaxReadPixels = uint64_t(65536) * 65536;
 // Reads a PFM written by WriteImage (or any 3-channel PFM). Throws Error on failure.
-Image ReadPfm(const std::string& aPath);
+Image ReadPfm(const std::string& aPath, uint64_t aMaxPixels = kMaxReadPixels);
 // Reads a Radiance .hdr in RGBE (flat or run-length encoded scanlines, -Y H +X W), as
 // WriteImage writes it: each value to within 1/256 of itself. Throws Error on failure.
-Image ReadHdr(const std::string& aPath);
+Image ReadHdr(const std::string& aPath, uint64_t aMaxPixels = kMaxReadPixels);
 // Reads the channels R, G, B of an OpenEXR file (aLayer empty), or those of the layer
 // aLayer, NAME.R, NAME.G, NAME.B; half floats are converted to float exactly, any other
 // channel (A, other layers) is ignored. Only single-part scanline files whose data window
@@ -6008,10 +6215,16 @@ Image ReadHdr(const std::string& aPath);
 // channels take at most 4 GiB once decoded (tinyexr decodes every channel of the file at
 // once: a few bytes of header must not make it allocate more); a luminance-only (Y)
 // image is refused, not converted. Throws Error naming aPath and the problem.
-Image ReadExr(const std::string& aPath, const std::string& aLayer = "");
+Image ReadExr(const std::string& aPath, const std::string& aLayer = "", uint64_t aMaxPixels = kMaxReadPixels);
 // Reads linear radiance from a .pfm, .hdr or .exr (its R, G, B), by the extension in any
 // case; a .png is refused (its values are exposed, tone-mapped and 8-bit: not radiance).
-Image ReadImage(const std::string& aPath);
+Image ReadImage(const std::string& aPath, uint64_t aMaxPixels = kMaxReadPixels);
+// An environment map from an equirectangular .hdr, .exr or .pfm (read as ReadImage reads
+// it) of at most kMaxEnvironmentMapWidth x kMaxEnvironmentMapWidth / 2 texels, checked
+// before the pixels are decoded, turned by aRotationDegrees about +Y (EnvironmentMap states
+// the mapping). Throws Error naming aPath and the problem.
+inline constexpr int kMaxEnvironmentMapWidth = 8192;
+std::shared_ptr<const EnvironmentMap> LoadEnvironmentMap(const std::string& aPath, float aRotationDegrees = 0.f);
 
 // =====================================================================================
 // [SECTION] Scene loading (glTF)
@@ -6027,7 +6240,7 @@ struct GltfLoadReport {
     int mSkippedDegenerateTriangles = 0;  // zero-area triangles, dropped
     std::string mCamera;                  // which camera: "camera 0 'Name'", or "a default camera ..."
     bool mDefaultCamera = false;          // the file has no camera: one frames the scene
-    bool mDefaultBackground = false;      // the file has no emitter: a white background was added
+    bool mDefaultBackground = false;      // the file has no emitter: the default sky and sun were added
     std::vector<std::string> mNotes;      // what was approximated, ignored or looks wrong, one line each
     // Where the loading time went (wall clock): reading (the file, its JSON, buffers and
     // images, the triangles, lights and camera) and Scene::Finalize (validation, light
@@ -6049,12 +6262,27 @@ struct GltfLoadOptions {
     int mCamera = -1;
     float mDefaultCameraAspect = 1.f;
     // The background light: the file's (kFromFile: and, when the file has no emitter at
-    // all, a uniform white one, so a model without lights still renders), none, or
-    // mBackgroundRadiance replacing the file's.
+    // all, the default sky and sun, AddDefaultSkyAndSun, so a model without lights still
+    // renders and shows its shape), none, or mBackgroundRadiance replacing the file's.
     enum class Background { kFromFile, kNone, kRadiance };
     Background mBackground = Background::kFromFile;
     Vec3 mBackgroundRadiance{1.f};
+    // An environment map (LoadEnvironmentMap: an equirectangular .hdr, .exr or .pfm) that
+    // replaces the file's background and the default sky and sun; its radiance is scaled
+    // by mEnvironmentScale. It goes with mBackground = kFromFile only.
+    std::string mEnvironmentMap;
+    float mEnvironmentRotationDegrees = 0.f;
+    float mEnvironmentScale = 1.f;
 };
+
+// The light a file without one gets (GltfLoadOptions::Background::kFromFile): a neutral
+// sky, brighter at the horizon than at the zenith, over a darker ground (an environment
+// map, so the sky seen behind the model is not white and a white model stands out from
+// it), and a sun, a directional light from 50 degrees above the horizon and 40 degrees
+// to the left of straight behind aCamera, so that the faces a camera sees differ in
+// brightness and cast shadows it can see. Sky radiance 0.2-0.6, sun irradiance 3: the
+// sunlit side of a white surface is about twice as bright as its shaded side.
+void AddDefaultSkyAndSun(Scene& aScene, const Camera& aCamera);
 
 Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr, const GltfLoadOptions& aOptions = {});
 
@@ -6233,6 +6461,13 @@ inline std::string ExrTypeAttribute(const std::vector<unsigned char>& aBytes) {
     return type;
 }
 
+// Refuses an image of more than aMaxPixels pixels, before its pixels are read.
+inline void CheckPixelCount(const std::string& aPath, int64_t aWidth, int64_t aHeight, uint64_t aMaxPixels) {
+    if (uint64_t(aWidth) * uint64_t(aHeight) > aMaxPixels)
+        throw Error(aPath + ": " + std::to_string(aWidth) + "x" + std::to_string(aHeight) + " pixels, more than the " +
+                    std::to_string(aMaxPixels) + " read here");
+}
+
 // The bytes of the regular file aPath; one larger than aMaxBytes is refused with
 // aTooLarge before a byte is read.
 inline std::vector<unsigned char> ReadImageFile(const std::string& aPath, uint64_t aMaxBytes, const std::string& aTooLarge) {
@@ -6391,7 +6626,7 @@ void WriteImage(const std::string& aPath, const Image& aImage, const ImageWriteO
     WriteFilesTogether({{aPath, EncodeImage(aPath, aImage, aOptions)}});
 }
 
-Image ReadPfm(const std::string& aPath) {
+Image ReadPfm(const std::string& aPath, uint64_t aMaxPixels) {
     std::ifstream file(aPath, std::ios::binary);
     if (!file) throw Error(aPath + ": cannot open");
     std::string magic;
@@ -6400,6 +6635,7 @@ Image ReadPfm(const std::string& aPath) {
     file >> magic >> width >> height >> scale;
     if (magic != "PF" || width <= 0 || height <= 0 || scale >= 0.0 || width > 65536 || height > 65536)
         throw Error(aPath + ": not a little-endian 3-channel PFM file");
+    detail::CheckPixelCount(aPath, width, height, aMaxPixels);
     file.get();  // the single whitespace after the header
     // Before allocating: a few bytes must not claim gigabytes of pixels.
     const std::streampos pixelsStart = file.tellg();
@@ -6417,7 +6653,7 @@ Image ReadPfm(const std::string& aPath) {
     return image;
 }
 
-Image ReadHdr(const std::string& aPath) {
+Image ReadHdr(const std::string& aPath, uint64_t aMaxPixels) {
     const std::vector<unsigned char> bytes =
         detail::ReadImageFile(aPath, uint64_t(1) << 34, "larger than any .hdr of at most 65536x65536 pixels");
     const Error notRgbe(aPath + ": not a Radiance RGBE .hdr file");
@@ -6447,6 +6683,7 @@ Image ReadHdr(const std::string& aPath) {
     resolution >> yAxis >> height >> xAxis >> width;
     if (!resolution || yAxis != "-Y" || xAxis != "+X" || (resolution >> rest) || width < 1 || height < 1 || width > 65536 || height > 65536)
         throw Error(aPath + ": only the resolution line '-Y H +X W' with sizes in [1, 65536] is supported");
+    detail::CheckPixelCount(aPath, width, height, aMaxPixels);
     // Before allocating: a scanline takes at least 4 bytes plus 2 per 127 pixels per channel.
     if (uint64_t(bytes.size() - position) < uint64_t(height) * (4 + 8 * (uint64_t(width) / 127))) throw Error(aPath + ": the file is truncated");
     const Error corrupt(aPath + ": the pixel data is truncated or corrupt");
@@ -6485,7 +6722,7 @@ Image ReadHdr(const std::string& aPath) {
     return image;
 }
 
-Image ReadExr(const std::string& aPath, const std::string& aLayer) {
+Image ReadExr(const std::string& aPath, const std::string& aLayer, uint64_t aMaxPixels) {
     // The file is read whole, so its size is bounded first, as the .hdr reader bounds it.
     const std::vector<unsigned char> bytes = detail::ReadImageFile(aPath, uint64_t(1) << 34, "larger than 16 GiB: not read as an OpenEXR file");
     auto fail = [&](const std::string& aProblem) { return Error(aPath + ": " + aProblem); };
@@ -6526,6 +6763,7 @@ Image ReadExr(const std::string& aPath, const std::string& aLayer) {
     if (width < 1 || height < 1 || width > 65536 || height > 65536)
         throw fail("the OpenEXR header claims " + std::to_string(width) + "x" + std::to_string(height) +
                    " pixels: only sizes in [1, 65536] are read");
+    detail::CheckPixelCount(aPath, width, height, aMaxPixels);
     if (data.min_x != display.min_x || data.min_y != display.min_y || data.max_x != display.max_x || data.max_y != display.max_y)
         throw fail("its data window differs from its display window: only whole images are read");
     // tinyexr flips the rows of a file stored bottom block first; every common writer
@@ -6594,11 +6832,47 @@ Image ReadExr(const std::string& aPath, const std::string& aLayer) {
     return image;
 }
 
-Image ReadImage(const std::string& aPath) {
+std::shared_ptr<const EnvironmentMap> LoadEnvironmentMap(const std::string& aPath, float aRotationDegrees) {
+    const uint64_t most = uint64_t(kMaxEnvironmentMapWidth) * uint64_t(kMaxEnvironmentMapWidth / 2);
+    Image image;
+    try {
+        image = ReadImage(aPath, most);
+    } catch (const Error& error) {
+        throw Error(std::string("environment map ") + error.what());
+    }
+    return std::make_shared<const EnvironmentMap>("environment map " + aPath, image.mWidth, image.mHeight, std::move(image.mPixels),
+                                                  aRotationDegrees);
+}
+
+void AddDefaultSkyAndSun(Scene& aScene, const Camera& aCamera) {
+    // The sky by elevation y = cos(theta): from the horizon's colour to the zenith's as
+    // sqrt(y), to the ground's below the horizon within a few degrees, so no edge shows.
+    const Vec3 zenith(0.22f, 0.3f, 0.45f), horizon(0.55f, 0.58f, 0.62f), ground(0.2f, 0.19f, 0.18f);
+    const int width = 512, height = 256;
+    std::vector<Vec3> texels(size_t(width) * size_t(height));
+    for (int row = 0; row < height; row++) {
+        const float y = std::cos(kPi * (float(row) + 0.5f) / float(height));
+        const Vec3 color = y >= 0.f ? horizon + (zenith - horizon) * std::sqrt(y)
+                                    : horizon + (ground - horizon) * std::min(1.f, -y * 10.f);
+        std::fill(texels.begin() + long(row) * width, texels.begin() + long(row + 1) * width, color);
+    }
+    aScene.AddEnvironmentLight(std::make_shared<const EnvironmentMap>("the default sky", width, height, std::move(texels), 0.f));
+    // The sun: from behind the camera, turned 40 degrees to its left, 50 degrees up. A
+    // camera that looks straight up or down has no "behind": the sun then comes from +Z.
+    Vec3 back(-aCamera.Forward().x, 0.f, -aCamera.Forward().z), left(-aCamera.Right().x, 0.f, -aCamera.Right().z);
+    if (!(glm::length(back) > 1e-3f) || !(glm::length(left) > 1e-3f)) { back = Vec3(0.f, 0.f, 1.f); left = Vec3(-1.f, 0.f, 0.f); }
+    back = glm::normalize(back);
+    left = glm::normalize(left - back * glm::dot(left, back));
+    const float azimuth = 40.f * kPi / 180.f, elevation = 50.f * kPi / 180.f;
+    const Vec3 toSun = std::cos(elevation) * (std::cos(azimuth) * back + std::sin(azimuth) * left) + Vec3(0.f, std::sin(elevation), 0.f);
+    aScene.AddDirectionalLight(-toSun, Vec3(3.f, 2.9f, 2.7f));
+}
+
+Image ReadImage(const std::string& aPath, uint64_t aMaxPixels) {
     switch (ImageFormatOf(aPath)) {
-    case ImageFormat::kPfm: return ReadPfm(aPath);
-    case ImageFormat::kHdr: return ReadHdr(aPath);
-    case ImageFormat::kExr: return ReadExr(aPath);
+    case ImageFormat::kPfm: return ReadPfm(aPath, aMaxPixels);
+    case ImageFormat::kHdr: return ReadHdr(aPath, aMaxPixels);
+    case ImageFormat::kExr: return ReadExr(aPath, "", aMaxPixels);
     case ImageFormat::kPng: throw Error(aPath + ": a PNG holds exposed, tone-mapped 8-bit values, not radiance (use the .pfm, .hdr or .exr)");
     default: throw Error(aPath + ": unknown image format (use .pfm, .hdr or .exr)");
     }
@@ -6713,11 +6987,11 @@ public:
         if (mModel.scenes.empty()) Fail("the file has no scene");
         if (sceneIndex >= int(mModel.scenes.size())) Fail("the default scene " + std::to_string(sceneIndex) + " does not exist");
         for (int root : mModel.scenes[size_t(sceneIndex)].nodes) VisitNode(root, Mat4(1.0), 0);
-        ChooseBackground();
         if (mOptions.mCamera >= 0 && !mHasCamera)
             Fail("camera " + std::to_string(mOptions.mCamera) + " was asked for, but the scene has " + std::to_string(mCameraNodes) +
                  " camera node(s)" + (mCameraNodes > 0 ? " (0.." + std::to_string(mCameraNodes - 1) + ")" : std::string()));
         if (!mHasCamera) AddDefaultCamera();
+        ChooseBackground();  // the default sun is placed from the camera
         CheckSomethingEmits();
         mScene.mName = mPath;
         const auto finalizeStart = std::chrono::steady_clock::now();
@@ -8014,10 +8288,19 @@ private:
         mScene.AddBackgroundLight(radiance);
     }
 
-    // The background by GltfLoadOptions::mBackground, after every node's lights are in.
-    // A black one emits nothing: it is no light, the same as none.
+    // The background by GltfLoadOptions::mBackground, after every node's lights and the
+    // camera are in. A black one emits nothing: it is no light, the same as none.
     void ChooseBackground() {
         using Background = GltfLoadOptions::Background;
+        if (!mOptions.mEnvironmentMap.empty()) {
+            if (mOptions.mBackground != Background::kFromFile)
+                Fail("an environment map and a background radiance (or none) both replace the background: give one");
+            if (!std::isfinite(mOptions.mEnvironmentScale) || !(mOptions.mEnvironmentScale > 0.f))
+                Fail("the environment map's scale is not a positive finite number");
+            mScene.AddEnvironmentLight(LoadEnvironmentMap(mOptions.mEnvironmentMap, mOptions.mEnvironmentRotationDegrees),
+                                       mOptions.mEnvironmentScale);
+            return;
+        }
         if (mOptions.mBackground == Background::kRadiance) {
             CheckColor(mOptions.mBackgroundRadiance, "the background radiance", false);
             if (!IsBlack(mOptions.mBackgroundRadiance)) mScene.AddBackgroundLight(mOptions.mBackgroundRadiance);
@@ -8026,17 +8309,17 @@ private:
         if (mOptions.mBackground == Background::kNone) return;
         ReadBackground();
         // A model with no emitter (most real-world files), or whose only emitters carry an
-        // emissiveTexture (glow maps of a model, not lamps that light a scene): a uniform
-        // white sky, so that it renders at all, and one line that says so and how to change it.
+        // emissiveTexture (glow maps of a model, not lamps that light a scene): the default
+        // sky and sun, so that it renders at all, and one line that says so and how to change it.
         bool glowOnly = !mScene.mLights.empty();
         for (const Light& light : mScene.mLights) glowOnly = glowOnly && light.mEmissionTexture >= 0;
         if (!mScene.mLights.empty() && !glowOnly) return;
-        mScene.AddBackgroundLight(Vec3(1.f));
+        AddDefaultSkyAndSun(mScene, mScene.mCamera);
         mReport.mDefaultBackground = true;
         mReport.mNotes.push_back(std::string(glowOnly ? "the scene's only lights are emissive textures (glow maps)"
                                                       : "the scene has no light") +
-                                 ": added a uniform white background (radiance 1; --background R,G,B or --background "
-                                 "none changes it)");
+                                 ": added the default sky and sun (a sun from above, behind and left of the camera; "
+                                 "--envmap FILE, --background R,G,B or --background none replace them)");
     }
 
     // A scene in which nothing emits renders black with every estimator: refused, with why

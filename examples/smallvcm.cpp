@@ -113,8 +113,13 @@ void PrintHelp() {
         "  --camera N          the N-th camera node of the file (default: the first; a file without\n"
         "                        cameras gets one that frames the whole scene from the front)\n"
         "  --background R,G,B  add (or replace the file's) uniform background of this linear radiance;\n"
-        "  --background none     none (or black, 0,0,0): no background. Default: the file's, and white\n"
-        "                        (1,1,1) when the file has no light at all\n"
+        "  --background none     none (or black, 0,0,0): no background. Default: the file's, and when\n"
+        "                        the file has no light at all, a neutral sky and a sun (docs/scene_format.md)\n"
+        "  --envmap FILE       light the scene with an equirectangular environment map (.hdr, .exr, .pfm;\n"
+        "                        at most 8192x4096) instead of the file's background or the default sky\n"
+        "  --envmap-rotate DEG turn the environment about the up axis, counter-clockwise seen from above\n"
+        "                        (default 0: the image's centre faces +X)\n"
+        "  --envmap-scale S    multiply the environment's radiance by S > 0 (default 1)\n"
         "  -q                  quiet: nothing on success (no summary, notes or progress); errors still go to stderr\n"
         "  --help              this text\n"
         "Ctrl-C or SIGTERM writes the iterations done so far (exit 130 or 143); a second one stops at once.\n"
@@ -229,6 +234,8 @@ CommandLine Parse(int argc, char** argv) {
         if (i + 1 >= argc) throw Error(option + ": needs a value");
         return argv[++i];
     };
+    bool backgroundGiven = false;
+    std::string envmapSettingGiven;  // --envmap-rotate or --envmap-scale, if either was given
     for (int i = 1; i < argc; i++) {
         const std::string arg = argv[i];
         if (arg == "--help" || arg == "-h") { PrintHelp(); std::exit(0); }
@@ -295,12 +302,29 @@ CommandLine Parse(int argc, char** argv) {
                 "a number in [1e-6, 1] (a search beyond the scene's radius finds nothing more)");
         else if (arg == "--layers") cl.mOptions.mTechniqueLayers = true;
         else if (arg == "--camera") cl.mLoad.mCamera = ParseNumber<int>(arg, value(i), 0, 1000000, "a camera number in [0, 1e6]");
-        else if (arg == "--background") ParseBackground(value(i), cl.mLoad);
+        else if (arg == "--background") { ParseBackground(value(i), cl.mLoad); backgroundGiven = true; }
+        else if (arg == "--envmap") {
+            cl.mLoad.mEnvironmentMap = value(i);
+            if (cl.mLoad.mEnvironmentMap.empty()) throw Error("--envmap: needs a file name");
+        }
+        else if (arg == "--envmap-rotate") {
+            cl.mLoad.mEnvironmentRotationDegrees = ParseNumber<float>(arg, value(i), -3600.f, 3600.f, "a number of degrees in [-3600, 3600]");
+            envmapSettingGiven = arg;
+        }
+        else if (arg == "--envmap-scale") {
+            cl.mLoad.mEnvironmentScale = ParseNumber<float>(arg, value(i), 0.f, 1e30f, "a number in (0, 1e30]");
+            if (!(cl.mLoad.mEnvironmentScale > 0.f)) throw Error("--envmap-scale: '0' is not a number in (0, 1e30]");
+            envmapSettingGiven = arg;
+        }
         else if (arg == "-q") cl.mQuiet = true;
         else if (ParseWriteOption(arg, [&] { return value(i); }, cl.mWrite)) {}
         else throw Error(arg + ": unknown option (see --help)");
     }
     if (cl.mOptions.mSeconds > 0.0 && !cl.mIterationsGiven) cl.mOptions.mIterations = 0;  // until time is up
+    if (!cl.mLoad.mEnvironmentMap.empty() && backgroundGiven)
+        throw Error("--envmap: and --background both replace the background: give one");
+    if (cl.mLoad.mEnvironmentMap.empty() && !envmapSettingGiven.empty())
+        throw Error(envmapSettingGiven + ": applies to an environment map: give --envmap FILE too");
     if (cl.mOptions.mMinPathLength > cl.mOptions.mMaxPathLength)
         throw Error("--min-path-length: must not exceed --max-path-length (" + std::to_string(cl.mOptions.mMaxPathLength) + ")");
     if (cl.mOptions.mTechniqueLayers && cl.mIntegrator == &smallvcm::BuiltInIntegrator(smallvcm::Algorithm::kEyeLight))
@@ -327,6 +351,14 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
     estimator["background"] = aCl.mLoad.mBackground == Background::kFromFile ? Json("from file")
                               : aCl.mLoad.mBackground == Background::kNone   ? Json("none")
                                                                              : Json{Shortest(radiance.x), Shortest(radiance.y), Shortest(radiance.z)};
+    if (!aCl.mLoad.mEnvironmentMap.empty()) {
+        // The map's bytes, not its name, decide whether two runs lit the scene alike.
+        Json environment;
+        environment["fnv1a64"] = sidecar::FileFnv1a64(aCl.mLoad.mEnvironmentMap);
+        environment["rotate_degrees"] = Shortest(aCl.mLoad.mEnvironmentRotationDegrees);
+        environment["scale"] = Shortest(aCl.mLoad.mEnvironmentScale);
+        estimator["background"] = Json{{"envmap", environment}};
+    }
     // Only the settings a built-in algorithm uses: runs that differ in one it ignores still
     // merge. An integrator linked in from elsewhere may read any of them: all are recorded.
     using smallvcm::Algorithm;
@@ -362,6 +394,7 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
     record["image"] = nullptr;  // sidecar::AddImage fills in the image's name, fingerprint and mean
     record["image_fnv1a64"] = nullptr;
     record["scene"] = aCl.mScene;
+    if (!aCl.mLoad.mEnvironmentMap.empty()) record["envmap"] = aCl.mLoad.mEnvironmentMap;
     record["estimator"] = estimator;
     record["seed"] = o.mSeed;
     record["iterations"] = aResult.mIterations;
