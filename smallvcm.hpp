@@ -697,8 +697,9 @@ private:
 // [SECTION] Scene: materials, lights, camera
 // =====================================================================================
 // Provides: Material (SmallVCM's sum of Lambert, normalised Phong, mirror and Fresnel
-// glass), the six light kinds, the pinhole Camera with SmallVCM's conventions, and
-// Scene, which owns them all with the geometry and answers ray queries.
+// glass), the six light kinds (the background one optionally an EnvironmentMap, an
+// equirectangular image sampled by its luminance), the pinhole Camera with SmallVCM's
+// conventions, and Scene, which owns them all with the geometry and answers ray queries.
 // Relies on: Geometry. Invariant after Scene::Finalize(): every triangle has a valid
 // unit normal, every light's sampling data is built, the BVH is current.
 
@@ -888,7 +889,7 @@ struct SceneSphere {
 //
 // The radiance from a direction is its texel's (nearest, not filtered), so the radiance
 // is constant on each texel's patch of the sphere; directions are sampled in proportion
-// to luminance x sin(theta) of the texel (PiecewiseConstant2D), which makes the pdf in
+// to Luminance(texel) x sin(theta at the texel's centre) (PiecewiseConstant2D), so the pdf in
 // solid angle exactly (dOmega = 2 pi^2 sin(theta) du dv)
 //     p(omega) = p(u, v) / (2 pi^2 sin(theta)),
 // positive wherever the radiance is (luminance > 0 when any channel is > 0), so every

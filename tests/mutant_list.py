@@ -309,6 +309,25 @@ MUTANTS = [
     dict(id="M90", cls="textures", what="normal map decoded as sRGB colour",
          find="source.normalTexture.extensions, false, \"normalTexture\", what);",
          replace="source.normalTexture.extensions, true, \"normalTexture\", what);"),
+    # --- the environment light ------------------------------------------------------------
+    dict(id="M91", cls="lights", what="environment map: PdfW without the 1 / sin(theta) of the solid-angle Jacobian",
+         find="return mDistribution.Pdf(ToUv(local)) / (2.f * kPi * kPi * sinTheta);",
+         replace="return mDistribution.Pdf(ToUv(local)) / (2.f * kPi * kPi);"),
+    dict(id="M92", cls="lights", what="environment map: a sampled direction's pdf without the 1 / sin(theta)",
+         find="sample.mPdfW = uv.mPdf / (2.f * kPi * kPi * sinTheta);",
+         replace="sample.mPdfW = uv.mPdf / (2.f * kPi * kPi);"),
+    dict(id="M93", cls="lights", what="environment map looked up mirrored (u growing towards -Z)",
+         find="const float u = 0.5f + std::atan2(aLocal.z, aLocal.x) * (0.5f * kInvPi);",
+         replace="const float u = 0.5f + std::atan2(-aLocal.z, aLocal.x) * (0.5f * kInvPi);"),
+    dict(id="M94", cls="lights", what="environment map importance by luminance alone, without sin(theta)",
+         find="importance[index] = Luminance(texel) * sinTheta;",
+         replace="importance[index] = Luminance(texel);"),
+    dict(id="M95", cls="lights", what="light sub-paths from an environment map carry its scale, not the sampled texel",
+         find="energy = mEmission * arriving->mRadiance;",
+         replace="energy = mEmission;"),
+    dict(id="M96", cls="lights", what="environment map: sampled directions turned the other way about +Y",
+         find="sample.mDirection = Vec3(mCosRotation * local.x + mSinRotation * local.z, local.y,",
+         replace="sample.mDirection = Vec3(mCosRotation * local.x - mSinRotation * local.z, local.y,"),
 ]
 for _m in MUTANTS:
     _m["class"] = _m.pop("cls")

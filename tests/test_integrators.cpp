@@ -171,46 +171,56 @@ TEST_CASE("No estimator writes NaN, infinity or a negative value on any scene", 
 TEST_CASE("Technique layers sum to the image for PT, BPT and VCM", "[integrators]") {
     // Each contribution is written to exactly one weighted layer, so the sum matches the
     // image up to float rounding of the resolve (relative 1e-5 of the pixel, 1e-7 abs).
-    const Scene scene = LoadCornell(4, 24, 24);
-    for (Algorithm algorithm : {Algorithm::kPathTracing, Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging,
-                                Algorithm::kBidirectionalPhotonMapping, Algorithm::kLightTracing}) {
-        RenderOptions options;
-        options.mAlgorithm = algorithm;
-        options.mIterations = 3;
-        options.mTechniqueLayers = true;
-        options.mProgress = false;
-        const RenderResult result = Render(scene, options);
-        // BPT writes two families: the five classes and the (s, t) pyramid (+ longer
-        // paths). Each family alone must sum to the image; unweighted layers sum to more.
-        std::vector<std::vector<std::string>> families;
-        if (algorithm == Algorithm::kPathTracing) {
-            families.push_back({"emitted", "direct_nonspecular", "direct_specular", "indirect_nonspecular", "indirect_specular"});
-        } else {
-            families.push_back({"unidirectional", "nee", "light_tracing", "connection", "merging"});
-            if (algorithm == Algorithm::kBidirectionalPathTracing) {
-                std::vector<std::string> pyramid = {"longer_than_5"};
-                for (int length = 1; length <= 5; length++)
-                    for (int s = 0; s <= length; s++) pyramid.push_back("s" + std::to_string(s) + "_t" + std::to_string(length + 1 - s));
-                families.push_back(pyramid);
+    // Scenes: the default Cornell box, and the background scene lit by the default sky (an
+    // environment map) and sun instead of its uniform background.
+    Scene sky = LoadCornell(3, 24, 24);
+    sky.mLights.erase(std::remove_if(sky.mLights.begin(), sky.mLights.end(),
+                                     [](const Light& aLight) { return aLight.mType == LightType::kBackground; }),
+                      sky.mLights.end());
+    AddDefaultSkyAndSun(sky, sky.mCamera);
+    sky.Finalize();
+    const Scene cornell = LoadCornell(4, 24, 24);
+    for (const Scene* scene : {&cornell, static_cast<const Scene*>(&sky)}) {
+        for (Algorithm algorithm : {Algorithm::kPathTracing, Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging,
+                                    Algorithm::kBidirectionalPhotonMapping, Algorithm::kLightTracing}) {
+            RenderOptions options;
+            options.mAlgorithm = algorithm;
+            options.mIterations = 3;
+            options.mTechniqueLayers = true;
+            options.mProgress = false;
+            const RenderResult result = Render(*scene, options);
+            // BPT writes two families: the five classes and the (s, t) pyramid (+ longer
+            // paths). Each family alone must sum to the image; unweighted layers sum to more.
+            std::vector<std::vector<std::string>> families;
+            if (algorithm == Algorithm::kPathTracing) {
+                families.push_back({"emitted", "direct_nonspecular", "direct_specular", "indirect_nonspecular", "indirect_specular"});
+            } else {
+                families.push_back({"unidirectional", "nee", "light_tracing", "connection", "merging"});
+                if (algorithm == Algorithm::kBidirectionalPathTracing) {
+                    std::vector<std::string> pyramid = {"longer_than_5"};
+                    for (int length = 1; length <= 5; length++)
+                        for (int s = 0; s <= length; s++) pyramid.push_back("s" + std::to_string(s) + "_t" + std::to_string(length + 1 - s));
+                    families.push_back(pyramid);
+                }
             }
-        }
-        for (const auto& family : families) {
-            Image sum(result.mImage.mWidth, result.mImage.mHeight);
-            int found = 0;
-            for (const auto& layer : result.mLayers)
-                if (std::find(family.begin(), family.end(), layer.first) != family.end()) {
-                    found++;
-                    for (size_t i = 0; i < sum.mPixels.size(); i++) sum.mPixels[i] += layer.second.mPixels[i];
-                }
-            INFO(AlgorithmShortName(algorithm) << ": family of " << family.size() << " layers, found " << found);
-            REQUIRE(found == int(family.size()));
-            double worst = 0.0;
-            for (size_t i = 0; i < sum.mPixels.size(); i++)
-                for (int c = 0; c < 3; c++) {
-                    const double image = result.mImage.mPixels[i][c];
-                    worst = std::max(worst, std::abs(double(sum.mPixels[i][c]) - image) / (1e-5 * std::abs(image) + 1e-7));
-                }
-            CHECK(worst <= 1.0);
+            for (const auto& family : families) {
+                Image sum(result.mImage.mWidth, result.mImage.mHeight);
+                int found = 0;
+                for (const auto& layer : result.mLayers)
+                    if (std::find(family.begin(), family.end(), layer.first) != family.end()) {
+                        found++;
+                        for (size_t i = 0; i < sum.mPixels.size(); i++) sum.mPixels[i] += layer.second.mPixels[i];
+                    }
+                INFO(scene->mName << ", " << AlgorithmShortName(algorithm) << ": family of " << family.size() << " layers, found " << found);
+                REQUIRE(found == int(family.size()));
+                double worst = 0.0;
+                for (size_t i = 0; i < sum.mPixels.size(); i++)
+                    for (int c = 0; c < 3; c++) {
+                        const double image = result.mImage.mPixels[i][c];
+                        worst = std::max(worst, std::abs(double(sum.mPixels[i][c]) - image) / (1e-5 * std::abs(image) + 1e-7));
+                    }
+                CHECK(worst <= 1.0);
+            }
         }
     }
 }

@@ -123,20 +123,22 @@ struct RecordedComparison {
 
 // Renders one iteration of aCase's algorithm on Cornell scene aSceneIndex at aSize x aSize
 // with the path records on, and compares each recorded weight with the brute force.
-// Scene 5 is scene 1 (area light, mirror ceiling) with a point light added near the
-// centre of the box: two lights of two kinds, each picked with probability 1/2. Scenes
-// 6-8 are test_util's rooms: Phong surfaces under a sphere light and a two-sided panel;
-// a spot light; the camera inside a glass ball.
+// Scene 5 is scene 3 under an environment map (mis_brute_force.hpp). Scene 6 is scene 1
+// (area light, mirror ceiling) with a point light added near the centre of the box: two
+// lights of two kinds, each picked with probability 1/2. Scenes 7-9 are test_util's
+// rooms: Phong surfaces under a sphere light and a two-sided panel; a spot light; the
+// camera inside a glass ball.
 constexpr int kRecordingSceneCount = kSceneCount + 4;
 const char* const kRecordingSceneNames[kRecordingSceneCount] = {
-    "0 sun", "1 mirror+area", "2 point", "3 background", "4 default", "5 area+point", "6 phong room", "7 spot room",
-    "8 in glass"};
+    "0 sun", "1 mirror+area", "2 point", "3 background", "4 default", "5 envmap", "6 area+point", "7 phong room",
+    "8 spot room", "9 in glass"};
 
 Scene RecordingScene(int aSceneIndex, int aSize) {
+    if (aSceneIndex == 5) return MakeCornellUnderEnvironment(aSize, aSize);
     if (aSceneIndex < kSceneCount) return testutil::LoadCornell(aSceneIndex, aSize, aSize);
-    if (aSceneIndex == 6) return testutil::MakeGlossyRoom(aSize);
-    if (aSceneIndex == 7) return testutil::MakeSpotRoom(aSize);
-    if (aSceneIndex == 8) return testutil::MakeCameraInGlassRoom(aSize);
+    if (aSceneIndex == 7) return testutil::MakeGlossyRoom(aSize);
+    if (aSceneIndex == 8) return testutil::MakeSpotRoom(aSize);
+    if (aSceneIndex == 9) return testutil::MakeCameraInGlassRoom(aSize);
     Scene scene = testutil::LoadCornell(1, aSize, aSize);
     scene.AddPointLight(scene.GetSceneSphere().mCenter + Vec3(0.1f, 0.2f, 0.3f) * scene.GetSceneSphere().mRadius, Vec3(3.f));
     scene.Finalize();
