@@ -888,9 +888,10 @@ struct SceneSphere {
 // right-hand rule): what faced +X then faces (cos a, 0, -sin a).
 //
 // The radiance from a direction is its texel's (nearest, not filtered), so the radiance
-// is constant on each texel's patch of the sphere; directions are sampled in proportion
-// to Luminance(texel) x sin(theta at the texel's centre) (PiecewiseConstant2D), so the pdf in
-// solid angle exactly (dOmega = 2 pi^2 sin(theta) du dv)
+// is constant on each texel's patch of the sphere. Directions are sampled in proportion
+// to Luminance(texel) x sin(theta at the texel's centre) (PiecewiseConstant2D: the sine
+// puts fewer samples on the rows near the poles, whose texels cover less solid angle).
+// With dOmega = 2 pi^2 sin(theta) du dv the pdf in solid angle is exactly
 //     p(omega) = p(u, v) / (2 pi^2 sin(theta)),
 // positive wherever the radiance is (luminance > 0 when any channel is > 0), so every
 // estimator that samples it stays unbiased and its MIS weights see the true pdf.
