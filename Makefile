@@ -150,7 +150,7 @@ demo: deps
 
 # make model-image: the README's real-world model, the Khronos sample Avocado
 # (scenes/avocado: no camera and no light in the file), rendered with every default but
-# the resolution and iterations (made-up camera, white background, vcm) into
+# the resolution and iterations (made-up camera, default sky and sun, vcm) into
 # docs/images/avocado_vcm.png and its sidecar (docs/images/README.md: settings and time).
 MODEL_IMAGE_ARGS := -s scenes/avocado/Avocado.gltf -i 64 -r 512x512 -o docs/images/avocado_vcm.png
 model-image: deps
