@@ -7,6 +7,8 @@
 // Then what people look at and combine: PNG exposure and tone curves, the JSON sidecar
 // written with every image, `smallvcm merge` (its refusals, and a statistical test that a
 // merge of runs equals one longer run), -q, "1 iteration", -i with -t, and --layers.
+// Last, --envmap and its settings: every format, the sidecar's fields, what rotation and
+// scale do to the image, the refused combinations and values, bad maps, and merge.
 // Tests run from tests/, so the program is ../build/smallvcm.
 #include "gltf_corpus.hpp"
 #include "smallvcm.hpp"
