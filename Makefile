@@ -252,8 +252,9 @@ check: deps
 
 # make bench: seconds per iteration of every estimator on every Cornell scene (512x512,
 # 1 and 2 threads), rays per second, peak memory, BVH build and tracing as the triangle
-# count grows from 1e2 to 1e6 (each configuration the fastest of two measurements, to
-# ride out the machine's own drift; about 9 minutes on 2 cores); the report goes to
+# count grows from 1e2 to 1e6, the environment light's cost (scene 3's constant background
+# against scenes/hdri/royal_esplanade_1k.hdr, pt and vcm) (each configuration the fastest
+# of two measurements, to ride out the machine's own drift; about 10 minutes on 2 cores); the report goes to
 # docs/performance/bench.md, its numbers to docs/performance/bench_bvh.csv and
 # bench_render.csv, and benchmarks/plot_bench.py draws them (matplotlib, installed if missing)
 # into docs/performance/bvh_scaling.png and speed_per_iteration.png.
