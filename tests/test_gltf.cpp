@@ -1504,6 +1504,24 @@ TEST_CASE("A glTF emissiveTexture is sRGB-decoded and multiplies emissiveFactor 
     CHECK_VEC3(scene.mMaterials.at(0).mPhongReflectance, Vec3(0.04f), 1e-6f);
     REQUIRE(scene.LightCount() == 3);
     CheckDefaultSkyAndSun(scene);
+    // --background none or R,G,B replaces both: the glow map alone, or beside a uniform
+    // background, and no sun.
+    {
+        GltfLoadOptions none;
+        none.mBackground = GltfLoadOptions::Background::kNone;
+        const Scene glowOnly = LoadGltfScene(folder / "floor.gltf", &report, none);
+        CHECK_FALSE(report.mDefaultBackground);
+        REQUIRE(glowOnly.LightCount() == 1);
+        CHECK(glowOnly.GetLight(0).mEmissionTexture >= 0);
+        GltfLoadOptions grey;
+        grey.mBackground = GltfLoadOptions::Background::kRadiance;
+        grey.mBackgroundRadiance = Vec3(0.5f);
+        const Scene withBackground = LoadGltfScene(folder / "floor.gltf", &report, grey);
+        CHECK_FALSE(report.mDefaultBackground);
+        REQUIRE(withBackground.LightCount() == 2);
+        CHECK(withBackground.GetLight(1).mType == LightType::kBackground);
+        CHECK(withBackground.GetLight(1).mEnvironment == nullptr);
+    }
     const Light& light = scene.GetLight(0);
     REQUIRE(light.mEmissionTexture >= 0);
     const Vec3 scale = 3.f * Vec3(2.f, 1.f, 0.5f);
