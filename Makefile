@@ -48,7 +48,7 @@ IMPL_OBJ := $(BUILD)/smallvcm_impl.o
 TEST_SRC := $(filter-out tests/catch_main.cpp,$(wildcard tests/*.cpp))
 TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
-.PHONY: all deps demo model-image test unit check fuzz convergence bench bench-embree figures clean exercise grade compare student-figures
+.PHONY: all deps demo model-image envmap-image test unit check fuzz convergence bench bench-embree figures clean exercise grade compare student-figures
 
 all: $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/my_path_tracer $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
@@ -150,13 +150,23 @@ demo: deps
 
 # make model-image: the README's real-world model, the Khronos sample Avocado
 # (scenes/avocado: no camera and no light in the file), rendered with every default but
-# the resolution and iterations (made-up camera, white background, vcm) into
+# the resolution and iterations (made-up camera, default sky and sun, vcm) into
 # docs/images/avocado_vcm.png and its sidecar (docs/images/README.md: settings and time).
 MODEL_IMAGE_ARGS := -s scenes/avocado/Avocado.gltf -i 64 -r 512x512 -o docs/images/avocado_vcm.png
 model-image: deps
 	$(MAKE) --no-print-directory $(BUILD)/smallvcm
 	$(BUILD)/smallvcm $(MODEL_IMAGE_ARGS)
 	$(COMPACT_PNG) docs/images/avocado_vcm.png
+
+# make envmap-image: the same model lit by an environment map instead, the CC0 HDRI
+# scenes/hdri/royal_esplanade_1k.hdr (licence beside it), unturned, with every other
+# setting as model-image's, into docs/images/avocado_envmap_vcm.png.
+ENVMAP_IMAGE_ARGS := -s scenes/avocado/Avocado.gltf --envmap scenes/hdri/royal_esplanade_1k.hdr \
+                     -i 64 -r 512x512 -o docs/images/avocado_envmap_vcm.png
+envmap-image: deps
+	$(MAKE) --no-print-directory $(BUILD)/smallvcm
+	$(BUILD)/smallvcm $(ENVMAP_IMAGE_ARGS)
+	$(COMPACT_PNG) docs/images/avocado_envmap_vcm.png
 
 # The sanitizer build (AddressSanitizer + UndefinedBehaviorSanitizer, and the renderer's
 # own invariant checks, SMALLVCM_CHECKS) lives in build/check/; its BVH has the default
@@ -242,8 +252,9 @@ check: deps
 
 # make bench: seconds per iteration of every estimator on every Cornell scene (512x512,
 # 1 and 2 threads), rays per second, peak memory, BVH build and tracing as the triangle
-# count grows from 1e2 to 1e6 (each configuration the fastest of two measurements, to
-# ride out the machine's own drift; about 9 minutes on 2 cores); the report goes to
+# count grows from 1e2 to 1e6, the environment light's cost (scene 3's constant background
+# against scenes/hdri/royal_esplanade_1k.hdr, pt and vcm) (each configuration the fastest
+# of two measurements, to ride out the machine's own drift; about 10 minutes on 2 cores); the report goes to
 # docs/performance/bench.md, its numbers to docs/performance/bench_bvh.csv and
 # bench_render.csv, and benchmarks/plot_bench.py draws them (matplotlib, installed if missing)
 # into docs/performance/bvh_scaling.png and speed_per_iteration.png.

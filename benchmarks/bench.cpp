@@ -8,7 +8,7 @@
 //   build/bench --markdown docs/performance/bench.md --csv docs/performance/bench
 //                                         also the numbers as CSV, for benchmarks/plot_bench.py
 //
-// Three measurements, then a one-page markdown report on stdout (and in --markdown FILE):
+// Five measurements, then a one-page markdown report on stdout (and in --markdown FILE):
 //   1. Render speed. For every Cornell scene, estimator and thread count: one warm-up
 //      iteration per thread, then enough iterations to cover --min-seconds (at least
 //      --min-iterations, rounded up to a multiple of the thread count), all through
@@ -39,6 +39,16 @@
 //      splits it into reading (parsing the file, reading the buffer, building the
 //      triangles) and Scene::Finalize (validation, light data and the BVH build).
 //      `build/bench --no-render --no-bvh` runs this part alone (about 10 s).
+//   5. The environment light's cost. Cornell scene 3 (lit by its constant background
+//      alone) rendered by pt and vcm on one thread as in 1., once with its background and
+//      once with the background replaced by an environment map (--envmap, by default
+//      scenes/hdri/royal_esplanade_1k.hdr, 1024x512): seconds per iteration of each and
+//      their ratio, so the price of importance-sampling the map (a binary search in each
+//      of two cumulative tables per sample, a texel lookup per escaped ray) against the
+//      uniform sphere and a constant is read off directly. The two runs of a pair are
+//      measured one after the other in their own processes; the map's distribution is
+//      built while the scene loads, outside the measured iterations.
+//      `build/bench --no-render --no-bvh --no-gltf` runs this part alone (about 30 s).
 // With --csv PREFIX the numbers behind the charts are also written as data (the charts
 // are drawn by benchmarks/plot_bench.py with matplotlib, not here):
 //   PREFIX_bvh.csv     one row per mesh of 3.: triangles, build ms, nodes, depth, BVH MiB,
@@ -128,7 +138,8 @@ struct Options {
     int mMinIterations = 2;     // at least this many measured iterations
     int mWarmup = 1;            // warm-up iterations per thread
     int mRepeat = 1;            // measured runs per configuration; the fastest is reported
-    bool mRender = true, mBvh = true, mGltf = true;
+    bool mRender = true, mBvh = true, mGltf = true, mEnvironment = true;
+    std::string mEnvironmentMap;  // --envmap: the map of 5. (default: scenes/hdri/royal_esplanade_1k.hdr)
     long mGltfTriangles = 1000000;  // the glTF loading measurement's mesh
     int mBvhMaxExponent = 6;    // meshes of 10^2 .. 10^this triangles
     int mBvhRays = 131072;      // rays per batch (each batch is traced at least once)
@@ -159,6 +170,10 @@ void PrintHelp() {
         "  --no-bvh               skip the BVH scaling\n"
         "  --gltf-triangles N     the glTF loading measurement's mesh (default 1000000, 100..10^7)\n"
         "  --no-gltf              skip the glTF loading measurement\n"
+        "  --envmap FILE          the environment map of the environment-light measurement\n"
+        "                         (default scenes/hdri/royal_esplanade_1k.hdr)\n"
+        "  --no-environment       skip the environment-light measurement (pt and vcm, scene 3,\n"
+        "                         its constant background against an environment map)\n"
         "  --note TEXT            a line for the report (e.g. the commit measured)\n"
         "  --markdown FILE        also write the report to FILE\n"
         "  --csv PREFIX           also write the numbers to PREFIX_bvh.csv (BVH scaling) and\n"
@@ -235,6 +250,11 @@ Options ParseOptions(int argc, char** argv) {
         else if (arg == "--no-render") o.mRender = false;
         else if (arg == "--no-bvh") o.mBvh = false;
         else if (arg == "--no-gltf") o.mGltf = false;
+        else if (arg == "--no-environment") o.mEnvironment = false;
+        else if (arg == "--envmap") {
+            o.mEnvironmentMap = value(i);
+            if (o.mEnvironmentMap.empty()) throw Error(arg + ": needs a file name");
+        }
         else if (arg == "--gltf-triangles") o.mGltfTriangles = ParseNumber<long>(arg, value(i), 100, 10000000);
         else if (arg == "--note") o.mNote = value(i);
         else if (arg == "--markdown") o.mMarkdown = value(i);
@@ -326,6 +346,7 @@ struct Measurement {
     int mScene = 0;
     Algorithm mAlgorithm = Algorithm::kPathTracing;
     int mThreads = 1;
+    std::string mEnvironmentMap;  // the map that replaced the scene's background, or empty
     bool mOk = false;
     std::string mError;
     int mIterations = 0;
@@ -346,8 +367,8 @@ struct Measurement {
 
 // The child: loads the scene, warms up, measures, prints one line "RESULT key=value ...".
 int RunChild(int argc, char** argv) {
-    // bench --child SCENE ALGORITHM THREADS WIDTH HEIGHT MIN_SECONDS MIN_ITERATIONS WARMUP REPEAT
-    if (argc != 11) { std::fprintf(stderr, "bench --child: wrong arguments\n"); return 2; }
+    // bench --child SCENE ALGORITHM THREADS WIDTH HEIGHT MIN_SECONDS MIN_ITERATIONS WARMUP REPEAT [ENVMAP]
+    if (argc != 11 && argc != 12) { std::fprintf(stderr, "bench --child: wrong arguments\n"); return 2; }
     try {
         const std::string scenePath = argv[2];
         const std::optional<Algorithm> parsed = smallvcm::ParseAlgorithm(argv[3]);
@@ -360,7 +381,9 @@ int RunChild(int argc, char** argv) {
         const int warmup = std::atoi(argv[9]);
         const int repeat = std::atoi(argv[10]);
 
-        smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath);
+        smallvcm::GltfLoadOptions loadOptions;
+        if (argc == 12) loadOptions.mEnvironmentMap = argv[11];
+        smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath, nullptr, loadOptions);
         scene.mCamera.SetResolution(width, height);
         const long baselineKb = MaxRssKb();
 
@@ -426,17 +449,20 @@ int RunChild(int argc, char** argv) {
 }
 
 // Starts this program again with --child, reads its RESULT line, and takes its peak RSS
-// from wait4().
-Measurement MeasureInChild(const Options& aOptions, int aScene, Algorithm aAlgorithm, int aThreads) {
+// from wait4(). With aEnvironmentMap, that map replaces the scene's background.
+Measurement MeasureInChild(const Options& aOptions, int aScene, Algorithm aAlgorithm, int aThreads,
+                           const std::string& aEnvironmentMap = "") {
     Measurement m;
     m.mScene = aScene;
     m.mAlgorithm = aAlgorithm;
     m.mThreads = aThreads;
+    m.mEnvironmentMap = aEnvironmentMap;
     const std::string scenePath = ScenesFolder() + "/" + kCornellScenes[aScene];
     std::vector<std::string> args = {
         "bench", "--child", scenePath, smallvcm::AlgorithmShortName(aAlgorithm), std::to_string(aThreads),
         std::to_string(aOptions.mWidth), std::to_string(aOptions.mHeight), Format("%.6f", aOptions.mMinSeconds),
         std::to_string(aOptions.mMinIterations), std::to_string(aOptions.mWarmup), std::to_string(aOptions.mRepeat)};
+    if (!aEnvironmentMap.empty()) args.push_back(aEnvironmentMap);
     std::vector<char*> argvChild;
     for (std::string& a : args) argvChild.push_back(a.data());
     argvChild.push_back(nullptr);
@@ -834,8 +860,8 @@ void AlgorithmSceneTable(std::ostringstream& aOut, const Options& aOptions, cons
 }
 
 std::string Report(const Options& aOptions, const std::vector<Measurement>& aRuns, const std::vector<BvhRow>& aBvh,
-                   const std::vector<GltfRow>& aGltf, const std::string& aDate, double aTotalSeconds, const std::string& aLoadStart,
-                   const std::string& aLoadEnd) {
+                   const std::vector<GltfRow>& aGltf, const std::vector<std::pair<Measurement, Measurement>>& aEnvironment,
+                   const std::string& aDate, double aTotalSeconds, const std::string& aLoadStart, const std::string& aLoadEnd) {
     std::ostringstream out;
     const long cores = sysconf(_SC_NPROCESSORS_ONLN);
     std::string cpu = ReadFirstMatch("/proc/cpuinfo", "model name");
@@ -1032,6 +1058,32 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
                 << Format("%.3f", r.mReadSeconds) << " | " << Format("%.3f", r.mFinalizeSeconds) << " |\n";
         out << "\n";
     }
+    if (aOptions.mEnvironment) {
+        out << "### The environment light's cost\n\n";
+        out << "Cornell scene 3 (lit by its background alone), one thread, measured as above: with its constant "
+               "background, and with the background replaced by the environment map `"
+            << aOptions.mEnvironmentMap << "` (GltfLoadOptions::mEnvironmentMap, as `--envmap`). The two runs of a row "
+               "ran one after the other.\n\n";
+        out << "| algorithm | constant: wall / CPU s per iteration | environment map: wall / CPU s per iteration | ratio, wall | "
+               "ratio, CPU | rays per iteration, constant / environment map |\n"
+               "|---|---:|---:|---:|---:|---:|\n";
+        for (const auto& [constant, environment] : aEnvironment) {
+            out << "| " << smallvcm::AlgorithmShortName(constant.mAlgorithm) << " | ";
+            if (!constant.mOk || !environment.mOk) {
+                out << "failed: " << (constant.mOk ? environment.mError : constant.mError) << " | | | | |\n";
+                continue;
+            }
+            const auto cpu = [](const Measurement& aM) { return aM.mCpuSeconds / std::max(1, aM.mIterations); };
+            const auto rays = [](const Measurement& aM) { return double(aM.mRays) / std::max(1, aM.mIterations); };
+            out << Seconds(constant.SecondsPerIteration()) << " / " << Seconds(cpu(constant)) << " | "
+                << Seconds(environment.SecondsPerIteration()) << " / " << Seconds(cpu(environment)) << " | "
+                << Format("%.2f", environment.SecondsPerIteration() / constant.SecondsPerIteration()) << " | "
+                << Format("%.2f", cpu(environment) / cpu(constant)) << " | " << Rate(rays(constant)) << " / "
+                << Rate(rays(environment)) << " |\n";
+        }
+        out << "\n(CPU: the measured process's user + system time; on a shared machine the figure that compares.)\n";
+        out << "\n";
+    }
     return out.str();
 }
 
@@ -1204,7 +1256,28 @@ int main(int argc, char** argv) {
         }
     }
 
-    const std::string report = Report(options, runs, bvh, gltf, date, SecondsSince(start), loadStart, LoadAverage());
+    // 5: the same scene and estimator with the constant background and with the map.
+    std::vector<std::pair<Measurement, Measurement>> environment;
+    if (options.mEnvironment) {
+        if (options.mEnvironmentMap.empty()) options.mEnvironmentMap = ScenesFolder() + "/hdri/royal_esplanade_1k.hdr";
+        for (Algorithm algorithm : {Algorithm::kPathTracing, Algorithm::kVertexConnectionMerging}) {
+            const Measurement constant = MeasureInChild(options, 3, algorithm, 1);
+            const Measurement lit = MeasureInChild(options, 3, algorithm, 1, options.mEnvironmentMap);
+            environment.emplace_back(constant, lit);
+            if (constant.mOk && lit.mOk)
+                std::fprintf(stderr, "[environment] scene 3, %s, 1 thread: constant %.4f s/iteration (CPU %.4f), environment "
+                                     "map %.4f s/iteration (CPU %.4f): x%.2f wall, x%.2f CPU (%.0f s)\n",
+                             smallvcm::AlgorithmShortName(algorithm), constant.SecondsPerIteration(),
+                             constant.mCpuSeconds / constant.mIterations, lit.SecondsPerIteration(), lit.mCpuSeconds / lit.mIterations,
+                             lit.SecondsPerIteration() / constant.SecondsPerIteration(),
+                             (lit.mCpuSeconds / lit.mIterations) / (constant.mCpuSeconds / constant.mIterations), SecondsSince(start));
+            else
+                std::fprintf(stderr, "[environment] scene 3, %s: FAILED: %s\n", smallvcm::AlgorithmShortName(algorithm),
+                             (constant.mOk ? lit.mError : constant.mError).c_str());
+        }
+    }
+
+    const std::string report = Report(options, runs, bvh, gltf, environment, date, SecondsSince(start), loadStart, LoadAverage());
     std::fputs(report.c_str(), stdout);
     std::fflush(stdout);
     // The report first, then the CSVs: if one cannot be written, the report is already safe.
@@ -1223,5 +1296,7 @@ int main(int argc, char** argv) {
     }
     for (const Measurement& m : runs)
         if (!m.mOk) return 1;
+    for (const auto& [constant, lit] : environment)
+        if (!constant.mOk || !lit.mOk) return 1;
     return 0;
 }

@@ -236,7 +236,7 @@ def convert(gltf_path, out_dir, width, height):
                 scene[f"mesh_{len(scene)}"] = shape
                 triangles += len(faces)
     if not any("emitter" in shape for shape in scene.values() if isinstance(shape, dict)):
-        raise ConversionError(f"{gltf_path}: no light (the default white background is not converted)")
+        raise ConversionError(f"{gltf_path}: no light (the default sky and sun are not converted)")
     if camera is None:
         raise ConversionError(f"{gltf_path}: no camera (the made-up default camera is not converted)")
     node, world = camera

@@ -312,8 +312,9 @@ CommandLine Parse(int argc, char** argv) {
             envmapSettingGiven = arg;
         }
         else if (arg == "--envmap-scale") {
-            cl.mLoad.mEnvironmentScale = ParseNumber<float>(arg, value(i), 0.f, 1e30f, "a number in (0, 1e30]");
-            if (!(cl.mLoad.mEnvironmentScale > 0.f)) throw Error("--envmap-scale: '0' is not a number in (0, 1e30]");
+            const std::string text = value(i);
+            cl.mLoad.mEnvironmentScale = ParseNumber<float>(arg, text, 0.f, 1e30f, "a number in (0, 1e30]");
+            if (!(cl.mLoad.mEnvironmentScale > 0.f)) throw Error(arg + ": '" + text + "' is not a number in (0, 1e30]");
             envmapSettingGiven = arg;
         }
         else if (arg == "-q") cl.mQuiet = true;
@@ -322,7 +323,7 @@ CommandLine Parse(int argc, char** argv) {
     }
     if (cl.mOptions.mSeconds > 0.0 && !cl.mIterationsGiven) cl.mOptions.mIterations = 0;  // until time is up
     if (!cl.mLoad.mEnvironmentMap.empty() && backgroundGiven)
-        throw Error("--envmap: and --background both replace the background: give one");
+        throw Error("--envmap: --background replaces the background too: give one of them");
     if (cl.mLoad.mEnvironmentMap.empty() && !envmapSettingGiven.empty())
         throw Error(envmapSettingGiven + ": applies to an environment map: give --envmap FILE too");
     if (cl.mOptions.mMinPathLength > cl.mOptions.mMaxPathLength)

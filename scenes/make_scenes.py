@@ -739,7 +739,7 @@ def build_textured_torus():
     """A smooth-shaded torus (major radius 1, minor 0.4, 48 x 24 quads) with a checker
     baseColorTexture (a 64 x 64 PNG in a data URI, sRGB as glTF says), NORMAL and
     TEXCOORD_0, tilted 35 degrees towards the viewer, glTF's +y up. No camera and no light:
-    smallvcm frames it with its default camera under its default white background."""
+    smallvcm frames it with its default camera and lights it with its default sky and sun."""
     rings, sides, major, minor = 48, 24, 1.0, 0.4
     positions, normals, uvs, indices = [], [], [], []
     for i in range(rings + 1):              # seams duplicated: the texture wraps cleanly

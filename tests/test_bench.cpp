@@ -1,6 +1,7 @@
 // [bench] The benchmark program build/bench (benchmarks/bench.cpp) and its chart script
 // benchmarks/plot_bench.py, run as child processes on a small configuration: scene 4, pt and pm,
-// 1 and 2 threads, at --quick's 64x64, the BVH scaling up to 10^4 triangles and the loading of a 10^4-triangle glTF file. About
+// 1 and 2 threads, at --quick's 64x64, the BVH scaling up to 10^4 triangles, the loading of a 10^4-triangle glTF file
+// and the environment light's cost (scene 3, pt and vcm, its background against the HDRI). About
 // 5-10 s. Benchmarks report and never fail on time, so nothing here checks a speed; what
 // is checked is that the reports are complete and well formed, that the CSVs hold exactly
 // the rows measured, that the charts are drawn from them, and that a bad output path is
@@ -58,6 +59,13 @@ TEST_CASE("The benchmark writes its report and CSVs, and the chart script draws 
     // The glTF loading part: --quick's 10^4-triangle file, loaded whole.
     CHECK(report.find("### Loading a large glTF file") != std::string::npos);
     CHECK(report.find("\n| 10000 | ") != std::string::npos);
+    // The environment light's cost: scene 3 with its constant background and with the
+    // checked-in HDRI, pt and vcm, both measured.
+    CHECK(report.find("### The environment light's cost") != std::string::npos);
+    CHECK(report.find("hdri/royal_esplanade_1k.hdr") != std::string::npos);
+    CHECK(report.find("\n| pt | ") != std::string::npos);
+    CHECK(report.find("\n| vcm | ") != std::string::npos);
+    CHECK(report.find("failed") == std::string::npos);
 
     // Render rows: exactly the four configurations measured, every number positive.
     const auto render = ReadCsv(folder / "bench_render.csv");

@@ -7,6 +7,8 @@
 // Then what people look at and combine: PNG exposure and tone curves, the JSON sidecar
 // written with every image, `smallvcm merge` (its refusals, and a statistical test that a
 // merge of runs equals one longer run), -q, "1 iteration", -i with -t, and --layers.
+// Last, --envmap and its settings: every format, the sidecar's fields, what rotation and
+// scale do to the image, the refused combinations and values, bad maps, and merge.
 // Tests run from tests/, so the program is ../build/smallvcm.
 #include "gltf_corpus.hpp"
 #include "smallvcm.hpp"
@@ -29,6 +31,8 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
+#include <map>
 #include <sstream>
 
 namespace {
@@ -347,7 +351,7 @@ TEST_CASE("--background 0,0,0 on a file without lights is refused as --backgroun
     const Run none = RunProgram(Tiny(output) + " " + Quote(scene) + " --background none");
     CheckFailure(none, 1, scene, output);
     CHECK_THAT(none.mStderr, Catch::Contains(": the scene has no light: --background none removes the background"));
-    // The same file renders with the default white background, or any non-black one.
+    // The same file renders with the default sky and sun, or any non-black background.
     const Run grey = RunProgram(Tiny(output) + " " + Quote(scene) + " --background 0,0,0.5");
     INFO(grey);
     CHECK(grey.mExitCode == 0);
@@ -1079,5 +1083,229 @@ TEST_CASE("The gallery's real model (the Khronos Avocado, no camera, no light) r
     CHECK(run.mStdout.find(" (reading ") != std::string::npos);
     CHECK(run.mStdout.find(", BVH build and checks ") != std::string::npos);
     CHECK(run.mStdout.find("a default camera (the file has none)") != std::string::npos);
-    CHECK(run.mStderr.find("the scene has no light: added a uniform white background") != std::string::npos);
+    CHECK(run.mStderr.find("the scene has no light: added the default sky and sun (a sun from above, behind and left of the "
+                           "camera; --envmap FILE, --background R,G,B or --background none replace them)") != std::string::npos);
+}
+
+// -------------------------------------------------------------------------------------
+// --envmap, --envmap-rotate, --envmap-scale
+// -------------------------------------------------------------------------------------
+
+namespace {
+
+// One triangle, no light, no camera (the file of the --background test above): lit by the
+// map alone, which the default camera also sees around the triangle.
+std::string WriteUnlitTriangle(const TemporaryFolder& aFolder) {
+    const std::string scene = aFolder / "unlit.gltf";
+    std::ofstream(scene) << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}],
+      "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]})";
+    return scene;
+}
+
+// A 16 x 8 map whose four quadrants (left/right half, upper/lower half) differ in colour,
+// times aBrightness, written by the library's own writer (the format from the extension).
+std::string WriteQuadrantMap(const TemporaryFolder& aFolder, const std::string& aName, float aBrightness = 1.f) {
+    smallvcm::Image map(16, 8);
+    const smallvcm::Vec3 colours[4] = {{1.f, 0.2f, 0.1f}, {0.1f, 1.f, 0.2f}, {0.2f, 0.1f, 1.f}, {0.8f, 0.8f, 0.2f}};
+    for (int y = 0; y < 8; y++)
+        for (int x = 0; x < 16; x++) map.mPixels[size_t(y * 16 + x)] = aBrightness * colours[(x < 8 ? 0 : 1) + (y < 4 ? 0 : 2)];
+    const std::string path = aFolder / aName;
+    smallvcm::WriteImage(path, map);
+    return path;
+}
+
+// A PFM written byte by byte: aWidth x aHeight, with aPixels (3 floats each, possibly fewer
+// than the header claims).
+std::string WriteRawPfm(const TemporaryFolder& aFolder, const std::string& aName, int aWidth, int aHeight, const std::vector<float>& aPixels) {
+    const std::string path = aFolder / aName;
+    std::ofstream file(path, std::ios::binary);
+    file << "PF\n" << aWidth << " " << aHeight << "\n-1\n";
+    file.write(reinterpret_cast<const char*>(aPixels.data()), std::streamsize(aPixels.size() * sizeof(float)));
+    return path;
+}
+
+// A path-traced run of the unlit triangle under a map (aExtra: --envmap and its settings).
+Run RenderUnderMap(const std::string& aScene, const std::string& aOutput, const std::string& aExtra) {
+    return RunProgram("-a pt -i 2 -r 16x8 -j 1 -q --seed 5 -o " + Quote(aOutput) + " " + Quote(aScene) + " " + aExtra);
+}
+
+} // namespace
+
+TEST_CASE("--envmap lights a file with a map in each format and the sidecar records which map, turned and scaled how", "[cli][sidecar][envmap]") {
+    TemporaryFolder folder;
+    const std::string scene = WriteUnlitTriangle(folder);
+    for (const char* format : {"pfm", "exr", "hdr"}) {
+        const std::string map = WriteQuadrantMap(folder, std::string("map.") + format);
+        const std::string output = folder / (std::string("out_") + format + ".pfm");
+        const Run run = RenderUnderMap(scene, output, "--envmap " + Quote(map) + " --envmap-rotate 30 --envmap-scale 1.5");
+        INFO(run);
+        REQUIRE(run.mExitCode == 0);
+        CHECK(run.mStderr.empty());  // no note: the map replaces the default sky and sun
+        const Json s = ReadJson(output + ".json");
+        INFO(s.dump(2));
+        CHECK(s["envmap"] == map);
+        const Json& environment = s["estimator"]["background"]["envmap"];
+        CHECK(environment["fnv1a64"] == Fnv1a64(ReadFileBytes(map)));
+        CHECK(environment["rotate_degrees"].get<double>() == 30.0);
+        CHECK(environment["scale"].get<double>() == 1.5);
+        CHECK(smallvcm::MeanValue(smallvcm::ReadPfm(output)) > 0.0);
+    }
+    // Without the rotation and scale options, their defaults are recorded.
+    const std::string output = folder / "plain.pfm";
+    REQUIRE(RenderUnderMap(scene, output, "--envmap " + Quote(folder / "map.pfm")).mExitCode == 0);
+    const Json environment = ReadJson(output + ".json")["estimator"]["background"]["envmap"];
+    CHECK(environment["rotate_degrees"].get<double>() == 0.0);
+    CHECK(environment["scale"].get<double>() == 1.0);
+    // The help text names the three options.
+    const Run help = RunProgram("--help");
+    CHECK(help.mExitCode == 0);
+    CHECK_THAT(help.mStdout, Catch::Contains("--envmap FILE") && Catch::Contains("--envmap-rotate DEG") &&
+                             Catch::Contains("--envmap-scale S"));
+}
+
+TEST_CASE("--envmap-rotate turns the environment: another image, and a whole turn the same one bit for bit", "[cli][envmap]") {
+    TemporaryFolder folder;
+    const std::string scene = WriteUnlitTriangle(folder);
+    const std::string map = WriteQuadrantMap(folder, "map.pfm");
+    std::map<std::string, std::vector<unsigned char>> images;
+    for (const char* rotation : {"0", "90", "360", "-360"}) {
+        const std::string output = folder / (std::string("rotated_") + rotation + ".pfm");
+        const Run run = RenderUnderMap(scene, output, "--envmap " + Quote(map) + " --envmap-rotate " + rotation);
+        INFO(run);
+        REQUIRE(run.mExitCode == 0);
+        images[rotation] = ReadFileBytes(output);
+    }
+    CHECK(images["90"] != images["0"]);
+    CHECK(images["360"] == images["0"]);
+    CHECK(images["-360"] == images["0"]);
+}
+
+TEST_CASE("--envmap-scale 2 doubles every pixel of a path-traced run of the same seed", "[cli][envmap]") {
+    // The map is the only light, and pt's paths, pdfs and MIS weights do not depend on the
+    // light's brightness: the same random numbers give twice the radiance, and doubling a
+    // float is exact (only the film's sums in a different order could round otherwise).
+    TemporaryFolder folder;
+    const std::string scene = WriteUnlitTriangle(folder);
+    const std::string map = WriteQuadrantMap(folder, "map.exr");
+    const std::string one = folder / "one.pfm", two = folder / "two.pfm";
+    REQUIRE(RenderUnderMap(scene, one, "--envmap " + Quote(map)).mExitCode == 0);
+    REQUIRE(RenderUnderMap(scene, two, "--envmap " + Quote(map) + " --envmap-scale 2").mExitCode == 0);
+    const smallvcm::Image a = smallvcm::ReadPfm(one), b = smallvcm::ReadPfm(two);
+    REQUIRE(a.mPixels.size() == b.mPixels.size());
+    double worst = 0.0;
+    int nonzero = 0;
+    for (size_t i = 0; i < a.mPixels.size(); i++)
+        for (int k = 0; k < 3; k++) {
+            const double expected = 2.0 * double(a.mPixels[i][k]);
+            nonzero += expected > 0.0 ? 1 : 0;
+            worst = std::max(worst, std::abs(double(b.mPixels[i][k]) - expected) / std::max(expected, 1e-30));
+        }
+    INFO("worst relative difference " << worst);
+    CHECK(nonzero == int(a.mPixels.size()) * 3);
+    CHECK(worst < 1e-6);
+}
+
+TEST_CASE("Bad --envmap option combinations and values exit with code 2 and one line naming the option", "[cli][envmap]") {
+    TemporaryFolder folder;
+    const std::string scene = WriteUnlitTriangle(folder);
+    const std::string map = WriteQuadrantMap(folder, "map.pfm");
+    const std::string withMap = Quote(scene) + " --envmap " + Quote(map) + " ";
+    const std::vector<BadCommandLine> cases = {
+        {withMap + "--background 1,1,1", 2, "--envmap"},
+        {withMap + "--background none", 2, "--envmap"},
+        {Quote(scene) + " --background 0.5,0.5,0.5 --envmap " + Quote(map), 2, "--envmap"},
+        {Quote(scene) + " --envmap-rotate 30", 2, "--envmap-rotate"},
+        {Quote(scene) + " --envmap-scale 2", 2, "--envmap-scale"},
+        {withMap + "--envmap-scale nan", 2, "--envmap-scale"},
+        {withMap + "--envmap-scale 0", 2, "--envmap-scale"},
+        {withMap + "--envmap-scale -0", 2, "--envmap-scale"},
+        {withMap + "--envmap-scale -1", 2, "--envmap-scale"},
+        {withMap + "--envmap-scale inf", 2, "--envmap-scale"},
+        {withMap + "--envmap-scale", 2, "--envmap-scale"},
+        {withMap + "--envmap-rotate nan", 2, "--envmap-rotate"},
+        {withMap + "--envmap-rotate 1e9", 2, "--envmap-rotate"},
+        {withMap + "--envmap-rotate -inf", 2, "--envmap-rotate"},
+        {withMap + "--envmap-rotate 90deg", 2, "--envmap-rotate"},
+        {Quote(scene) + " --envmap ''", 2, "--envmap"},
+    };
+    int index = 0;
+    for (const BadCommandLine& c : cases) {
+        const std::string output = folder / ("out" + std::to_string(index++) + ".png");
+        const Run run = RunProgram(Tiny(output) + " " + c.mArguments);
+        CheckFailure(run, c.mExitCode, c.mNamed, output);
+    }
+    const Run both = RunProgram(Tiny(folder / "both.png") + " " + withMap + "--background 1,1,1");
+    CHECK(both.mStderr == "smallvcm: --envmap: --background replaces the background too: give one of them\n");
+    const Run alone = RunProgram(Tiny(folder / "alone.png") + " " + Quote(scene) + " --envmap-scale 2");
+    CHECK(alone.mStderr == "smallvcm: --envmap-scale: applies to an environment map: give --envmap FILE too\n");
+    const Run zero = RunProgram(Tiny(folder / "zero.png") + " " + withMap + "--envmap-scale -0");
+    CHECK(zero.mStderr == "smallvcm: --envmap-scale: '-0' is not a number in (0, 1e30]\n");
+}
+
+TEST_CASE("A missing, truncated, not 2:1, NaN-texel or oversized map exits with code 1, one line naming it, and no image", "[cli][envmap]") {
+    TemporaryFolder folder;
+    const std::string scene = WriteUnlitTriangle(folder);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::vector<float> withNan(8 * 4 * 3, 1.f);
+    withNan[3 * 9 + 1] = nan;
+    std::string truncated = WriteQuadrantMap(folder, "truncated.exr");
+    fs::resize_file(truncated, fs::file_size(truncated) / 2);
+    const struct {
+        std::string mMap, mProblem;
+    } cases[] = {
+        {folder / "missing.hdr", "cannot open"},
+        {WriteRawPfm(folder, "truncated.pfm", 8, 4, std::vector<float>(48, 1.f)), "truncated"},
+        {truncated, ""},
+        {WriteRawPfm(folder, "three_by_two.pfm", 3, 2, std::vector<float>(18, 1.f)), "twice as wide as high; this one is 3x2"},
+        // PFM stores the bottom row first: the file's second row is the map's third from the top.
+        {WriteRawPfm(folder, "nan.pfm", 8, 4, withNan), "texel (1, 2) is negative or not finite"},
+        {WriteRawPfm(folder, "huge.pfm", 16384, 8192, {}), "16384x8192 pixels, more than the 33554432"},
+        {WriteQuadrantMap(folder, "black.pfm", 0.f), "the environment map is black"},
+        {WriteQuadrantMap(folder, "map.png"), "a PNG holds exposed"},
+    };
+    int index = 0;
+    for (const auto& c : cases) {
+        const std::string output = folder / ("out" + std::to_string(index++) + ".pfm");
+        const Run run = RenderUnderMap(scene, output, "--envmap " + Quote(c.mMap));
+        INFO(run);
+        CHECK(run.mSignal == 0);
+        CHECK(run.mExitCode == 1);
+        CHECK(LineCount(run.mStderr) == 1);
+        CHECK(StartsWith(run.mStderr, "smallvcm: environment map " + c.mMap + ": "));
+        CHECK(run.mStderr.find(c.mProblem) != std::string::npos);
+        CHECK_FALSE(fs::exists(output));
+        CHECK_FALSE(fs::exists(output + ".partial"));
+        CHECK_FALSE(fs::exists(output + ".json"));
+    }
+}
+
+TEST_CASE("merge combines seeded runs under the same map and refuses runs under different maps", "[cli][merge][envmap]") {
+    TemporaryFolder folder;
+    const std::string scene = WriteUnlitTriangle(folder);
+    const std::string map = WriteQuadrantMap(folder, "map.pfm"), brighter = WriteQuadrantMap(folder, "brighter.pfm", 2.f);
+    auto render = [&](const std::string& aName, int aSeed, const std::string& aExtra) {
+        const std::string path = folder / aName;
+        const Run run = RunProgram("-a pt -i 2 -r 16x8 -j 1 -q --seed " + std::to_string(aSeed) + " -o " + Quote(path) + " " +
+                                   Quote(scene) + " " + aExtra);
+        INFO(run);
+        REQUIRE(run.mExitCode == 0);
+        return path;
+    };
+    const std::string a = render("a.pfm", 1, "--envmap " + Quote(map)), b = render("b.pfm", 2, "--envmap " + Quote(map));
+    const std::string merged = folder / "merged.pfm";
+    const Run run = RunProgram(MergeCommand(merged, {a, b}));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    CHECK(ReadJson(merged + ".json")["estimator"] == ReadJson(a + ".json")["estimator"]);
+    // Another map (other bytes), the same map turned or scaled otherwise, or the default sky: refused.
+    const std::string output = folder / "refused.pfm";
+    const std::string others[] = {render("c.pfm", 3, "--envmap " + Quote(brighter)),
+                                  render("d.pfm", 4, "--envmap " + Quote(map) + " --envmap-rotate 10"),
+                                  render("e.pfm", 5, "--envmap " + Quote(map) + " --envmap-scale 3"),
+                                  render("f.pfm", 6, "")};
+    for (const std::string& other : others)
+        CheckMergeFailure(RunProgram(MergeCommand(output, {a, other})), 1, other, output, "its background");
 }

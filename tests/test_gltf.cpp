@@ -732,26 +732,109 @@ TEST_CASE("GltfLoadOptions::mCamera picks the N-th camera node and refuses one o
     CHECK(LoadError(path, options) == path + ": camera 2 was asked for, but the scene has 2 camera node(s) (0..1)");
 }
 
-TEST_CASE("A file without an emitter gets a white background, which the options replace or remove", "[gltf]") {
+namespace {
+
+// The default light of a file without one (AddDefaultSkyAndSun): exactly one background
+// light with an environment map (the sky) and one directional light (the sun), from above
+// (50 degrees up: y = sin 50 > 0.7), from behind the camera and from its left.
+void CheckDefaultSkyAndSun(const Scene& aScene) {
+    const Light* sky = nullptr;
+    const Light* sun = nullptr;
+    int backgrounds = 0, directionals = 0;
+    for (const Light& light : aScene.mLights) {
+        if (light.mType == LightType::kBackground) { backgrounds++; sky = &light; }
+        if (light.mType == LightType::kDirectional) { directionals++; sun = &light; }
+    }
+    REQUIRE(backgrounds == 1);
+    REQUIRE(directionals == 1);
+    REQUIRE(sky->mEnvironment != nullptr);
+    CHECK(sky->mEmission == Vec3(1.f));
+    // The sky: bluish at the zenith, brighter at the horizon, a darker ground; never white,
+    // so that a white model stands out from it.
+    const Vec3 zenith = sky->mEnvironment->Radiance(Vec3(0.f, 1.f, 0.f));
+    const Vec3 nadir = sky->mEnvironment->Radiance(Vec3(0.f, -1.f, 0.f));
+    const Vec3 horizon = sky->mEnvironment->Radiance(glm::normalize(Vec3(1.f, 0.02f, 0.f)));
+    CHECK_VEC3(zenith, Vec3(0.22f, 0.3f, 0.45f), 1e-3f);
+    CHECK_VEC3(nadir, Vec3(0.2f, 0.19f, 0.18f), 1e-6f);
+    CHECK(Luminance(horizon) > Luminance(zenith));
+    CHECK(Luminance(nadir) < Luminance(zenith));
+    CHECK(sky->mEnvironment->BrightestTexel().x < 0.7f);
+    // The sun: its irradiance, and where it comes from relative to the camera.
+    CHECK(sun->mEmission == Vec3(3.f, 2.9f, 2.7f));
+    const Vec3 toSun = -sun->mDirection;
+    INFO("to the sun " << toSun.x << " " << toSun.y << " " << toSun.z);
+    CHECK(toSun.y > 0.7f);
+    CHECK(toSun.y == Approx(std::sin(50.f * kPi / 180.f)).margin(1e-5));
+    CHECK(glm::dot(toSun, aScene.mCamera.Forward()) < 0.f);
+    CHECK(glm::dot(toSun, aScene.mCamera.Right()) < 0.f);
+}
+
+} // namespace
+
+TEST_CASE("A file without an emitter gets the default sky and sun, which the options replace or remove", "[gltf]") {
     testutil::TemporaryFolder folder;
     const std::string path = WriteTemporary(folder, "unlit.gltf", MeshGltf(Cube(Vec3(0.f))));
     GltfLoadReport report;
     const Scene scene = LoadGltfScene(path, &report);
     CHECK(report.mDefaultBackground);
-    REQUIRE(scene.mLights.size() == 1);
-    CHECK(scene.mLights[0].mType == LightType::kBackground);
-    CHECK(scene.mLights[0].mEmission == Vec3(1.f));
+    REQUIRE(scene.mLights.size() == 2);
+    CheckDefaultSkyAndSun(scene);
+    // One note, which names what was added and how to change it.
     REQUIRE(report.mNotes.size() == 1);
-    CHECK_THAT(report.mNotes[0], Catch::Contains("no light") && Catch::Contains("--background"));
+    CHECK(report.mNotes[0] == "the scene has no light: added the default sky and sun (a sun from above, behind and left of the "
+                              "camera; --envmap FILE, --background R,G,B or --background none replace them)");
+
+    // The sun follows the camera: a camera node turned 90 degrees about +Y (it looks along
+    // -X) gets a sun from +X (behind it) and +Z (its left).
+    const std::string turned = WriteTemporary(folder, "turned.gltf", MeshGltf(Cube(Vec3(0.f)),
+        R"(, {"camera": 0, "translation": [10, 0, 0], "rotation": [0, 0.70710678, 0, 0.70710678]})",
+        R"(, "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}])"));
+    const Scene turnedScene = LoadGltfScene(turned, &report);
+    CHECK(report.mDefaultBackground);
+    CHECK(turnedScene.mCamera.Forward().x == Approx(-1.f).margin(1e-5));
+    CheckDefaultSkyAndSun(turnedScene);
+    const Vec3 toSun = -turnedScene.mLights[1].mDirection;
+    CHECK(toSun.x > 0.f);
+    CHECK(toSun.z > 0.f);
 
     GltfLoadOptions options;
     options.mBackground = GltfLoadOptions::Background::kNone;
     CHECK(LoadError(path, options) == path + ": the scene has no light: --background none removes the background and the file "
                                               "has no other light; give a non-black --background R,G,B, or add lights to the file");
-    // Replacing the background of a scene that has one (Cornell scene 3), and adding one to
-    // a scene lit otherwise (Cornell scene 4: its ceiling light stays).
+    // A background radiance replaces sky and sun: one uniform background, no sun.
     options.mBackground = GltfLoadOptions::Background::kRadiance;
     options.mBackgroundRadiance = Vec3(0.25f, 0.5f, 2.f);
+    {
+        const Scene uniform = LoadGltfScene(path, &report, options);
+        CHECK_FALSE(report.mDefaultBackground);
+        REQUIRE(uniform.mLights.size() == 1);
+        CHECK(uniform.mLights[0].mType == LightType::kBackground);
+        CHECK(uniform.mLights[0].mEnvironment == nullptr);
+        CHECK(uniform.mLights[0].mEmission == options.mBackgroundRadiance);
+        CHECK(report.mNotes.empty());
+    }
+    // So does an environment map: one background light with the map, no sun.
+    {
+        Image map(8, 4);
+        for (Vec3& texel : map.mPixels) texel = Vec3(0.5f, 1.f, 2.f);
+        WriteImage(folder / "map.pfm", map);
+        GltfLoadOptions environment;
+        environment.mEnvironmentMap = folder / "map.pfm";
+        environment.mEnvironmentScale = 3.f;
+        const Scene lit = LoadGltfScene(path, &report, environment);
+        CHECK_FALSE(report.mDefaultBackground);
+        REQUIRE(lit.mLights.size() == 1);
+        CHECK(lit.mLights[0].mType == LightType::kBackground);
+        REQUIRE(lit.mLights[0].mEnvironment != nullptr);
+        CHECK(lit.mLights[0].mEmission == Vec3(3.f));
+        CHECK(lit.mLights[0].mEnvironment->Radiance(Vec3(0.f, 0.f, 1.f)) == Vec3(0.5f, 1.f, 2.f));
+        CHECK(report.mNotes.empty());
+        // With a background option as well it is refused, not guessed.
+        environment.mBackground = GltfLoadOptions::Background::kNone;
+        CHECK_THAT(LoadError(path, environment), Catch::Contains("an environment map and a background radiance (or none) both replace the background"));
+    }
+    // Replacing the background of a scene that has one (Cornell scene 3), and adding one to
+    // a scene lit otherwise (Cornell scene 4: its ceiling light stays); neither gets a sun.
     for (int cornell : {3, 4}) {
         const size_t lightsInFile = LoadGltfScene(CornellPath(cornell)).mLights.size();
         const Scene lit = LoadGltfScene(CornellPath(cornell), &report, options);
@@ -1394,8 +1477,8 @@ TEST_CASE("A glTF emissiveTexture is sRGB-decoded and multiplies emissiveFactor 
     // (2, 1, 0.5) x strength 3, the same 2 x 2 image as its emissiveTexture, no
     // baseColorTexture. A ray down onto a texel centre sees factor x strength x texel.
     // A glow map, not a lamp: the floor keeps its reflectance (base colour 0.5, metallic
-    // 0: diffuse 0.96 x 0.5, Phong 0.04) and, being the file's only light, gets the white
-    // background.
+    // 0: diffuse 0.96 x 0.5, Phong 0.04) and, being the file's only light, gets the default
+    // sky and sun beside it.
     TemporaryFolder folder;
     Image image(2, 2);
     image.mPixels = {Vec3(1.f, 0.f, 0.f), Vec3(0.2f), Vec3(0.f, 0.f, 1.f), Vec3(1.f)};
@@ -1412,14 +1495,33 @@ TEST_CASE("A glTF emissiveTexture is sRGB-decoded and multiplies emissiveFactor 
     int glowNotes = 0;
     for (const std::string& note : report.mNotes) {
         CHECK_THAT(note, !Catch::Contains("approximated") || !Catch::Contains("emissiveTexture"));
-        if (note.find("the scene's only lights are emissive textures (glow maps): added a uniform white background") == 0)
+        if (note == "the scene's only lights are emissive textures (glow maps): added the default sky and sun (a sun from above, "
+                    "behind and left of the camera; --envmap FILE, --background R,G,B or --background none replace them)")
             glowNotes++;
     }
     CHECK(glowNotes == 1);
     CHECK_VEC3(scene.mMaterials.at(0).mDiffuseReflectance, Vec3(0.48f), 1e-6f);
     CHECK_VEC3(scene.mMaterials.at(0).mPhongReflectance, Vec3(0.04f), 1e-6f);
-    REQUIRE(scene.LightCount() == 2);
-    CHECK(scene.GetLight(1).mType == LightType::kBackground);
+    REQUIRE(scene.LightCount() == 3);
+    CheckDefaultSkyAndSun(scene);
+    // --background none or R,G,B replaces both: the glow map alone, or beside a uniform
+    // background, and no sun.
+    {
+        GltfLoadOptions none;
+        none.mBackground = GltfLoadOptions::Background::kNone;
+        const Scene glowOnly = LoadGltfScene(folder / "floor.gltf", &report, none);
+        CHECK_FALSE(report.mDefaultBackground);
+        REQUIRE(glowOnly.LightCount() == 1);
+        CHECK(glowOnly.GetLight(0).mEmissionTexture >= 0);
+        GltfLoadOptions grey;
+        grey.mBackground = GltfLoadOptions::Background::kRadiance;
+        grey.mBackgroundRadiance = Vec3(0.5f);
+        const Scene withBackground = LoadGltfScene(folder / "floor.gltf", &report, grey);
+        CHECK_FALSE(report.mDefaultBackground);
+        REQUIRE(withBackground.LightCount() == 2);
+        CHECK(withBackground.GetLight(1).mType == LightType::kBackground);
+        CHECK(withBackground.GetLight(1).mEnvironment == nullptr);
+    }
     const Light& light = scene.GetLight(0);
     REQUIRE(light.mEmissionTexture >= 0);
     const Vec3 scale = 3.f * Vec3(2.f, 1.f, 0.5f);
