@@ -309,6 +309,23 @@ MUTANTS = [
     dict(id="M90", cls="textures", what="normal map decoded as sRGB colour",
          find="source.normalTexture.extensions, false, \"normalTexture\", what);",
          replace="source.normalTexture.extensions, true, \"normalTexture\", what);"),
+    # --- alpha cut-outs ----------------------------------------------------------------------
+    dict(id="M91", cls="cutouts", what="alpha test inverted: holes where alpha >= the cutoff",
+         find="return alpha >= material.AlphaCutoff();",
+         replace="return alpha < material.AlphaCutoff();"),
+    dict(id="M92", cls="cutouts", what="shadow rays and connections ignore cut-outs (the plain any-hit query)",
+         find="return mTree->HasCutOuts() ? mTree->Occluded<true>(aRay, aTMin, aTMax, aIsSolid)",
+         replace="return false ? mTree->Occluded<true>(aRay, aTMin, aTMax, aIsSolid)"),
+    dict(id="M93", cls="cutouts", what="nearest-hit rays ignore cut-outs (a refused hit still counts)",
+         find="if (kCutOuts && (id & kCutOutBit) && !aIsSolid(int(id & kIdMask), aT[lane])) continue;",
+         replace="if (false && (id & kCutOutBit) && !aIsSolid(int(id & kIdMask), aT[lane])) continue;"),
+    dict(id="M94", cls="cutouts", what="texture alpha decoded from sRGB like the colour",
+         find="for (size_t i = 0; i < image.mAlpha.size(); i++) result.mAlpha[i] = float(image.mAlpha[i]) / 255.f;",
+         replace="for (size_t i = 0; i < image.mAlpha.size(); i++) result.mAlpha[i] = toLinear[image.mAlpha[i]];",
+         impl=True),
+    dict(id="M95", cls="cutouts", what="BLEND compared with the material's alphaCutoff instead of 1/2",
+         find="return mAlphaMode == AlphaMode::kBlend ? 0.5f : mAlphaCutoff;",
+         replace="return mAlphaCutoff;"),
 ]
 for _m in MUTANTS:
     _m["class"] = _m.pop("cls")

@@ -515,7 +515,7 @@ TEST_CASE("Scene::Occluded agrees with brute force for 10,000 segments", "[geome
     REQUIRE(occluded < 8000);
 }
 
-TEST_CASE("With cut-outs the BVH finds the nearest solid hit and any solid occluder, as brute force does", "[geometry]") {
+TEST_CASE("With cut-outs the BVH finds the nearest solid hit and any solid occluder, as brute force does", "[geometry][cutouts]") {
     // The random scene with two triangles in three cut out by a 3D checkerboard of cells
     // 0.05 wide (a test of the hit point alone, as the contract asks): the nearest hit
     // the test accepts, over every primitive, must be the BVH's (the same primitive, or an
