@@ -638,9 +638,11 @@ struct Aabb {
 // The primitives the BVH is built over, in the layout the traversal reads: triangles as
 // their three vertices (shared vertices stay bit-identical, which the watertight test
 // needs), spheres as centre and radius. The index of a primitive is its position in
-// the scene: triangles 0..T-1, then spheres T..T+S-1.
+// the scene: triangles 0..T-1, then spheres T..T+S-1. mTriangleCutOut marks the triangles
+// with holes (alpha cut-outs; empty: none has), whose hits the queries below confirm.
 struct PrimitiveSoup {
     std::vector<Vec3> mTriangleP0, mTriangleP1, mTriangleP2;
+    std::vector<uint8_t> mTriangleCutOut;
     std::vector<Vec3> mSphereCenter;
     std::vector<float> mSphereRadius;
     int TriangleCount() const { return int(mTriangleP0.size()); }
@@ -673,11 +675,23 @@ struct PrimitiveSoup {
 // necessarily the closest). Both are two-sided, const and touch no shared mutable state,
 // so any number of threads may trace one Bvh at once; copies of a Bvh share its
 // (immutable) tree.
+// Cut-outs: given a test aIsSolid(triangle, t) -- is the surface of that triangle there
+// at distance t along the ray? -- both queries ask it about every hit of a triangle the
+// soup marks as cut out (and only those; at most once per hit that could change the
+// answer) and treat a hit it refuses as no hit: Intersect returns the closest hit the
+// test accepts, Occluded whether there is any. The test must depend on the triangle and
+// t alone, so that every build of the BVH returns the same hits. Without a test, every
+// hit counts.
 class Bvh {
 public:
     void Build(const PrimitiveSoup& aSoup);
     int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const;
     bool Occluded(const Ray& aRay, float aTMin, float aTMax) const;
+    template <typename IsSolid>
+    int Intersect(const Ray& aRay, float aTMin, float& ioTMax, const IsSolid& aIsSolid) const;
+    template <typename IsSolid>
+    bool Occluded(const Ray& aRay, float aTMin, float aTMax, const IsSolid& aIsSolid) const;
+    bool HasCutOuts() const;       // whether the soup marked any triangle
 
     // Statistics, for tests and benchmarks. Nodes count leaves too.
     size_t NodeCount() const;
@@ -730,14 +744,24 @@ struct UvTransform {
 
 // An RGB image in linear colour, filtered bilinearly. glTF conventions: uv (0, 0) is the
 // top-left corner of the image (row 0), texel centres lie at ((i + 0.5) / width, ...).
-// The texture coordinates of a lookup go through mUvTransform first.
+// The texture coordinates of a lookup go through mUvTransform first. A texture may also
+// keep its alpha channel (mAlpha, linear coverage in [0, 1]; glTF: alpha is never
+// sRGB-encoded): only the base colour of a material with a cut-out does (Material::
+// mAlphaTexture), so other textures carry no fourth channel.
 struct Texture {
     int mWidth = 0, mHeight = 0;
     std::vector<Vec3> mTexels;  // row by row from the top
+    std::vector<float> mAlpha;  // the same texels' alpha, or empty
     TextureWrap mWrapU = TextureWrap::kRepeat, mWrapV = TextureWrap::kRepeat;
     UvTransform mUvTransform;
 
-    Vec3 Lookup(const Vec2& aTexCoord) const {
+    Vec3 Lookup(const Vec2& aTexCoord) const { return Bilinear(mTexels, aTexCoord); }
+    // The alpha at aTexCoord, filtered and wrapped like the colour (1 without alpha).
+    float LookupAlpha(const Vec2& aTexCoord) const { return mAlpha.empty() ? 1.f : Bilinear(mAlpha, aTexCoord); }
+
+private:
+    template <typename T>
+    T Bilinear(const std::vector<T>& aTexels, const Vec2& aTexCoord) const {
         const Vec2 uv = mUvTransform.Apply(aTexCoord);
         const float x = Reduce(uv.x, mWrapU) * float(mWidth) - 0.5f;
         const float y = Reduce(uv.y, mWrapV) * float(mHeight) - 0.5f;
@@ -745,13 +769,11 @@ struct Texture {
         const float tx = x - fx, ty = y - fy;
         const int x0 = int(fx), y0 = int(fy);
         const auto at = [&](int aX, int aY) {
-            return mTexels[size_t(Wrap(aY, mHeight, mWrapV)) * size_t(mWidth) + size_t(Wrap(aX, mWidth, mWrapU))];
+            return aTexels[size_t(Wrap(aY, mHeight, mWrapV)) * size_t(mWidth) + size_t(Wrap(aX, mWidth, mWrapU))];
         };
         return (1.f - ty) * ((1.f - tx) * at(x0, y0) + tx * at(x0 + 1, y0)) +
                ty * ((1.f - tx) * at(x0, y0 + 1) + tx * at(x0 + 1, y0 + 1));
     }
-
-private:
     // A coordinate brought into [0, 1] (repeat: [0, 1), its period) before it is scaled
     // to texels, so that huge coordinates cannot overflow an int. Not finite: 0.
     static float Reduce(float aCoordinate, TextureWrap aWrap) {
@@ -775,6 +797,9 @@ private:
     }
 };
 
+// How a material's alpha cuts its surface (glTF material.alphaMode; Material below).
+enum class AlphaMode { kOpaque, kMask, kBlend };
+
 struct Material {
     std::string mName;
     Vec3 mDiffuseReflectance{0.f};
@@ -794,6 +819,25 @@ struct Material {
     // mNormalScale scales the tilt's x and y (glTF's normalTexture.scale).
     int mNormalTexture = -1;
     float mNormalScale = 1.f;
+    // Cut-outs (glTF alphaMode). The coverage at a point is alpha = mBaseColorAlpha
+    // (baseColorFactor's alpha) times the alpha of mAlphaTexture there (the base-colour
+    // texture, with the same TEXCOORD set and transform; -1: none, alpha 1). kMask: the
+    // surface is there where alpha >= mAlphaCutoff and a hole elsewhere (glTF 2.0,
+    // material.alphaCutoff: "greater than or equal ... fully opaque, otherwise fully
+    // transparent"). kBlend is thresholded the same way at 1/2: partial coverage is not
+    // modelled (see AlphaCutoff). Only triangles have cut-outs; a hole lets every ray
+    // through (Scene::IsSolidAt).
+    AlphaMode mAlphaMode = AlphaMode::kOpaque;
+    float mAlphaCutoff = 0.5f;  // glTF's default
+    float mBaseColorAlpha = 1.f;
+    int mAlphaTexture = -1;
+
+    bool HasCutOut() const { return mAlphaMode != AlphaMode::kOpaque; }
+    // The threshold of the coverage test. BLEND has no cutoff in glTF; a threshold at
+    // 1/2 keeps the surface one fixed set of points, the same for every ray and every
+    // estimator (a random coverage test per ray would make a point on it a different
+    // surface for the camera and the light sub-path, and merging would see it twice).
+    float AlphaCutoff() const { return mAlphaMode == AlphaMode::kBlend ? 0.5f : mAlphaCutoff; }
 
     bool HasNonSpecular() const { return !IsBlack(mDiffuseReflectance) || !IsBlack(mPhongReflectance); }
     bool HasSpecular() const { return !IsBlack(mMirrorReflectance) || mIor > 0.f; }
@@ -1623,7 +1667,9 @@ public:
         RayCounter()++;
         SurfacePoint hit;
         float tMax = std::numeric_limits<float>::infinity();
-        const int primitive = mBvh.Intersect(aRay, 0.f, tMax);
+        const int primitive = mBvh.Intersect(aRay, 0.f, tMax, [&](int aTriangle, float aT) {
+            return IsSolidAt(aTriangle, aRay.mOrigin + aT * aRay.mDirection);
+        });
         if (primitive < 0) return hit;
         hit.mDist = tMax;
         hit.mPosition = aRay.mOrigin + tMax * aRay.mDirection;
@@ -1665,10 +1711,28 @@ public:
 
     // Shadow ray: is anything between aPoint and aPoint + aDistance * aDirection?
     // Both ends are pulled in by the ray epsilon so the two surfaces do not occlude.
+    // A cut-out's holes let it through, as they let Intersect's rays through.
     bool Occluded(const Vec3& aPoint, const Vec3& aDirection, float aDistance) const {
         RayCounter()++;
         const Ray ray{aPoint + aDirection * mRayEpsilon, aDirection};
-        return mBvh.Occluded(ray, 0.f, aDistance - 2.f * mRayEpsilon);
+        return mBvh.Occluded(ray, 0.f, aDistance - 2.f * mRayEpsilon, [&](int aTriangle, float aT) {
+            return IsSolidAt(aTriangle, ray.mOrigin + aT * ray.mDirection);
+        });
+    }
+
+    // Whether triangle aTriangle's surface is there at aPoint (on it): false in a hole of
+    // its material's cut-out (Material::mAlphaMode), true on a triangle without one. The
+    // BVH asks it about hits on cut-out triangles only. It depends on the point alone,
+    // not on the ray, so that a camera ray, a light sub-path's ray and a shadow ray or
+    // connection all see the same surface: every estimator integrates over one scene.
+    bool IsSolidAt(int aTriangle, const Vec3& aPoint) const {
+        const Triangle& triangle = mTriangles[size_t(aTriangle)];
+        const Material& material = mMaterials[size_t(triangle.mMaterialId)];
+        if (!material.HasCutOut() || triangle.mLightId >= 0) return true;
+        float alpha = material.mBaseColorAlpha;
+        if (material.mAlphaTexture >= 0)
+            alpha *= mTextures[size_t(material.mAlphaTexture)].LookupAlpha(TriangleUv(triangle, Barycentrics(triangle, aPoint)));
+        return alpha >= material.AlphaCutoff();
     }
 
     // The base-colour texel at a surface point (white for untextured materials).
@@ -1898,6 +1962,7 @@ private:
             soup.mTriangleP0.push_back(triangle.mP0);
             soup.mTriangleP1.push_back(triangle.mP1);
             soup.mTriangleP2.push_back(triangle.mP2);
+            soup.mTriangleCutOut.push_back(KindOf(triangle).mCutOut);
         }
         for (const Sphere& sphere : mSpheres) {
             soup.mSphereCenter.push_back(sphere.mCenter);
@@ -1919,13 +1984,16 @@ private:
         bool mTextured = false;          // a base-colour or emission texture: needs the uv
         bool mHasVertexNormals = false;  // smooth: needs the interpolated normal
         bool mNormalMapped = false;      // a normal map and tangents: tilts the shading normal
+        bool mCutOut = false;            // an alpha cut-out: the BVH asks IsSolidAt about its hits
         bool operator==(const TriangleKind& aOther) const {
-            return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals, mNormalMapped) ==
-                   std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals, aOther.mNormalMapped);
+            return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals, mNormalMapped, mCutOut) ==
+                   std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals,
+                            aOther.mNormalMapped, aOther.mCutOut);
         }
         bool operator<(const TriangleKind& aOther) const {
-            return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals, mNormalMapped) <
-                   std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals, aOther.mNormalMapped);
+            return std::tie(mMaterialId, mLightId, mTextured, mHasVertexNormals, mNormalMapped, mCutOut) <
+                   std::tie(aOther.mMaterialId, aOther.mLightId, aOther.mTextured, aOther.mHasVertexNormals,
+                            aOther.mNormalMapped, aOther.mCutOut);
         }
     };
     struct alignas(16) TriangleHitRecord {
@@ -1941,6 +2009,9 @@ private:
         kind.mHasVertexNormals = aTriangle.mHasVertexNormals;
         kind.mNormalMapped = aTriangle.mHasTangents && mMaterials[size_t(aTriangle.mMaterialId)].mNormalTexture >= 0;
         kind.mTextured = kind.mTextured || kind.mNormalMapped;
+        // An emitter stays whole: a light samples its whole area (Light::Illuminate), so
+        // holes in it would be lit points that no ray can reach.
+        kind.mCutOut = mMaterials[size_t(aTriangle.mMaterialId)].HasCutOut() && aTriangle.mLightId < 0;
         return kind;
     }
     void BuildTriangleHitRecords() {
@@ -1986,8 +2057,9 @@ private:
     bool IsUsableTexture(int aTexture) const {
         if (aTexture < 0 || aTexture >= int(mTextures.size())) return false;
         const Texture& texture = mTextures[size_t(aTexture)];
-        return texture.mWidth > 0 && texture.mHeight > 0 &&
-               texture.mTexels.size() == size_t(texture.mWidth) * size_t(texture.mHeight);
+        const size_t texels = size_t(texture.mWidth) * size_t(texture.mHeight);
+        return texture.mWidth > 0 && texture.mHeight > 0 && texture.mTexels.size() == texels &&
+               (texture.mAlpha.empty() || texture.mAlpha.size() == texels);
     }
     void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
         if (aMaterialId >= 0 && size_t(aMaterialId) < mMaterials.size()) {
@@ -1997,6 +2069,11 @@ private:
                     throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " refers to a missing or empty texture");
             if (!std::isfinite(material.mNormalScale))
                 throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " has a normal scale that is not finite");
+            if (material.mAlphaTexture >= 0 && !IsUsableTexture(material.mAlphaTexture))
+                throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " refers to a missing or empty alpha texture");
+            if (!(material.mAlphaCutoff >= 0.f) || !(material.mBaseColorAlpha >= 0.f && material.mBaseColorAlpha <= 1.f))
+                throw Error(aWhere + ": material " + std::to_string(aMaterialId) +
+                            " has an alpha cutoff that is negative or NaN, or a base colour alpha outside [0, 1]");
         }
         if (aMaterialId < 0 || aMaterialId >= int(mMaterials.size()))
             throw Error(aWhere + ": a primitive refers to material " + std::to_string(aMaterialId) + ", which does not exist");
@@ -4401,8 +4478,9 @@ public:
     // kWidth primitives of a leaf (160 bytes 4 wide, 320 bytes 8 wide), coordinate by
     // coordinate: triangles with vertices mA, mB, mC ([axis][lane]), or spheres with centre mA and
     // radius mB[0]. mId is the scene's primitive index, with kSphereBit set in every lane
-    // of a sphere block. A leaf's last block is filled up by repeating its last primitive:
-    // a copy hits at the same t as its original, so it never changes an answer.
+    // of a sphere block and kCutOutBit in the lane of a triangle with cut-outs. A leaf's
+    // last block is filled up by repeating its last primitive: a copy hits at the same t
+    // as its original, so it never changes an answer.
     struct alignas(4 * kWidth) Block {
         uint32_t mId[kWidth];  // first: it shares the first cache line with mA
         float mA[3][kWidth];
@@ -4427,6 +4505,7 @@ public:
         mBuildSoup = &aSoup;
         const int count = aSoup.Count();
         mPrimitiveCount = count;
+        mHasCutOuts = std::find(aSoup.mTriangleCutOut.begin(), aSoup.mTriangleCutOut.end(), 1) != aSoup.mTriangleCutOut.end();
         std::vector<uint32_t> order(count);
         std::vector<Aabb> bounds(count);
         std::vector<Vec3> centroids(count);
@@ -4449,7 +4528,10 @@ public:
     // Nearest hit in (aTMin, ioTMax); returns the primitive index or -1. The root's box
     // is not tested on its own: a ray that misses it misses the boxes of the root's
     // children too, which the first visit finds, so a separate test would only cost time.
-    int Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
+    // kCutOuts: a tree with cut-out triangles, whose hits aIsSolid confirms (one test on
+    // a candidate hit, so a tree without them runs the code it ran before they existed).
+    template <bool kCutOuts, typename IsSolid>
+    int Intersect(const Ray& aRay, float aTMin, float& ioTMax, const IsSolid& aIsSolid) const {
         if (mBlocks.empty()) return -1;
         int hitPrimitive = -1;
         if (mRoot.mCount > 0) {  // the whole scene is one leaf
@@ -4465,7 +4547,8 @@ public:
                 FloatN t[kFlatBlocks];
                 int hits[kFlatBlocks];
                 for (uint32_t b = 0; b < count; b++) hits[b] = BlockHits(blocks[b], aRay, ray, aTMin, tMax, t[b]);
-                for (uint32_t b = 0; b < count; b++) KeepNearest(blocks[b], hits[b], t[b], ioTMax, hitPrimitive);
+                for (uint32_t b = 0; b < count; b++)
+                    KeepNearest<kCutOuts>(blocks[b], hits[b], t[b], ioTMax, hitPrimitive, aIsSolid);
             }
             return hitPrimitive;
         }
@@ -4475,7 +4558,8 @@ public:
         uint32_t index = mRoot.mIndex, count = mRoot.mCount;
         for (;;) {
             if (count > 0) {  // a leaf: test its blocks
-                for (uint32_t b = 0; b < count; b++) IntersectBlock(mBlocks[index + b], aRay, ray, aTMin, ioTMax, hitPrimitive);
+                for (uint32_t b = 0; b < count; b++)
+                    IntersectBlock<kCutOuts>(mBlocks[index + b], aRay, ray, aTMin, ioTMax, hitPrimitive, aIsSolid);
             } else if (Descend(mNodes[index], ray, ioTMax, true, stack, stackSize, index, count)) {
                 continue;
             }
@@ -4489,15 +4573,16 @@ public:
         }
     }
 
-    // Any hit in (aTMin, aTMax): the shadow-ray query.
-    bool Occluded(const Ray& aRay, float aTMin, float aTMax) const {
+    // Any hit in (aTMin, aTMax) (that aIsSolid accepts, kCutOuts): the shadow-ray query.
+    template <bool kCutOuts, typename IsSolid>
+    bool Occluded(const Ray& aRay, float aTMin, float aTMax, const IsSolid& aIsSolid) const {
         if (mBlocks.empty()) return false;
         if (mRoot.mCount > 0) {
             // Last block first: a leaf's spheres come last, and in a small scene (a room
             // with a few objects in it) the objects are what shadow rays hit.
             const BlockRay ray(aRay);
             for (uint32_t b = mRoot.mCount; b-- > 0;)
-                if (OccludedByBlock(mBlocks[mRoot.mIndex + b], aRay, ray, aTMin, aTMax)) return true;
+                if (OccludedByBlock<kCutOuts>(mBlocks[mRoot.mIndex + b], aRay, ray, aTMin, aTMax, aIsSolid)) return true;
             return false;
         }
         const RayData ray(aRay);
@@ -4507,7 +4592,7 @@ public:
         for (;;) {
             if (count > 0) {
                 for (uint32_t b = 0; b < count; b++)
-                    if (OccludedByBlock(mBlocks[index + b], aRay, ray, aTMin, aTMax)) return true;
+                    if (OccludedByBlock<kCutOuts>(mBlocks[index + b], aRay, ray, aTMin, aTMax, aIsSolid)) return true;
             } else if (Descend(mNodes[index], ray, aTMax, false, stack, stackSize, index, count)) {
                 continue;
             }
@@ -4522,6 +4607,7 @@ public:
     size_t NodeCount() const { return mNodes.size() + mLeafCount; }
     size_t StorageBytes() const { return mNodes.size() * sizeof(Node) + mBlocks.size() * sizeof(Block); }
     int PrimitiveCount() const { return mPrimitiveCount; }
+    bool HasCutOuts() const { return mHasCutOuts; }
     // Levels of the kWidth-wide tree a ray walks, and of the binary tree it was collapsed from.
     int Depth() const { return mBlocks.empty() ? 0 : DepthOf(mRoot.mIndex, mRoot.mCount); }
     int BuildDepth() const { return mBuildDepth; }
@@ -4543,6 +4629,8 @@ private:
     struct Pending { uint32_t mIndex, mCount; float mTNear; };
 
     static constexpr uint32_t kSphereBit = 0x80000000u;
+    static constexpr uint32_t kCutOutBit = 0x40000000u;
+    static constexpr uint32_t kIdMask = ~(kSphereBit | kCutOutBit);
     static constexpr uint32_t kMaxLeafSize = 8;
     static constexpr uint32_t BlocksFor(uint32_t aPrimitives) { return (aPrimitives + kWidth - 1) / kWidth; }
     static constexpr int kBinCount = 16;
@@ -4862,27 +4950,36 @@ private:
     // here, and those below it are found below either bound (a sphere reports its nearer
     // root in range; where that is beyond ioTMax, so is the farther). The hit lanes only,
     // in lane order (a loop over all lanes would be kWidth branches the predictor misses).
+    // A cut-out triangle's hit counts only where aIsSolid says its surface is: asked only
+    // of a hit nearer than the nearest so far, the one that would change the answer.
+    template <bool kCutOuts, typename IsSolid>
     SMALLVCM_BVH_INLINE static void KeepNearest(const Block& aBlock, int aHits, const FloatN& aT, float& ioTMax,
-                                                int& ioPrimitive) {
+                                                int& ioPrimitive, const IsSolid& aIsSolid) {
         while (aHits) {
             const int lane = detail::FirstLane(aHits);
             aHits &= aHits - 1;
             if (aT[lane] < ioTMax) {
+                const uint32_t id = aBlock.mId[lane];
+                if (kCutOuts && (id & kCutOutBit) && !aIsSolid(int(id & kIdMask), aT[lane])) continue;
                 ioTMax = aT[lane];
-                ioPrimitive = int(aBlock.mId[lane] & ~kSphereBit);
+                ioPrimitive = int(id & kIdMask);
             }
         }
     }
 
     // The nearest hit of a block below ioTMax.
+    template <bool kCutOuts, typename IsSolid>
     SMALLVCM_BVH_INLINE static void IntersectBlock(const Block& aBlock, const Ray& aRay, const BlockRay& aData, float aTMin,
-                                                   float& ioTMax, int& ioPrimitive) {
+                                                   float& ioTMax, int& ioPrimitive, const IsSolid& aIsSolid) {
         FloatN t;
-        KeepNearest(aBlock, BlockHits(aBlock, aRay, aData, aTMin, ioTMax, t), t, ioTMax, ioPrimitive);
+        KeepNearest<kCutOuts>(aBlock, BlockHits(aBlock, aRay, aData, aTMin, ioTMax, t), t, ioTMax, ioPrimitive, aIsSolid);
     }
 
+    // Whether the block has a hit in (aTMin, aTMax); with kCutOuts, a hit on a cut-out
+    // triangle counts where aIsSolid says its surface is.
+    template <bool kCutOuts, typename IsSolid>
     SMALLVCM_BVH_INLINE static bool OccludedByBlock(const Block& aBlock, const Ray& aRay, const BlockRay& aData, float aTMin,
-                                                    float aTMax) {
+                                                    float aTMax, const IsSolid& aIsSolid) {
         if (aBlock.IsSpheres()) {
             for (int lane = 0; lane < kWidth && !aBlock.IsCopy(lane); lane++)
                 if (IntersectSphere(aBlock.Vertex(aBlock.mA, lane), aBlock.mB[0][lane], aRay, aTMin, aTMax)) return true;
@@ -4891,9 +4988,16 @@ private:
         FloatN t;
         int fallback;
         int hits = IntersectTriangles(aBlock, aData, aTMin, aTMax, t, fallback);
-        if (hits) return true;
+        if (!kCutOuts && hits) return true;
         if (fallback) ScalarLanes(aBlock, fallback, aRay, aData, aTMin, aTMax, t, hits);
-        return hits != 0;
+        if (!kCutOuts) return hits != 0;
+        while (hits) {  // a plain triangle's hit occludes; a cut-out's where its surface is
+            const int lane = detail::FirstLane(hits);
+            hits &= hits - 1;
+            const uint32_t id = aBlock.mId[lane];
+            if (!(id & kCutOutBit) || aIsSolid(int(id & kIdMask), t[lane])) return true;
+        }
+        return false;
     }
 
     int DepthOf(uint32_t aIndex, uint32_t aCount) const {
@@ -5012,19 +5116,23 @@ private:
     // returns their count; the copies stay in the order, referenced by no leaf.
     uint32_t KeepDistinct(std::vector<uint32_t>& ioOrder, uint32_t aBegin, uint32_t aEnd) const {
         const PrimitiveSoup& soup = *mBuildSoup;
+        // A cut-out triangle is nobody's copy (its holes depend on its material and
+        // texture coordinates, which the soup does not hold): its index is in its key.
         const auto key = [&](uint32_t aPrimitive) {
-            std::array<float, 10> k{};
+            std::pair<std::array<float, 10>, uint32_t> result{};
+            std::array<float, 10>& k = result.first;
             const size_t p = aPrimitive;
             if (int(p) < soup.TriangleCount()) {
                 const Vec3 v[3] = {soup.mTriangleP0[p], soup.mTriangleP1[p], soup.mTriangleP2[p]};
                 for (int i = 0; i < 9; i++) k[size_t(i) + 1] = v[i / 3][i % 3];
+                if (IsCutOut(p)) result.second = aPrimitive + 1;
             } else {
                 const size_t sphere = p - size_t(soup.TriangleCount());
                 k[0] = 1.f;
                 for (int i = 0; i < 3; i++) k[size_t(i) + 1] = soup.mSphereCenter[sphere][i];
                 k[4] = soup.mSphereRadius[sphere];
             }
-            return k;
+            return result;
         };
         uint32_t* first = ioOrder.data() + aBegin;
         uint32_t* last = ioOrder.data() + aEnd;
@@ -5098,6 +5206,10 @@ private:
         return result;
     }
 
+    bool IsCutOut(size_t aTriangle) const {
+        return aTriangle < mBuildSoup->mTriangleCutOut.size() && mBuildSoup->mTriangleCutOut[aTriangle];
+    }
+
     void WriteLane(Block& ioBlock, int aLane, uint32_t aPrimitive) const {
         const PrimitiveSoup& soup = *mBuildSoup;
         const size_t p = aPrimitive;
@@ -5107,7 +5219,7 @@ private:
                 ioBlock.mB[k][aLane] = soup.mTriangleP1[p][k];
                 ioBlock.mC[k][aLane] = soup.mTriangleP2[p][k];
             }
-            ioBlock.mId[aLane] = aPrimitive;
+            ioBlock.mId[aLane] = aPrimitive | (IsCutOut(p) ? kCutOutBit : 0u);
         } else {
             const size_t sphere = p - size_t(soup.TriangleCount());
             for (int k = 0; k < 3; k++) ioBlock.mA[k][aLane] = soup.mSphereCenter[sphere][k];
@@ -5123,6 +5235,7 @@ private:
     int mPrimitiveCount = 0;
     int mBuildDepth = 0;
     uint32_t mLargestLeaf = 0;
+    bool mHasCutOuts = false;
     const PrimitiveSoup* mBuildSoup = nullptr;  // during Build only
 };
 
@@ -5131,12 +5244,32 @@ inline void Bvh::Build(const PrimitiveSoup& aSoup) {
     tree->Build(aSoup);
     mTree = std::move(tree);
 }
+namespace detail {
+struct EverySurfaceSolid {
+    bool operator()(int, float) const { return true; }
+};
+} // namespace detail
 inline int Bvh::Intersect(const Ray& aRay, float aTMin, float& ioTMax) const {
-    return mTree ? mTree->Intersect(aRay, aTMin, ioTMax) : -1;
+    return mTree ? mTree->Intersect<false>(aRay, aTMin, ioTMax, detail::EverySurfaceSolid{}) : -1;
 }
 inline bool Bvh::Occluded(const Ray& aRay, float aTMin, float aTMax) const {
-    return mTree && mTree->Occluded(aRay, aTMin, aTMax);
+    return mTree && mTree->Occluded<false>(aRay, aTMin, aTMax, detail::EverySurfaceSolid{});
 }
+// One branch per query, the same way for every ray of a scene: a scene without cut-outs
+// runs the queries above.
+template <typename IsSolid>
+int Bvh::Intersect(const Ray& aRay, float aTMin, float& ioTMax, const IsSolid& aIsSolid) const {
+    if (!mTree) return -1;
+    return mTree->HasCutOuts() ? mTree->Intersect<true>(aRay, aTMin, ioTMax, aIsSolid)
+                               : mTree->Intersect<false>(aRay, aTMin, ioTMax, aIsSolid);
+}
+template <typename IsSolid>
+bool Bvh::Occluded(const Ray& aRay, float aTMin, float aTMax, const IsSolid& aIsSolid) const {
+    if (!mTree) return false;
+    return mTree->HasCutOuts() ? mTree->Occluded<true>(aRay, aTMin, aTMax, aIsSolid)
+                               : mTree->Occluded<false>(aRay, aTMin, aTMax, aIsSolid);
+}
+inline bool Bvh::HasCutOuts() const { return mTree && mTree->HasCutOuts(); }
 inline size_t Bvh::NodeCount() const { return mTree ? mTree->NodeCount() : 0; }
 inline size_t Bvh::StorageBytes() const { return mTree ? mTree->StorageBytes() : 0; }
 inline size_t Bvh::NodeBytes() { return sizeof(Tree::Node); }
@@ -7061,6 +7194,7 @@ private:
             CheckCompressionFallbacks(json, binary);
             CheckDeclaredBuffers(json);
             CheckSpotAnglesAreNumbers(json);
+            CheckAlphaModes(json);
         }
 
         tinygltf::TinyGLTF gltf;
@@ -7317,6 +7451,31 @@ private:
         }
     }
 
+    // A material's alphaMode and alphaCutoff as the specification types them: tinygltf
+    // keeps the default of a cutoff that is not a number (the string "0.3") and passes on
+    // any alphaMode string, and either would render another surface than the file asks for.
+    void CheckAlphaModes(const nlohmann::json& aJson) {
+        if (!aJson.contains("materials") || !aJson["materials"].is_array()) return;  // tinygltf says what is wrong
+        const nlohmann::json& materials = aJson["materials"];
+        for (size_t m = 0; m < materials.size(); m++) {
+            const nlohmann::json& material = materials[m];
+            if (!material.is_object()) continue;
+            const nlohmann::json& name = Member(material, "name");
+            const std::string what = "material " + std::to_string(m) +
+                                     (name.is_string() && !name.get<std::string>().empty() ? " '" + Excerpt(name.get<std::string>()) + "'" : "");
+            if (material.contains("alphaMode")) {
+                const nlohmann::json& mode = material["alphaMode"];
+                if (!mode.is_string() || (mode != "OPAQUE" && mode != "MASK" && mode != "BLEND"))
+                    Fail(what + ": alphaMode must be \"OPAQUE\", \"MASK\" or \"BLEND\"");
+            }
+            if (material.contains("alphaCutoff")) {
+                const nlohmann::json& cutoff = material["alphaCutoff"];
+                if (!cutoff.is_number() || !(cutoff.get<double>() >= 0.0))
+                    Fail(what + ": alphaCutoff must be a number >= 0 (glTF 2.0; the default is 0.5)");
+            }
+        }
+    }
+
     // What the buffers declare, known before tinygltf reads or decodes a byte. Their
     // sizes: a file is read only if it is as long as some buffer says, and a data URI is
     // decoded only if its text is no longer than its byteLength needs (tinygltf itself
@@ -7449,9 +7608,10 @@ private:
     // aSlot names the use ("baseColorTexture", "emissiveTexture", "normalTexture"): its
     // index, TEXCOORD set and extensions come from the textureInfo; KHR_texture_transform
     // gives the texture its UvTransform and may choose another set. aSrgb: colour (the
-    // base colour, emission) is sRGB-encoded, a normal map is not.
+    // base colour, emission) is sRGB-encoded, a normal map is not. aAlpha: the texture
+    // keeps its alpha channel (the base colour of a material with a cut-out).
     TextureUse UseTexture(int aIndex, int aTexCoord, const tinygltf::ExtensionMap& aExtensions, bool aSrgb,
-                          const char* aSlot, const std::string& aWhat) {
+                          const char* aSlot, const std::string& aWhat, bool aAlpha = false) {
         const std::string slot = aWhat + ": its " + aSlot;
         TextureUse use;
         use.mTexCoord = aTexCoord;
@@ -7489,18 +7649,18 @@ private:
         if (use.mTexCoord < 0 || use.mTexCoord > kMaxTexCoordSet)
             Fail(slot + " uses TEXCOORD_" + std::to_string(use.mTexCoord) + "; sets 0 to " + std::to_string(kMaxTexCoordSet) +
                  " are read");
-        use.mTexture = TextureIndex(aIndex, UvTransform::Make(offset, rotation, scale), aSrgb, aWhat);
+        use.mTexture = TextureIndex(aIndex, UvTransform::Make(offset, rotation, scale), aSrgb, aAlpha, aWhat);
         return use;
     }
     static constexpr int kMaxTexCoordSet = 7;
 
     // The scene texture for glTF texture aTexture seen through aTransform, its texels
-    // decoded from sRGB or taken as they are (aSrgb).
-    int TextureIndex(int aTexture, const UvTransform& aTransform, bool aSrgb, const std::string& aWhat) {
+    // decoded from sRGB or taken as they are (aSrgb), with its alpha or without (aAlpha).
+    int TextureIndex(int aTexture, const UvTransform& aTransform, bool aSrgb, bool aAlpha, const std::string& aWhat) {
         if (aTexture < 0 || aTexture >= int(mModel.textures.size()))
             Fail(aWhat + " refers to texture " + std::to_string(aTexture) + ", which does not exist");
-        const TextureKey key{aTexture, aSrgb, aTransform.mOffset.x, aTransform.mOffset.y, aTransform.mU.x, aTransform.mU.y,
-                             aTransform.mV.x, aTransform.mV.y};
+        const TextureKey key{aTexture, aSrgb, aAlpha, aTransform.mOffset.x, aTransform.mOffset.y, aTransform.mU.x,
+                             aTransform.mU.y, aTransform.mV.x, aTransform.mV.y};
         auto known = mTextureIndex.find(key);
         if (known != mTextureIndex.end()) return known->second;
         const tinygltf::Texture& texture = mModel.textures[size_t(aTexture)];
@@ -7517,6 +7677,12 @@ private:
         const unsigned char* rgb = image.mRgb.data();
         for (size_t i = 0; i < result.mTexels.size(); i++)
             result.mTexels[i] = Vec3(toLinear[rgb[3 * i]], toLinear[rgb[3 * i + 1]], toLinear[rgb[3 * i + 2]]);
+        // Alpha is linear whatever the colour's encoding (glTF 2.0, "Metallic-Roughness
+        // Material": the alpha channel is not sRGB-encoded); an image without one is opaque.
+        if (aAlpha) {
+            result.mAlpha.assign(result.mTexels.size(), 1.f);
+            for (size_t i = 0; i < image.mAlpha.size(); i++) result.mAlpha[i] = float(image.mAlpha[i]) / 255.f;
+        }
         if (texture.sampler >= 0) {
             if (texture.sampler >= int(mModel.samplers.size()))
                 Fail(what + " refers to sampler " + std::to_string(texture.sampler) + ", which does not exist");
@@ -7540,13 +7706,15 @@ private:
     }
 
     // An image's 8-bit RGB pixels, decoded once for all the textures that use it (as
-    // colour and as a normal map, or under several transforms).
+    // colour and as a normal map, or under several transforms), and its 8-bit alpha when
+    // a material with a cut-out reads it (mImagesWithAlpha; empty otherwise).
     // Bytes come from a buffer view or data URI (kept by the image loader above) or from
     // a file inside the scene's folder, read like a buffer file: regular files only,
     // confined, size-checked before reading. The size in pixels is checked before decoding.
     struct DecodedImage {
         int mWidth = 0, mHeight = 0;
         std::vector<unsigned char> mRgb;
+        std::vector<unsigned char> mAlpha;
     };
     const DecodedImage& Decoded(int aImage) {
         auto known = mDecodedImages.find(aImage);
@@ -7571,12 +7739,23 @@ private:
         if (width <= 0 || height <= 0 || uint64_t(width) * uint64_t(height) > kMaxTexturePixels)
             Fail(what + ": " + std::to_string(width) + "x" + std::to_string(height) + " pixels, more than the loader's limit of " +
                  std::to_string(kMaxTexturePixels) + " per texture");
-        unsigned char* pixels = stbi_load_from_memory(bytes->data(), int(bytes->size()), &width, &height, &channels, 3);
+        const bool alpha = mImagesWithAlpha.count(aImage) > 0;
+        unsigned char* pixels = stbi_load_from_memory(bytes->data(), int(bytes->size()), &width, &height, &channels, alpha ? 4 : 3);
         if (!pixels) Fail(what + ": decoding failed (" + Excerpt(stbi_failure_reason()) + ")");
         DecodedImage& decoded = mDecodedImages[aImage];
         decoded.mWidth = width;
         decoded.mHeight = height;
-        decoded.mRgb.assign(pixels, pixels + size_t(width) * size_t(height) * 3);
+        const size_t count = size_t(width) * size_t(height);
+        if (alpha) {
+            decoded.mRgb.resize(count * 3);
+            decoded.mAlpha.resize(count);
+            for (size_t i = 0; i < count; i++) {
+                for (size_t c = 0; c < 3; c++) decoded.mRgb[3 * i + c] = pixels[4 * i + c];
+                decoded.mAlpha[i] = pixels[4 * i + 3];
+            }
+        } else {
+            decoded.mRgb.assign(pixels, pixels + count * 3);
+        }
         stbi_image_free(pixels);
         image.image.clear();
         image.image.shrink_to_fit();
@@ -7600,7 +7779,18 @@ private:
         return decoded;
     }
 
+    // The glTF alpha mode of a material (CheckAlphaModes has refused any other string).
+    static AlphaMode AlphaModeOf(const tinygltf::Material& aMaterial) {
+        return aMaterial.alphaMode == "MASK" ? AlphaMode::kMask : aMaterial.alphaMode == "BLEND" ? AlphaMode::kBlend : AlphaMode::kOpaque;
+    }
+
     void ConvertMaterials() {
+        // The images whose alpha a cut-out reads are decoded with it; no other is.
+        for (const tinygltf::Material& source : mModel.materials) {
+            const int texture = source.pbrMetallicRoughness.baseColorTexture.index;
+            if (AlphaModeOf(source) != AlphaMode::kOpaque && texture >= 0 && texture < int(mModel.textures.size()))
+                mImagesWithAlpha.insert(mModel.textures[size_t(texture)].source);
+        }
         for (size_t m = 0; m < mModel.materials.size(); m++) {
             const tinygltf::Material& source = mModel.materials[m];
             const std::string what = "material " + std::to_string(m) + (source.name.empty() ? "" : " '" + Excerpt(source.name) + "'");
@@ -7609,11 +7799,27 @@ private:
             // What the header does not model is approximated and listed in one note.
             if (pbr.metallicRoughnessTexture.index >= 0) Approximated("metallicRoughnessTexture (the factors are used)");
             if (source.occlusionTexture.index >= 0) Approximated("occlusionTexture (occlusion is computed, not baked)");
-            if (source.alphaMode != "OPAQUE") Approximated("alphaMode " + Excerpt(source.alphaMode) + " (rendered opaque)");
+            if (source.alphaMode == "BLEND") Approximated("alphaMode BLEND (thresholded: a hole where alpha < 0.5)");
 
             Material material;
             material.mName = source.name;
             material.mTwoSided = source.doubleSided;
+            // Cut-outs: alpha = baseColorFactor's alpha x the base-colour texture's alpha,
+            // read with the base colour's TEXCOORD set and transform (Material::mAlphaMode).
+            material.mAlphaMode = AlphaModeOf(source);
+            const bool cutOut = material.HasCutOut();
+            if (cutOut) {
+                material.mAlphaCutoff = float(source.alphaCutoff);
+                if (pbr.baseColorFactor.size() == 4) material.mBaseColorAlpha = float(pbr.baseColorFactor[3]);
+                if (!(material.mBaseColorAlpha >= 0.f && material.mBaseColorAlpha <= 1.f))
+                    Fail(what + ": the alpha of baseColorFactor must be in [0, 1]");
+                if (pbr.baseColorTexture.index >= 0) {
+                    const TextureUse use = UseTexture(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
+                                                      pbr.baseColorTexture.extensions, true, "baseColorTexture", what, true);
+                    material.mAlphaTexture = use.mTexture;
+                    texCoordSets.push_back({"baseColorTexture", use.mTexCoord});
+                }
+            }
             auto extension = source.extensions.find("SMALLVCM_material");
             if (extension != source.extensions.end()) {
                 const tinygltf::Value& e = extension->second;
@@ -7646,7 +7852,7 @@ private:
                     material.mDiffuseReflectance = (1.f - metallic) * 0.96f * baseColor;
                     if (pbr.baseColorTexture.index >= 0) {
                         const TextureUse use = UseTexture(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
-                                                          pbr.baseColorTexture.extensions, true, "baseColorTexture", what);
+                                                          pbr.baseColorTexture.extensions, true, "baseColorTexture", what, cutOut);
                         material.mBaseColorTexture = use.mTexture;
                         texCoordSets.push_back({"baseColorTexture", use.mTexCoord});
                         material.mSpecularUntinted = Vec3(0.04f * (1.f - metallic));
@@ -7679,6 +7885,7 @@ private:
             if (strength != source.extensions.end())
                 emission *= float(NumberOr(strength->second, "emissiveStrength", 1.0));
             CheckColor(emission, what + ": the emission", false);
+            if (cutOut && !IsBlack(emission)) Approximated("alphaMode " + source.alphaMode + " on an emitting material (rendered whole)");
             // emissiveTexture multiplies the factor (an sRGB texture, like the base colour);
             // with a black factor it changes nothing, and is not decoded.
             int emissionTexture = -1;
@@ -7925,7 +8132,8 @@ private:
             // Texture coordinates, read only for textured materials (and then required).
             std::vector<double> uvs;
             const bool normalMapped = mScene.mMaterials[size_t(material)].mNormalTexture >= 0;
-            const char* texture = mScene.mMaterials[size_t(material)].mBaseColorTexture >= 0 ? "a baseColorTexture"
+            const Material& sceneMaterial = mScene.mMaterials[size_t(material)];
+            const char* texture = sceneMaterial.mBaseColorTexture >= 0 || sceneMaterial.mAlphaTexture >= 0 ? "a baseColorTexture"
                                   : mMaterialEmissionTexture[size_t(material)] >= 0       ? "an emissiveTexture"
                                   : normalMapped                                           ? "a normalTexture"
                                                                                            : nullptr;
@@ -8401,16 +8609,17 @@ private:
     // glTF texture and transform -> scene texture
     struct TextureKey {
         int mTexture;
-        bool mSrgb;
+        bool mSrgb, mAlpha;
         float mOffsetX, mOffsetY, mUx, mUy, mVx, mVy;
         bool operator<(const TextureKey& aOther) const {
-            return std::tie(mTexture, mSrgb, mOffsetX, mOffsetY, mUx, mUy, mVx, mVy) <
-                   std::tie(aOther.mTexture, aOther.mSrgb, aOther.mOffsetX, aOther.mOffsetY, aOther.mUx, aOther.mUy,
-                            aOther.mVx, aOther.mVy);
+            return std::tie(mTexture, mSrgb, mAlpha, mOffsetX, mOffsetY, mUx, mUy, mVx, mVy) <
+                   std::tie(aOther.mTexture, aOther.mSrgb, aOther.mAlpha, aOther.mOffsetX, aOther.mOffsetY, aOther.mUx,
+                            aOther.mUy, aOther.mVx, aOther.mVy);
         }
     };
     std::map<TextureKey, int> mTextureIndex;
     std::map<int, DecodedImage> mDecodedImages;  // glTF image -> its pixels, while loading
+    std::set<int> mImagesWithAlpha;              // glTF images a cut-out's base colour reads
     static constexpr uint64_t kMaxTexturePixels = uint64_t(1) << 26;  // 64 Mpixel: 768 MB of linear texels
     int mDefaultMaterial = -1;
     bool mHasCamera = false;

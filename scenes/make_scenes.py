@@ -804,6 +804,84 @@ def build_textured_torus():
     }
 
 
+def png_rgba(width, height, pixels):
+    """An 8-bit RGBA PNG (pixels: (r, g, b, a) tuples, row by row from the top)."""
+    import zlib
+    raw = b"".join(b"\x00" + bytes(c for p in pixels[y * width:(y + 1) * width] for c in p)
+                   for y in range(height))
+
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data +
+                struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    return (b"\x89PNG\r\n\x1a\n" +
+            chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 6, 0, 0, 0)) +
+            chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+
+def build_cutout_leaves():
+    """SmallVCM's default Cornell box (mask 193) with a canopy of 400 leaves between its
+    ceiling light and the floor: double-sided quads whose base colour's alpha (a 32 x 32
+    RGBA PNG, an ellipse of alpha 1 in alpha 0) cuts out the leaf (alphaMode MASK, the
+    default cutoff 0.5). Every kind of ray crosses the holes: the scene for the cost of
+    alpha testing and for the BVH builds' agreement with cut-outs."""
+    import random
+    doc = to_gltf(build_cornell_box(193))
+    rng = random.Random(35)
+    positions, uvs, indices = [], [], []
+    for _ in range(400):
+        centre = (rng.uniform(-1.1, 1.1), rng.uniform(-1.1, 1.1), rng.uniform(-0.1, 0.9))
+        # Two perpendicular edges of length 0.3, in a random orientation.
+        def unit(v):
+            n = math.sqrt(sum(c * c for c in v))
+            return tuple(c / n for c in v)
+        a = unit((rng.gauss(0, 1), rng.gauss(0, 1), rng.gauss(0, 1)))
+        b = unit(cross(a, unit((rng.gauss(0, 1), rng.gauss(0, 1), rng.gauss(0, 1)))))
+        first = len(positions)
+        for su, sv in [(-1, -1), (1, -1), (1, 1), (-1, 1)]:
+            positions.append(f32_point(tuple(centre[k] + 0.15 * (su * a[k] + sv * b[k]) for k in range(3))))
+            uvs.append((0.5 + 0.5 * su, 0.5 - 0.5 * sv))
+        indices += [first, first + 1, first + 2, first + 2, first + 3, first]
+    size = 32
+    texels = []
+    for y in range(size):
+        for x in range(size):
+            u, v = (x + 0.5) / size - 0.5, (y + 0.5) / size - 0.5
+            inside = (u / 0.48) ** 2 + (v / 0.3) ** 2 <= 1.0
+            texels.append((60, 150, 50, 255 if inside else 0))
+    png = png_rgba(size, size, texels)
+    data = bytearray()
+    views = len(doc["bufferViews"])
+    for raw, target in [(b"".join(struct.pack("<3f", *p) for p in positions), 34962),
+                        (b"".join(struct.pack("<2f", *t) for t in uvs), 34962),
+                        (struct.pack("<%dH" % len(indices), *indices), 34963)]:
+        doc["bufferViews"].append({"buffer": 1, "byteOffset": len(data), "byteLength": len(raw), "target": target})
+        data += raw
+        data += b"\0" * (-len(data) % 4)
+    doc["buffers"].append({"byteLength": len(data),
+                           "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(data)).decode("ascii")})
+    accessors = len(doc["accessors"])
+    doc["accessors"] += [
+        {"bufferView": views, "componentType": 5126, "count": len(positions), "type": "VEC3",
+         "min": f32_vec([min(p[k] for p in positions) for k in range(3)]),
+         "max": f32_vec([max(p[k] for p in positions) for k in range(3)])},
+        {"bufferView": views + 1, "componentType": 5126, "count": len(uvs), "type": "VEC2"},
+        {"bufferView": views + 2, "componentType": 5123, "count": len(indices), "type": "SCALAR"}]
+    doc["materials"].append({"name": "leaf", "alphaMode": "MASK", "doubleSided": True,
+                             "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
+                                                      "metallicFactor": 0.0, "roughnessFactor": 1.0}})
+    doc["textures"] = [{"sampler": 0, "source": 0}]
+    doc["samplers"] = [{"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}]
+    doc["images"] = [{"name": "leaf", "uri": "data:image/png;base64," + base64.b64encode(png).decode("ascii")}]
+    doc["meshes"].append({"name": "leaves", "primitives": [{
+        "attributes": {"POSITION": accessors, "TEXCOORD_0": accessors + 1}, "indices": accessors + 2,
+        "material": len(doc["materials"]) - 1, "mode": 4}]})
+    doc["nodes"].append({"name": "leaves", "mesh": len(doc["meshes"]) - 1})
+    doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
+    doc["asset"]["extras"]["note"] = ("SmallVCM's default Cornell box with 400 leaf cut-outs (alphaMode MASK) "
+                                      "under its light. " + doc["asset"]["extras"]["note"])
+    return doc
+
+
 # ---------------------------------------------------------------------------
 # Compact JSON: number arrays and short objects on one line, the rest indented
 # ---------------------------------------------------------------------------
@@ -838,6 +916,9 @@ def main():
     with open(os.path.join(out_dir, "textured_torus.gltf"), "w", encoding="ascii", newline="\n") as f:
         f.write(dumps(build_textured_torus()) + "\n")
     print("wrote scenes/textured_torus.gltf  (textured, smooth-shaded, no camera, no light)")
+    with open(os.path.join(out_dir, "cutout_leaves.gltf"), "w", encoding="ascii", newline="\n") as f:
+        f.write(dumps(build_cutout_leaves()) + "\n")
+    print("wrote scenes/cutout_leaves.gltf  (the default Cornell box with 400 leaf cut-outs)")
 
 
 if __name__ == "__main__":

@@ -328,6 +328,23 @@ MUTANTS = [
     dict(id="M96", cls="lights", what="environment map: sampled directions turned the other way about +Y",
          find="sample.mDirection = Vec3(mCosRotation * local.x + mSinRotation * local.z, local.y,",
          replace="sample.mDirection = Vec3(mCosRotation * local.x - mSinRotation * local.z, local.y,"),
+    # --- alpha cut-outs ----------------------------------------------------------------------
+    dict(id="M97", cls="cutouts", what="alpha test inverted: holes where alpha >= the cutoff",
+         find="return alpha >= material.AlphaCutoff();",
+         replace="return alpha < material.AlphaCutoff();"),
+    dict(id="M98", cls="cutouts", what="shadow rays and connections ignore cut-outs (the plain any-hit query)",
+         find="return mTree->HasCutOuts() ? mTree->Occluded<true>(aRay, aTMin, aTMax, aIsSolid)",
+         replace="return false ? mTree->Occluded<true>(aRay, aTMin, aTMax, aIsSolid)"),
+    dict(id="M99", cls="cutouts", what="nearest-hit rays ignore cut-outs (a refused hit still counts)",
+         find="if (kCutOuts && (id & kCutOutBit) && !aIsSolid(int(id & kIdMask), aT[lane])) continue;",
+         replace="if (false && (id & kCutOutBit) && !aIsSolid(int(id & kIdMask), aT[lane])) continue;"),
+    dict(id="M100", cls="cutouts", what="texture alpha decoded from sRGB like the colour",
+         find="for (size_t i = 0; i < image.mAlpha.size(); i++) result.mAlpha[i] = float(image.mAlpha[i]) / 255.f;",
+         replace="for (size_t i = 0; i < image.mAlpha.size(); i++) result.mAlpha[i] = toLinear[image.mAlpha[i]];",
+         impl=True),
+    dict(id="M101", cls="cutouts", what="BLEND compared with the material's alphaCutoff instead of 1/2",
+         find="return mAlphaMode == AlphaMode::kBlend ? 0.5f : mAlphaCutoff;",
+         replace="return mAlphaCutoff;"),
 ]
 for _m in MUTANTS:
     _m["class"] = _m.pop("cls")

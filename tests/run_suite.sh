@@ -16,8 +16,9 @@
 #             the BVH's other builds (Makefile: BVH_VARIANTS; build/bvh-scalar, and
 #             build/bvh-sse when the default build is 8-wide AVX2, else build/bvh-avx2):
 #             each DIR's run_geometry runs the [geometry] tests (its test cases count), and
-#             its command line renders pt, lt, bpt and vcm on every Cornell scene and six
-#             glTF scenes (meshes, textures, smooth normals, spot light, glass) at 32x32,
+#             its command line renders pt, lt, bpt and vcm on every Cornell scene and seven
+#             glTF scenes (meshes, textures, smooth normals, spot light, glass, alpha
+#             cut-outs) at 32x32,
 #             2 iterations; each scene counts as one test and passes when all four images
 #             equal the REFERENCE build's byte for byte (the BVH returns the same hits in
 #             every build, so any difference is a bug of one of them)
@@ -145,7 +146,8 @@ if [ "${1:-}" = "--bvh-variants" ]; then
   [ "${1:-}" = "--" ] && shift
   out=$(mktemp -d)
   scenes="0 1 2 3 4 ../scenes/textured_torus.gltf ../scenes/smooth_sphere_box.gltf ../scenes/avocado/Avocado.gltf
-          ../scenes/veach_plates.gltf ../scenes/spot_light.gltf ../scenes/caustic_glass_sphere.gltf"
+          ../scenes/veach_plates.gltf ../scenes/spot_light.gltf ../scenes/caustic_glass_sphere.gltf
+          ../scenes/cutout_leaves.gltf"
   render_all() {  # binary, folder: four algorithms on every scene
     local binary=$1 folder=$2 scene algorithm
     mkdir -p "$folder"

@@ -1466,10 +1466,69 @@ TEST_CASE("Features the renderer approximates are listed in one note", "[gltf][t
         // The emissiveTexture is modelled: with the floor's black emissiveFactor (glTF's
         // default) it changes nothing, and nothing about it is approximated. So is the
         // normalTexture (a normal map).
-        CHECK_THAT(note, Catch::Contains("alphaMode BLEND (rendered opaque)") && Catch::Contains("occlusionTexture") &&
+        CHECK_THAT(note, Catch::Contains("alphaMode BLEND (thresholded: a hole where alpha < 0.5)") && Catch::Contains("occlusionTexture") &&
                          !Catch::Contains("normalTexture") && !Catch::Contains("emissiveTexture"));
     }
     CHECK(notes == 1);
+}
+
+namespace {
+
+// Whether the surface of a loaded tests/data/gltf/alpha_*.gltf floor is there at (aX, aY):
+// a ray straight down from z = 0.5 (under the light) hits the floor, or passes a hole.
+bool FloorSolidAt(const Scene& aScene, float aX, float aY) {
+    const Ray down{Vec3(aX, aY, 0.5f), Vec3(0.f, 0.f, -1.f)};
+    const bool hit = aScene.Intersect(down).IsValid();
+    CHECK(aScene.Occluded(down.mOrigin, down.mDirection, 1.f) == hit);  // shadow rays agree
+    return hit;
+}
+
+} // namespace
+
+TEST_CASE("alphaMode MASK: alpha is baseColorFactor's times the texture's, linear, against alphaCutoff (default 0.5)",
+          "[gltf][textures][cutouts]") {
+    // The floors of tests/data/make_bad_gltf.py's alpha_floor: a 2 x 2 white RGBA texture
+    // upright on the floor, texel centres at x, y = +-0.5 (top row at y = +0.5).
+    SECTION("the default cutoff 0.5: alpha bytes 128 (0.502) solid, 127 (0.498) a hole") {
+        const Scene scene = LoadGltfScene("data/gltf/alpha_mask_default.gltf");
+        REQUIRE(scene.mMaterials[0].mAlphaMode == AlphaMode::kMask);
+        CHECK(scene.mMaterials[0].mAlphaCutoff == 0.5f);
+        CHECK(FloorSolidAt(scene, -0.5f, 0.5f));    // 255
+        CHECK(FloorSolidAt(scene, 0.5f, 0.5f));     // 128
+        CHECK(!FloorSolidAt(scene, -0.5f, -0.5f));  // 127
+        CHECK(!FloorSolidAt(scene, 0.5f, -0.5f));   // 0
+    }
+    SECTION("cutoff 0.45 and factor alpha 0.8: 0.8 x 128/255 = 0.40 a hole; 0.8 x 191/255 = 0.60 solid, "
+            "where an sRGB-decoded alpha (0.8 x 0.52 = 0.42) would be a hole") {
+        const Scene scene = LoadGltfScene("data/gltf/alpha_mask_cutoff.gltf");
+        CHECK(scene.mMaterials[0].mAlphaCutoff == 0.45f);
+        CHECK(scene.mMaterials[0].mBaseColorAlpha == 0.8f);
+        REQUIRE(scene.mMaterials[0].mAlphaTexture >= 0);
+        const Texture& texture = scene.mTextures[size_t(scene.mMaterials[0].mAlphaTexture)];
+        CHECK(texture.mAlpha == std::vector<float>{1.f, 128.f / 255.f, 191.f / 255.f, 0.f});
+        CHECK(FloorSolidAt(scene, -0.5f, 0.5f));    // 255
+        CHECK(!FloorSolidAt(scene, 0.5f, 0.5f));    // 128
+        CHECK(FloorSolidAt(scene, -0.5f, -0.5f));   // 191
+        CHECK(!FloorSolidAt(scene, 0.5f, -0.5f));   // 0
+        // The base colour is the same texture (its RGB sRGB-decoded as before).
+        CHECK(scene.mMaterials[0].mBaseColorTexture == scene.mMaterials[0].mAlphaTexture);
+    }
+    SECTION("BLEND: thresholded at 0.5, its alphaCutoff (0.9) ignored, and named in the note") {
+        GltfLoadReport report;
+        const Scene scene = LoadGltfScene("data/gltf/alpha_blend.gltf", &report);
+        CHECK(scene.mMaterials[0].mAlphaMode == AlphaMode::kBlend);
+        CHECK(FloorSolidAt(scene, 0.5f, 0.5f));     // 128: 0.502 >= 0.5
+        CHECK(!FloorSolidAt(scene, -0.5f, -0.5f));  // 127
+        bool noted = false;
+        for (const std::string& note : report.mNotes) noted = noted || note.find("alphaMode BLEND (thresholded") != std::string::npos;
+        CHECK(noted);
+    }
+    SECTION("textures of opaque materials keep no alpha") {
+        const Scene scene = LoadGltfScene("../scenes/textured_torus.gltf");
+        REQUIRE(!scene.mTextures.empty());
+        for (const Texture& texture : scene.mTextures) CHECK(texture.mAlpha.empty());
+        CHECK(!scene.GetBvh().HasCutOuts());
+    }
 }
 
 TEST_CASE("A glTF emissiveTexture is sRGB-decoded and multiplies emissiveFactor x emissiveStrength where the light is hit", "[gltf][textures]") {

@@ -32,12 +32,14 @@ FLOAT, UBYTE, USHORT, UINT = 5126, 5121, 5123, 5125
 
 
 def png_bytes(width, height, rgb):
-    """An 8-bit RGB PNG (rgb: a list of (r, g, b) tuples, row by row from the top)."""
+    """An 8-bit RGB PNG (rgb: a list of (r, g, b) tuples, row by row from the top), or
+    RGBA when the tuples have four values."""
     import struct, zlib
     raw = b"".join(b"\x00" + bytes(c for p in rgb[y * width:(y + 1) * width] for c in p) for y in range(height))
     def chunk(kind, data):
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) +
+    color_type = 6 if len(rgb[0]) == 4 else 2
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, color_type, 0, 0, 0)) +
             chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
 
 
@@ -412,6 +414,39 @@ bad("emission_strength_nan.gltf", "emissiveStrength is the string \"NaN\" (JSON 
     "the emission must be finite and non-negative")(
     lambda: modified(lambda d: d["materials"][1]["extensions"]["KHR_materials_emissive_strength"].update(
         emissiveStrength="NaN")))
+def alpha_floor(alpha_mode="MASK", cutoff=None, factor_alpha=None, alphas=(255, 128, 127, 0), extra=None):
+    """The small scene with a cut-out floor: a 2 x 2 RGBA base-colour texture (white, the
+    alpha bytes `alphas` top left, top right, bottom left, bottom right) mapped upright onto
+    the floor seen from above, uv = ((x + 1) / 2, (1 - y) / 2), so texel centres lie at
+    x, y = +-0.5."""
+    material = {"name": "cut-out floor", "alphaMode": alpha_mode,
+                "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0 if factor_alpha is None else factor_alpha],
+                                         "metallicFactor": 0.0, "roughnessFactor": 1.0,
+                                         "baseColorTexture": {"index": 0}}}
+    if cutoff is not None:
+        material["alphaCutoff"] = cutoff
+    material.update(extra or {})
+    b = base(floor_material=material)
+    uvs = [((x + 1.0) / 2.0, (1.0 - y) / 2.0) for (x, y, _) in FLOOR]
+    b.doc["accessors"].append({"bufferView": b.view(b"".join(struct.pack("<2f", *uv) for uv in uvs)),
+                               "componentType": FLOAT, "count": len(uvs), "type": "VEC2"})
+    b.doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = len(b.doc["accessors"]) - 1
+    png = png_bytes(2, 2, [(255, 255, 255, a) for a in alphas])
+    b.doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(png).decode("ascii")}]
+    b.doc["samplers"] = [{"wrapS": 33071, "wrapT": 33071}]
+    b.doc["textures"] = [{"source": 0, "sampler": 0}]
+    return b.finish()
+
+
+bad("alpha_cutoff_negative.gltf", "a MASK material with alphaCutoff -0.25",
+    "material 0 'cut-out floor': alphaCutoff must be a number >= 0")(lambda: alpha_floor(cutoff=-0.25))
+bad("alpha_cutoff_string.gltf", "a MASK material whose alphaCutoff is the string \"0.3\"",
+    "material 0 'cut-out floor': alphaCutoff must be a number >= 0")(lambda: alpha_floor(cutoff="0.3"))
+bad("alpha_mode_unknown.gltf", "alphaMode \"mask\" (the specification's values are upper case)",
+    "material 0 'cut-out floor': alphaMode must be \"OPAQUE\", \"MASK\" or \"BLEND\"")(
+    lambda: alpha_floor(alpha_mode="mask"))
+bad("alpha_factor_above_one.gltf", "a MASK material whose baseColorFactor alpha is 1.5",
+    "material 0 'cut-out floor': the alpha of baseColorFactor must be in [0, 1]")(lambda: alpha_floor(factor_alpha=1.5))
 bad("emission_strength_infinite.gltf", "emissiveStrength 1e999 (too large for a double)",
     "1e999")(
     lambda: dumps(scene()).replace('"emissiveStrength": 10.0', '"emissiveStrength": 1e999'))
@@ -664,6 +699,10 @@ GOOD_CASES = {
     "material_glass_default_ior.gltf": lambda: scene(floor_material=pbr(
         (1.0, 1.0, 1.0), 0.0, 0.0, extensions={"KHR_materials_transmission": {"transmissionFactor": 1.0}})),
     "material_default.gltf": lambda: scene(floor_material={"name": "all glTF defaults"}),
+    # alpha cut-outs (docs/scene_format.md): texture alpha bytes 255, 128, 127, 0
+    "alpha_mask_default.gltf": lambda: alpha_floor(),
+    "alpha_mask_cutoff.gltf": lambda: alpha_floor(cutoff=0.45, factor_alpha=0.8, alphas=(255, 128, 191, 0)),
+    "alpha_blend.gltf": lambda: alpha_floor(alpha_mode="BLEND", cutoff=0.9),
     "material_none.gltf": lambda: modified(lambda d: d["meshes"][0]["primitives"][0].pop("material")),
     "material_double_sided.gltf": lambda: scene(floor_material=pbr((0.5, 0.5, 0.5), 0.0, 1.0,
                                                                    doubleSided=True)),
