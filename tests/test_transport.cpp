@@ -664,9 +664,8 @@ TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree wi
     // (~79 s of CPU under load 4): 5 SE resolve 0.2 % of the image mean in 19 of 21 checks
     // (difference SEs 0.006-0.058 %); the two that do not, s0_t3 and s2_t1 at k = 2 (0.058
     // and 0.055 %), would need about twice the first reference render. k = 1 is black (the
-    // camera sees no sky). A seeded bug, the map's pdf without its 1 / sin(theta), fails
-    // the MIS brute force and the plane furnace of test_environment.cpp; here it would
-    // only move weights, which the per-length sums do not see.
+    // camera sees no sky).
+    LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kVertexConnectionMerging};
     setup.estimatorIterations = {{64, 640, 224, 64}, {64, 11520, 1280, 288}, {64, 640, 64, 64}};
     setup.references = {{1, 2, 4736, 0}, {3, 4, 1280, 1}};
