@@ -326,6 +326,171 @@ private:
     uint64_t mIncrement = 1;
 };
 
+// SplitMix64 (Steele et al. 2014): a bijective 64-bit mix whose outputs for consecutive
+// inputs look independent. Seeds derived from (seed, index) pairs go through it.
+inline uint64_t SplitMix64(uint64_t aX) {
+    aX += 0x9E3779B97F4A7C15ull;
+    aX = (aX ^ (aX >> 30)) * 0xBF58476D1CE4E5B9ull;
+    aX = (aX ^ (aX >> 27)) * 0x94D049BB133111EBull;
+    return aX ^ (aX >> 31);
+}
+
+// --- Sobol points, Owen-scrambled ----------------------------------------------------
+// A point of a base-2 digital sequence is x = C i: the index's bits i_0 i_1 ... times a
+// generator matrix C over GF(2) gives the binary digits of x. We use the first two
+// dimensions of Sobol's sequence (1967). Dimension 0 is the van der Corput sequence
+// (C = identity: x is the index's bits mirrored about the binary point). Dimension 1
+// comes from the primitive polynomial x + 1; its direction numbers v_k = m_k / 2^k obey
+// Sobol's recurrence m_k = 2 m_{k-1} XOR m_{k-1}, m_1 = 1, that is
+// v_k = v_{k-1} XOR v_{k-1} / 2, v_1 = 1/2, and x = XOR of v_{k+1} over the set bits k of i.
+// Together they form a (0,2)-sequence: for every m, each aligned block of 2^m points
+// (the first 2^m among them) is a (0,m,2)-net, one point in each of the 2^m boxes of
+// size 2^-a x 2^-b, a + b = m; in particular each dimension alone puts one point in
+// each cell of width 2^-m. Digits are kept as 32-bit fixed point (bit 31 is 1/2).
+namespace detail {
+inline uint32_t SobolDigits(uint32_t aIndex, int aDimension) {
+    uint32_t digits = 0;
+    if (aDimension == 0) {
+        for (uint32_t v = 1u << 31; aIndex; aIndex >>= 1, v >>= 1)
+            if (aIndex & 1u) digits ^= v;
+    } else {
+        for (uint32_t v = 1u << 31; aIndex; aIndex >>= 1, v ^= v >> 1)
+            if (aIndex & 1u) digits ^= v;
+    }
+    return digits;
+}
+
+inline uint32_t ReverseBits32(uint32_t aX) {
+    aX = (aX << 16) | (aX >> 16);
+    aX = ((aX & 0x00ff00ffu) << 8) | ((aX & 0xff00ff00u) >> 8);
+    aX = ((aX & 0x0f0f0f0fu) << 4) | ((aX & 0xf0f0f0f0u) >> 4);
+    aX = ((aX & 0x33333333u) << 2) | ((aX & 0xccccccccu) >> 2);
+    return ((aX & 0x55555555u) << 1) | ((aX & 0xaaaaaaaau) >> 1);
+}
+
+// Owen's nested uniform scrambling (1995): digit k of x is flipped or not at random,
+// the coin depending on the digits before it. A box of the net then goes to a box of
+// the same shape (the net property stays) and each scrambled point is uniform on
+// [0, 1). The coins come from a hash in the Laine-Karras form (2011), with Burley's
+// (2020) constants: on the digits reversed (the first digit in bit 0), each step below
+// changes bit j by a function of bits 0..j-1 only (x * even and the carries of + and
+// * odd move information upwards), so bit j is flipped by a function of the bits
+// below it — a nested scramble, seeded by aSeed.
+inline uint32_t OwenScramble(uint32_t aDigits, uint32_t aSeed) {
+    uint32_t x = ReverseBits32(aDigits);
+    x ^= x * 0x3d20adeau;
+    x += aSeed;
+    x *= (aSeed >> 16) | 1u;
+    x ^= x * 0x05526c56u;
+    x ^= x * 0x53a22864u;
+    return ReverseBits32(x);
+}
+
+// The top 24 digits as a float in [0, 1), as Rng::GetFloat.
+inline float DigitsToFloat(uint32_t aDigits) { return float(aDigits >> 8) * (1.f / 16777216.f); }
+}  // namespace detail
+
+// Point aIndex of the 2D Sobol sequence, each dimension Owen-scrambled with its half of
+// aSeed: a (0,2)-sequence randomised so that every point is uniform on [0, 1)^2.
+inline Vec2 ScrambledSobol2D(uint32_t aIndex, uint64_t aSeed) {
+    return Vec2(detail::DigitsToFloat(detail::OwenScramble(detail::SobolDigits(aIndex, 0), uint32_t(aSeed))),
+                detail::DigitsToFloat(detail::OwenScramble(detail::SobolDigits(aIndex, 1), uint32_t(aSeed >> 32))));
+}
+
+// --- Samplers: where an estimator's random numbers come from --------------------------
+// An estimator asks its Sampler for one dimension (Get1D), a pair (Get2D) or a pair and
+// one more (Get3D: a BSDF sample's direction and its component pick), and says before
+// each path which sample it starts: StartPixelSample(pixel) for a camera sub-path,
+// StartLightPath(p) for the p-th light sub-path (photon) of the iteration. One Sampler
+// serves one iteration. Two kinds:
+//  * independent: every number the next one of the iteration's Rng, in the order asked
+//    (Start does nothing): plain Monte Carlo, whose variance falls as 1/N.
+//  * sobol: randomised quasi-Monte Carlo, "padded" 2D Sobol points. Within a path the
+//    d-th request (1D or 2D alike: its slot d) reads point `index` of its own
+//    ScrambledSobol2D sequence, seeded by a hash of (stream, d); a 1D request reads the
+//    point's first coordinate. Which sequence a path reads:
+//      camera sub-path:  stream = its pixel,      index = the iteration number;
+//      light sub-path:   stream = the iteration,  index = p, its number in the iteration.
+//    A pixel's first 2^k iterations thus put one point in each 2^-k cell of every slot,
+//    and each slot's pairs form a (0,k,2)-net; the light sub-paths of one iteration are
+//    stratified among themselves in the same way, while the iteration number enters them
+//    only through the seed, so light sub-paths of different iterations are independent,
+//    as with Rng (and runs with different seeds are independent in every part).
+//    Slots kSobolSlots and later (long paths) get hashed independent numbers.
+//    Unbiased: for one sample, the scrambles make each slot uniform and the slots
+//    independent (independent seeds), so each path is distributed as with independent
+//    numbers; only the correlation between samples differs, which is what lowers the
+//    variance (for smooth integrands the RMSE of N samples falls towards N^-1.5 instead
+//    of N^-0.5; Owen 1997).
+//    A path that never called Start reads index 0 of ever new slots: hashed independent
+//    numbers, correct but not stratified.
+enum class SamplerType { kIndependent, kSobol };
+
+inline const char* SamplerName(SamplerType aType) { return aType == SamplerType::kSobol ? "sobol" : "independent"; }
+inline std::optional<SamplerType> ParseSampler(const std::string& aName) {
+    if (aName == "independent") return SamplerType::kIndependent;
+    if (aName == "sobol") return SamplerType::kSobol;
+    return std::nullopt;
+}
+
+class Sampler {
+public:
+    static constexpr uint32_t kSobolSlots = 64;
+
+    // Independent numbers from aRng.
+    explicit Sampler(const Rng& aRng) : mRng(aRng) {}
+    // Sobol points for iteration aIteration of a render seeded with aSeed.
+    static Sampler Sobol(uint64_t aSeed, int aIteration) {
+        Sampler sampler{Rng()};
+        sampler.mType = SamplerType::kSobol;
+        sampler.mSeed = aSeed;
+        sampler.mIteration = uint32_t(aIteration);
+        sampler.Start(kUnstarted, sampler.mIteration, 0);
+        return sampler;
+    }
+    SamplerType Type() const { return mType; }
+
+    void StartPixelSample(int aPixel) { Start(kCameraPaths, uint32_t(aPixel), mIteration); }
+    void StartLightPath(int aPath) { Start(kLightPaths, mIteration, uint32_t(aPath)); }
+
+    float Get1D() {
+        if (mType == SamplerType::kIndependent) return mRng.GetFloat();
+        return NextSlot().x;
+    }
+    Vec2 Get2D() {
+        if (mType == SamplerType::kIndependent) return mRng.GetVec2();
+        return NextSlot();
+    }
+    Vec3 Get3D() {
+        if (mType == SamplerType::kIndependent) return mRng.GetVec3();
+        const Vec2 pair = NextSlot();
+        return Vec3(pair, NextSlot().x);
+    }
+
+private:
+    enum Domain : uint64_t { kUnstarted = 1, kCameraPaths = 2, kLightPaths = 3 };
+
+    void Start(Domain aDomain, uint32_t aStream, uint32_t aIndex) {
+        mStreamSeed = SplitMix64(SplitMix64(mSeed ^ SplitMix64(aDomain)) ^ aStream);
+        mIndex = aIndex;
+        mSlot = 0;
+    }
+    Vec2 NextSlot() {
+        const uint64_t slotSeed = SplitMix64(mStreamSeed ^ mSlot);
+        if (mSlot++ < kSobolSlots) return ScrambledSobol2D(mIndex, slotSeed);
+        const uint64_t bits = SplitMix64(slotSeed ^ SplitMix64(mIndex));
+        return Vec2(detail::DigitsToFloat(uint32_t(bits)), detail::DigitsToFloat(uint32_t(bits >> 32)));
+    }
+
+    SamplerType mType = SamplerType::kIndependent;
+    Rng mRng;
+    uint64_t mSeed = 0;
+    uint32_t mIteration = 0;
+    uint64_t mStreamSeed = 0;
+    uint32_t mIndex = 0;
+    uint64_t mSlot = 0;
+};
+
 // --- Cosine-weighted hemisphere around +z: pdf = cos(theta) / pi -------------------
 // BEGIN EXERCISE cosine_hemisphere
 inline Vec3 SampleCosHemisphereW(const Vec2& aSamples) {
@@ -2316,9 +2481,9 @@ inline std::optional<ScatterSample> SampleBsdf(const Bsdf& aBsdf, const Vec3& aR
 // BSDF, then Russian roulette with the material's continuation probability, which is
 // part of how the direction was sampled, so it enters both pdfs (Bsdf::WithRoulette)
 // and the weight. Nothing when the walk ends here (a black sample, or Russian roulette).
-inline std::optional<ScatterSample> SampleScatteringWithRoulette(const Bsdf& aBsdf, Rng& aRng) {
-    std::optional<ScatterSample> sample = SampleBsdf(aBsdf, aRng.GetVec3());
-    if (sample && aRng.GetFloat() < aBsdf.ContinuationProb()) {
+inline std::optional<ScatterSample> SampleScatteringWithRoulette(const Bsdf& aBsdf, Sampler& aSampler) {
+    std::optional<ScatterSample> sample = SampleBsdf(aBsdf, aSampler.Get3D());
+    if (sample && aSampler.Get1D() < aBsdf.ContinuationProb()) {
         sample->mPdfW = aBsdf.WithRoulette(sample->mPdfW);
         sample->mReversePdfW = aBsdf.WithRoulette(sample->mReversePdfW);
         sample->mWeight = sample->mValue * (sample->mCosThetaOut / sample->mPdfW);
@@ -2451,9 +2616,11 @@ private:
 //    in the image, as light tracing's do); add extra layers in the constructor with
 //    AddLayer(name) (only when mOptions.mTechniqueLayers asks for them, by convention)
 //    and write them with AddToLayer.
-//  * RunIteration(i, rng) renders iteration i, conventionally one sample per pixel, and
-//    draws every random number from rng: stream i of the base seed, the same whichever
-//    thread runs it, so one seed and thread count give one image, bit for bit.
+//  * RunIteration(i, sampler) renders iteration i, conventionally one sample per pixel,
+//    and draws every random number from sampler (see Sampler): made from the base seed
+//    and i alone, the same whichever thread runs it, so one seed and thread count give
+//    one image, bit for bit. Before each camera sub-path it calls
+//    sampler.StartPixelSample(pixel), before each light sub-path StartLightPath(p).
 //  * After the last iteration Render() sums the films in thread order and divides by the
 //    number of iterations run: a film holds sums of per-iteration estimates.
 //  * Iteration and time budgets, threads, progress, cancellation (checked between
@@ -2511,6 +2678,7 @@ struct RenderOptions {
     double mSeconds = 0.0;        // time budget in seconds (0: none)
     int mThreads = 0;             // 0: every hardware thread
     uint64_t mSeed = 1234;        // base seed: iteration i uses stream i of it
+    SamplerType mSampler = SamplerType::kIndependent;  // where the random numbers come from
     int mMinPathLength = 0;       // in segments, as SmallVCM counts them
     int mMaxPathLength = 10;
     float mRadiusFactor = 0.003f; // merging radius = factor * scene radius (SmallVCM's default)
@@ -2544,8 +2712,8 @@ public:
     AbstractRenderer& operator=(const AbstractRenderer&) = delete;
 
     // Runs iteration aIteration (its index counts across all threads: PPM's radius
-    // depends on it) drawing every random number from aRng.
-    virtual void RunIteration(int aIteration, Rng& aRng) = 0;
+    // depends on it) drawing every random number from aSampler.
+    virtual void RunIteration(int aIteration, Sampler& aSampler) = 0;
 
     Film& GetFilm() { return mFilm; }
 
@@ -2593,11 +2761,12 @@ class EyeLight : public AbstractRenderer {
 public:
     using AbstractRenderer::AbstractRenderer;
 
-    void RunIteration(int /*aIteration*/, Rng& aRng) override {
+    void RunIteration(int /*aIteration*/, Sampler& aSampler) override {
         const Camera& camera = mScene.mCamera;
         for (int y = 0; y < camera.Height(); y++) {
             for (int x = 0; x < camera.Width(); x++) {
-                const Vec2 raster = Vec2(float(x), float(y)) + aRng.GetVec2();
+                aSampler.StartPixelSample(y * camera.Width() + x);
+                const Vec2 raster = Vec2(float(x), float(y)) + aSampler.Get2D();
                 const Ray ray = camera.GenerateRay(raster);
                 const SurfacePoint hit = mScene.Intersect(ray);
                 if (!hit.IsValid()) continue;
@@ -2639,11 +2808,12 @@ public:
             for (const char* name : kLayerNames) mLayers.push_back(mFilm.AddLayer(name));
     }
 
-    void RunIteration(int /*aIteration*/, Rng& aRng) override {
+    void RunIteration(int /*aIteration*/, Sampler& aSampler) override {
         const Camera& camera = mScene.mCamera;
         for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
             const int x = pixel % camera.Width(), y = pixel / camera.Width();
-            TraceCameraPath(aRng, pixel, Vec2(float(x), float(y)) + aRng.GetVec2());
+            aSampler.StartPixelSample(pixel);
+            TraceCameraPath(aSampler, pixel, Vec2(float(x), float(y)) + aSampler.Get2D());
         }
     }
 
@@ -2663,7 +2833,7 @@ private:
     // One camera path, the estimator's steps at each vertex: the light it hits (BSDF
     // sampling's share of direct light), next-event estimation (the light sample's
     // share), and the continuation by BSDF sampling with Russian roulette.
-    void TraceCameraPath(Rng& aRng, int aPixel, const Vec2& aRaster) {
+    void TraceCameraPath(Sampler& aSampler, int aPixel, const Vec2& aRaster) {
         Ray ray = mScene.mCamera.GenerateRay(aRaster);
         Bsdf bsdf;
         for (PathState path;; path.mPathLength++) {
@@ -2679,8 +2849,8 @@ private:
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid() || path.mPathLength >= mOptions.mMaxPathLength) return;
             if (!bsdf.IsDelta() && path.mPathLength + 1 >= mOptions.mMinPathLength)
-                AddContribution(aPixel, path, ConnectToLight(aRng, path, hit.mPosition, bsdf), /*aNextEvent=*/true);
-            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aRng);
+                AddContribution(aPixel, path, ConnectToLight(aSampler, path, hit.mPosition, bsdf), /*aNextEvent=*/true);
+            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aSampler);
             if (!scatter) return;
             path.mThroughput *= scatter->mWeight;
             path.mLastPdfW = scatter->mPdfW;
@@ -2718,12 +2888,12 @@ private:
 
     // Next-event estimation: one light picked, one point on it, a shadow ray; its MIS
     // weight against the BSDF sample that could have hit the same point.
-    Vec3 ConnectToLight(Rng& aRng, const PathState& aPath, const Vec3& aHitPoint, const Bsdf& aBsdf) const {
+    Vec3 ConnectToLight(Sampler& aSampler, const PathState& aPath, const Vec3& aHitPoint, const Bsdf& aBsdf) const {
         // BEGIN EXERCISE pt_nee_mis
         if (mOptions.mDirectLight == DirectLightSampling::kBsdfOnly) return Vec3(0.f);
-        const LightPick pick = mScene.PickLight(aRng.GetFloat());
+        const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
-        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2());
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aSampler.Get2D());
         if (!sample || IsBlack(sample->mRadiance)) return Vec3(0.f);
         const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample->mDirToLight);
         if (bsdf.IsBlack()) return Vec3(0.f);
@@ -2892,14 +3062,15 @@ struct PhotonMaps {
 };
 
 // Traces aPhotonCount photons and builds the global and caustic maps.
-inline PhotonMaps TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLength, Rng& aRng) {
+inline PhotonMaps TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLength, Sampler& aSampler) {
     std::vector<Photon> global, caustic;
     for (int p = 0; p < aPhotonCount; p++) {
-        const LightPick pick = aScene.PickLight(aRng.GetFloat());
+        aSampler.StartLightPath(p);
+        const LightPick pick = aScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
         const float lightPickProb = pick.mProb;
-        const Vec2 rndDirection = aRng.GetVec2();
-        const Vec2 rndPosition = aRng.GetVec2();
+        const Vec2 rndDirection = aSampler.Get2D();
+        const Vec2 rndPosition = aSampler.Get2D();
         const std::optional<LightEmission> emission = light.Emit(aScene.GetSceneSphere(), rndDirection, rndPosition);
         if (!emission || !(emission->mEmissionPdfW > 0.f)) continue;
         Vec3 power = emission->mEnergy / (emission->mEmissionPdfW * lightPickProb * float(aPhotonCount));
@@ -2917,7 +3088,7 @@ inline PhotonMaps TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPa
                 global.push_back(photon);
                 if (onlySpecular && pathLength > 1) caustic.push_back(photon);
             }
-            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aRng);
+            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aSampler);
             if (!scatter) break;
             power *= scatter->mWeight;
             onlySpecular = onlySpecular && scatter->IsSpecular();
@@ -2943,12 +3114,13 @@ public:
 
     // The estimator's two steps: the photon maps of this iteration, then one camera path
     // per pixel that reads them.
-    void RunIteration(int /*aIteration*/, Rng& aRng) override {
-        mMaps = TracePhotons(mScene, mOptions.mPhotonCount, mOptions.mMaxPathLength, aRng);
+    void RunIteration(int /*aIteration*/, Sampler& aSampler) override {
+        mMaps = TracePhotons(mScene, mOptions.mPhotonCount, mOptions.mMaxPathLength, aSampler);
         const Camera& camera = mScene.mCamera;
         for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
-            const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aRng.GetVec2();
-            TraceCameraPath(aRng, pixel, camera.GenerateRay(raster));
+            aSampler.StartPixelSample(pixel);
+            const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aSampler.Get2D();
+            TraceCameraPath(aSampler, pixel, camera.GenerateRay(raster));
         }
     }
 
@@ -2958,7 +3130,7 @@ private:
 
     // Follows the camera path through specular bounces (by ray tracing) and estimates
     // with the photon maps at each non-specular vertex; lights it sees count their emission.
-    void TraceCameraPath(Rng& aRng, int aPixel, Ray aRay) {
+    void TraceCameraPath(Sampler& aSampler, int aPixel, Ray aRay) {
         Vec3 throughput(1.f);
         bool afterSpecular = false;
         Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
@@ -2978,11 +3150,11 @@ private:
             bsdf.Setup(aRay, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             if (!bsdf.IsDelta()) {
-                if (mFinalGather) EstimatePartitioned(aRng, aPixel, pathLength, hitPoint, bsdf, throughput, afterSpecular);
+                if (mFinalGather) EstimatePartitioned(aSampler, aPixel, pathLength, hitPoint, bsdf, throughput, afterSpecular);
                 else Add(aPixel, kPhotons, throughput * Estimate(mMaps.mGlobal, hitPoint, bsdf, pathLength));
             }
             // Only specular components carry the camera path on (by ray tracing).
-            if (!ContinueSpecular(aRng, bsdf, hitPoint, throughput, aRay)) return;
+            if (!ContinueSpecular(aSampler, bsdf, hitPoint, throughput, aRay)) return;
             afterSpecular = true;
         }
     }
@@ -3001,8 +3173,8 @@ private:
     }
 
     // Samples the BSDF; continues (true) only if a specular component was picked.
-    bool ContinueSpecular(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, Vec3& aThroughput, Ray& aRay) const {
-        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aRng.GetVec3());
+    bool ContinueSpecular(Sampler& aSampler, const Bsdf& aBsdf, const Vec3& aHitPoint, Vec3& aThroughput, Ray& aRay) const {
+        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aSampler.Get3D());
         if (!scatter || !scatter->IsSpecular()) return false;
         aThroughput *= scatter->mWeight;
         aRay = mScene.SpawnRay(aHitPoint, scatter->mDirection);
@@ -3011,26 +3183,26 @@ private:
 
     // pmfg at the first non-specular camera vertex x: the partition of the "improved
     // photon mapping" slide, each part of the light reaching x counted once.
-    void EstimatePartitioned(Rng& aRng, int aPixel, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
+    void EstimatePartitioned(Sampler& aSampler, int aPixel, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
                              const Vec3& aThroughput, bool aAfterSpecular) {
         auto layer = [&](Layer aPart) { return aAfterSpecular ? kSpecular : aPart; };
-        AddDirectLight(aRng, aPixel, layer(kDirect), aPathLength, aHitPoint, aBsdf, aThroughput);
+        AddDirectLight(aSampler, aPixel, layer(kDirect), aPathLength, aHitPoint, aBsdf, aThroughput);
         // Caustics: the caustic map here.
         Add(aPixel, layer(kCaustics), aThroughput * Estimate(mMaps.mCaustic, aHitPoint, aBsdf, aPathLength));
-        FinalGather(aRng, aPixel, layer(kIndirect), aPathLength, aHitPoint, aBsdf, aThroughput);
+        FinalGather(aSampler, aPixel, layer(kIndirect), aPathLength, aHitPoint, aBsdf, aThroughput);
     }
 
     // Direct light: one light sample (next-event estimation), no MIS, as no other part
     // counts light that reaches x straight from a light.
-    void AddDirectLight(Rng& aRng, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
+    void AddDirectLight(Sampler& aSampler, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
                         const Vec3& aThroughput) {
         if (aPathLength + 1 > mOptions.mMaxPathLength || aPathLength + 1 < mOptions.mMinPathLength) {
-            aRng.GetFloat();  // the same random numbers drawn either way
-            aRng.GetVec2();
+            aSampler.Get1D();  // the same random numbers drawn either way
+            aSampler.Get2D();
             return;
         }
-        const Light& light = *mScene.PickLight(aRng.GetFloat()).mLight;
-        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2());
+        const Light& light = *mScene.PickLight(aSampler.Get1D()).mLight;
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aSampler.Get2D());
         if (!sample || IsBlack(sample->mRadiance)) return;
         const BsdfEval bsdf = aBsdf.Evaluate(sample->mDirToLight);
         if (!bsdf.IsBlack() && !mScene.Occluded(aHitPoint, sample->mDirToLight, sample->mDistance))
@@ -3040,9 +3212,9 @@ private:
 
     // Indirect light by final gathering: one sample of x's non-specular part, followed
     // through specular bounces to a non-specular y, where the global map estimates.
-    void FinalGather(Rng& aRng, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
+    void FinalGather(Sampler& aSampler, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
                      const Vec3& aThroughput) {
-        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aRng.GetVec3());
+        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aSampler.Get3D());
         if (!scatter || scatter->IsSpecular()) return;  // the specular part is traced by the caller
         Vec3 gatherThroughput = aThroughput * scatter->mValue * (scatter->mCosThetaOut / scatter->mPdfW);
         Ray ray = mScene.SpawnRay(aHitPoint, scatter->mDirection);
@@ -3057,7 +3229,7 @@ private:
                 Add(aPixel, aLayer, gatherThroughput * Estimate(mMaps.mGlobal, hitPoint, bsdf, length));
                 return;
             }
-            if (!ContinueSpecular(aRng, bsdf, hitPoint, gatherThroughput, ray)) return;
+            if (!ContinueSpecular(aSampler, bsdf, hitPoint, gatherThroughput, ray)) return;
         }
     }
 
@@ -3355,13 +3527,13 @@ public:
     }
 
     // One iteration of the estimator, in the three stages of the section's notes.
-    void RunIteration(int aIteration, Rng& aRng) override {
+    void RunIteration(int aIteration, Sampler& aSampler) override {
         const int pathCount = mScene.mCamera.PixelCount();
         const float radius = MergeRadius(aIteration);
         mMisConstants = VcmMisConstants::Make(mOptions.mMisHeuristic, mUseVC, mUseVM, float(pathCount), radius);
 
         // 1. Light sub-paths: traced, connected to the camera, their vertices stored.
-        TraceLightSubpaths(aRng, pathCount);
+        TraceLightSubpaths(aSampler, pathCount);
         if (mLightTraceOnly) return;
 
         // 2. The range search over the stored vertices, for merging.
@@ -3370,7 +3542,7 @@ public:
                                      [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[i]); });
 
         // 3. Camera sub-paths, one per pixel.
-        for (int pixel = 0; pixel < pathCount; pixel++) TraceCameraSubpath(aRng, pixel);
+        for (int pixel = 0; pixel < pathCount; pixel++) TraceCameraSubpath(aSampler, pixel);
     }
 
     // --- what tests and tools may inspect ----------------------------------------------
@@ -3450,7 +3622,7 @@ private:
     // --- stage 1: light sub-paths ----------------------------------------------------------
     // The light side of the estimator: N_L light sub-paths, splatted to the camera as
     // they go and stored for stage 3 (light sub-path p ends at mPathEnds[p]).
-    void TraceLightSubpaths(Rng& aRng, int aPathCount) {
+    void TraceLightSubpaths(Sampler& aSampler, int aPathCount) {
         mLightVertices.clear();
         // Room for 4 stored vertices per light path before the first iteration, so the
         // vector does not grow by copying itself while it is filled (reserved pages that
@@ -3459,7 +3631,8 @@ private:
         mPathEnds.assign(size_t(aPathCount), 0);
         if (mPathRecords) mLightHistories.clear();
         for (int path = 0; path < aPathCount; path++) {
-            TraceLightSubpath(aRng);
+            aSampler.StartLightPath(path);
+            TraceLightSubpath(aSampler);
             mPathEnds[size_t(path)] = mLightVertices.size();
         }
     }
@@ -3467,8 +3640,8 @@ private:
     // One light sub-path: each vertex updates the sub-path's MIS quantities
     // [tech. rep. (34)-(36)]; a non-specular one is stored for connections and merging,
     // and connected to the camera (light tracing, t = 1).
-    void TraceLightSubpath(Rng& aRng) {
-        std::optional<SubpathState> start = GenerateLightSample(aRng);
+    void TraceLightSubpath(Sampler& aSampler) {
+        std::optional<SubpathState> start = GenerateLightSample(aSampler);
         if (!start) return;  // nothing emitted (a black texel of a textured light, a spot's cone edge)
         SubpathState& light = *start;
         Bsdf bsdf;
@@ -3492,7 +3665,7 @@ private:
             }
             // A vertex of length L is useful only if a path of length L + 1 may follow.
             if (light.mPathLength + 2 > mOptions.mMaxPathLength) return;
-            const std::optional<ScatterSample> scatter = SampleScattering(aRng, bsdf, hit.mPosition, light);
+            const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, hit.mPosition, light);
             if (!scatter) return;
             if (mPathRecords && scatter->IsSpecular()) mLightHistories.back().back().mEvent = scatter->mEvent;
         }
@@ -3513,9 +3686,10 @@ private:
     // path there, each adding its contribution: a light it hits (s = 0), and at a
     // non-specular vertex next-event estimation (s = 1), connections to the vertices of
     // this pixel's light sub-path (VC) and merging with the light vertices within r (VM).
-    void TraceCameraSubpath(Rng& aRng, int aPixel) {
+    void TraceCameraSubpath(Sampler& aSampler, int aPixel) {
         const Camera& camera = mScene.mCamera;
-        const Vec2 raster = Vec2(float(aPixel % camera.Width()), float(aPixel / camera.Width())) + aRng.GetVec2();
+        aSampler.StartPixelSample(aPixel);
+        const Vec2 raster = Vec2(float(aPixel % camera.Width()), float(aPixel / camera.Width())) + aSampler.Get2D();
         SubpathState cam = GenerateCameraSample(raster);
         if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
         if (mUseVC) ForgetPixelLightBsdfs(aPixel);
@@ -3542,7 +3716,7 @@ private:
 
             if (!bsdf.IsDelta()) {
                 if (mUseVC) {
-                    if (cam.mPathLength + 1 >= mOptions.mMinPathLength) AddToFilm(aPixel, ConnectToLight(aRng, cam, hit.mPosition, bsdf));
+                    if (cam.mPathLength + 1 >= mOptions.mMinPathLength) AddToFilm(aPixel, ConnectToLight(aSampler, cam, hit.mPosition, bsdf));
                     const size_t begin = LightSubpathBegin(aPixel), end = LightSubpathEnd(aPixel);
                     for (size_t i = begin; i < end; i++) {
                         const LightVertex& vertex = mLightVertices[i];
@@ -3555,7 +3729,7 @@ private:
                 if (mUseVM) AddToFilm(aPixel, MergeWithLightVertices(cam, hit.mPosition, bsdf));
             }
 
-            const std::optional<ScatterSample> scatter = SampleScattering(aRng, bsdf, hit.mPosition, cam);
+            const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, hit.mPosition, cam);
             if (!scatter) return;
             if (mPathRecords && scatter->IsSpecular()) mCameraHistory.back().mEvent = scatter->mEvent;
             // PPM's camera path ends where it merged; only a specular component (of a
@@ -3569,11 +3743,11 @@ private:
 
     // A light sub-path's first vertex: a light picked, a point and direction emitted, and
     // its MIS quantities [tech. rep. (31)-(33)]. Nothing when the light emits nothing there.
-    std::optional<SubpathState> GenerateLightSample(Rng& aRng) {
-        const LightPick pick = mScene.PickLight(aRng.GetFloat());
+    std::optional<SubpathState> GenerateLightSample(Sampler& aSampler) {
+        const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
-        const Vec2 rndDirection = aRng.GetVec2();
-        const Vec2 rndPosition = aRng.GetVec2();
+        const Vec2 rndDirection = aSampler.Get2D();
+        const Vec2 rndPosition = aSampler.Get2D();
         if (mPathRecords) mLightHistories.emplace_back();
         std::optional<LightEmission> emission = light.Emit(mScene.GetSceneSphere(), rndDirection, rndPosition);
         if (!emission || !(emission->mEmissionPdfW > 0.f)) return std::nullopt;
@@ -3616,9 +3790,9 @@ private:
     // Samples the continuation of a sub-path at a vertex, with Russian roulette, and
     // updates its throughput and MIS quantities [tech. rep. (34)-(36); specular
     // (53)-(55)]. Nothing when the sub-path ends.
-    std::optional<ScatterSample> SampleScattering(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint,
+    std::optional<ScatterSample> SampleScattering(Sampler& aSampler, const Bsdf& aBsdf, const Vec3& aHitPoint,
                                                   SubpathState& aState) const {
-        std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(aBsdf, aRng);
+        std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(aBsdf, aSampler);
         if (!scatter) return scatter;
         const bool specular = scatter->IsSpecular();
         // For a specular event both pdfs are the component's selection probability (the
@@ -3723,10 +3897,10 @@ private:
 
     // Next-event estimation (s = 1): a point sampled on a light, connected by a shadow ray,
     // weighted by [tech. rep. (44), (45)].
-    SMALLVCM_ALWAYS_INLINE Contribution ConnectToLight(Rng& aRng, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
-        const LightPick pick = mScene.PickLight(aRng.GetFloat());
+    SMALLVCM_ALWAYS_INLINE Contribution ConnectToLight(Sampler& aSampler, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+        const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
-        const Vec2 rnd = aRng.GetVec2();
+        const Vec2 rnd = aSampler.Get2D();
         const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd);
         if (!sample || IsBlack(sample->mRadiance)) return {};
         if (mPathRecords)
@@ -5639,16 +5813,13 @@ inline void CheckRenderMemory(const Camera& aCamera, const RenderOptions& aOptio
     CheckRenderMemory(aCamera, aOptions, BuiltInIntegrator(aOptions.mAlgorithm), aThreads);
 }
 
-inline uint64_t SplitMix64(uint64_t aX) {
-    aX += 0x9E3779B97F4A7C15ull;
-    aX = (aX ^ (aX >> 30)) * 0xBF58476D1CE4E5B9ull;
-    aX = (aX ^ (aX >> 27)) * 0x94D049BB133111EBull;
-    return aX ^ (aX >> 31);
-}
-
 // The random stream of one iteration: independent of thread count and order.
 inline Rng IterationRng(uint64_t aSeed, int aIteration) {
     return Rng(SplitMix64(aSeed ^ SplitMix64(uint64_t(aIteration))), uint64_t(aIteration));
+}
+// The sampler of one iteration: the independent one draws from IterationRng.
+inline Sampler IterationSampler(SamplerType aType, uint64_t aSeed, int aIteration) {
+    return aType == SamplerType::kSobol ? Sampler::Sobol(aSeed, aIteration) : Sampler(IterationRng(aSeed, aIteration));
 }
 
 // Throws Error naming the integrator if its renderers' films cannot be summed: each must
@@ -5711,8 +5882,8 @@ public:
             for (int k = 0;; k++) {
                 const int iteration = NextIteration(aThread, k);
                 if (iteration < 0) break;
-                Rng rng = IterationRng(mOptions.mSeed, iteration);
-                aRenderer.RunIteration(iteration, rng);
+                Sampler sampler = IterationSampler(mOptions.mSampler, mOptions.mSeed, iteration);
+                aRenderer.RunIteration(iteration, sampler);
                 mCompleted++;
             }
         } catch (const std::bad_alloc&) {

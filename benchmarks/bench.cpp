@@ -379,8 +379,8 @@ int RunChild(int argc, char** argv) {
             if (threads == 1) {
                 std::unique_ptr<smallvcm::AbstractRenderer> renderer = smallvcm::CreateRenderer(scene, options);
                 for (int i = 0; i < warmup; i++) {
-                    smallvcm::Rng rng = smallvcm::IterationRng(options.mSeed, i);
-                    renderer->RunIteration(i, rng);
+                    smallvcm::Sampler sampler = smallvcm::IterationSampler(options.mSampler, options.mSeed, i);
+                    renderer->RunIteration(i, sampler);
                 }
                 LightVertexCount(*renderer, lightVertices, lightVertexCapacity);
             } else {

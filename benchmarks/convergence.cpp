@@ -342,8 +342,8 @@ Reference MakeReference(const CommandLine& aCl, int aScene, const smallvcm::Scen
     for (int w = 0; w < workers; w++)
         threads.emplace_back([&, w] {
             for (int i = w; i < iterations; i += workers) {
-                smallvcm::Rng rng = smallvcm::IterationRng(options.mSeed, i);
-                renderers[size_t(w)]->RunIteration(i, rng);
+                smallvcm::Sampler sampler = smallvcm::IterationSampler(options.mSampler, options.mSeed, i);
+                renderers[size_t(w)]->RunIteration(i, sampler);
             }
         });
     for (std::thread& thread : threads) thread.join();
@@ -476,8 +476,8 @@ std::vector<Row> Study(const CommandLine& aCl, const smallvcm::Scene& aScene, Al
         auto work = [&](int aThread) {
             for (int i = aBegin; i < aEnd; i++) {
                 if (i % threadCount != aThread) continue;
-                smallvcm::Rng rng = smallvcm::IterationRng(options.mSeed, i);
-                renderers[size_t(aThread)]->RunIteration(i, rng);
+                smallvcm::Sampler sampler = smallvcm::IterationSampler(options.mSampler, options.mSeed, i);
+                renderers[size_t(aThread)]->RunIteration(i, sampler);
             }
         };
         if (threadCount == 1) { work(0); return; }

@@ -405,3 +405,188 @@ TEST_CASE("Consecutive Rng floats are uncorrelated", "[sampling]") {
     const double correlation = sumProduct / sumSqr;
     REQUIRE(std::abs(correlation) <= 5.0 / std::sqrt(double(n)));
 }
+
+// ---------------------------------------------------------------------------------
+// Sobol points and the Sampler
+// ---------------------------------------------------------------------------------
+namespace {
+
+// The digits of point aIndex of the 2D Sobol sequence, each dimension scrambled with its
+// half of aSeed (or not at all).
+std::array<uint32_t, 2> SobolPointDigits(uint32_t aIndex, std::optional<uint64_t> aSeed) {
+    std::array<uint32_t, 2> digits = {detail::SobolDigits(aIndex, 0), detail::SobolDigits(aIndex, 1)};
+    if (aSeed) {
+        digits[0] = detail::OwenScramble(digits[0], uint32_t(*aSeed));
+        digits[1] = detail::OwenScramble(digits[1], uint32_t(*aSeed >> 32));
+    }
+    return digits;
+}
+
+// True if points aFirst .. aFirst + 2^m - 1 put exactly one point in each box
+// [i 2^-a, (i+1) 2^-a) x [j 2^-b, (j+1) 2^-b) for every a + b = m: a (0,m,2)-net.
+bool IsZeroMTwoNet(uint32_t aFirst, int aM, std::optional<uint64_t> aSeed) {
+    const uint32_t count = 1u << aM;
+    for (int a = 0; a <= aM; a++) {
+        const int b = aM - a;
+        std::vector<int> boxes(count, 0);
+        for (uint32_t i = aFirst; i < aFirst + count; i++) {
+            const std::array<uint32_t, 2> d = SobolPointDigits(i, aSeed);
+            const uint32_t x = a == 0 ? 0u : d[0] >> (32 - a), y = b == 0 ? 0u : d[1] >> (32 - b);
+            if (++boxes[(x << b) | y] > 1) return false;
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
+TEST_CASE("The van der Corput dimension mirrors the index's bits and the second Sobol dimension follows v_k = v_{k-1} xor v_{k-1}/2", "[sampling]") {
+    CHECK(detail::SobolDigits(1, 0) == 0x80000000u);
+    CHECK(detail::SobolDigits(6, 0) == 0x60000000u);  // 0.011 in binary
+    // Dimension 1: v_1 = 0.1, v_2 = 0.11, v_3 = 0.101, v_4 = 0.1111 (binary).
+    CHECK(detail::SobolDigits(1, 1) == 0x80000000u);
+    CHECK(detail::SobolDigits(2, 1) == 0xc0000000u);
+    CHECK(detail::SobolDigits(4, 1) == 0xa0000000u);
+    CHECK(detail::SobolDigits(8, 1) == 0xf0000000u);
+    CHECK(detail::SobolDigits(3, 1) == (0x80000000u ^ 0xc0000000u));
+    CHECK(detail::ReverseBits32(0x00000001u) == 0x80000000u);
+    CHECK(detail::ReverseBits32(0x12345678u) == 0x1e6a2c48u);
+}
+
+TEST_CASE("Each dimension's first 2^k Sobol points, scrambled or not, put one point in each cell of width 2^-k", "[sampling]") {
+    for (std::optional<uint64_t> seed : {std::optional<uint64_t>(), std::optional<uint64_t>(1), std::optional<uint64_t>(0x9e3779b97f4a7c15ull)}) {
+        for (int k = 0; k <= 14; k++) {
+            for (int dim = 0; dim < 2; dim++) {
+                std::vector<int> cells(size_t(1) << k, 0);
+                bool once = true;
+                for (uint32_t i = 0; i < (1u << k); i++) {
+                    const uint32_t digits = SobolPointDigits(i, seed)[size_t(dim)];
+                    once = once && ++cells[k == 0 ? 0 : digits >> (32 - k)] == 1;
+                }
+                INFO("seed " << (seed ? std::to_string(*seed) : "none") << ", k = " << k << ", dimension " << dim);
+                REQUIRE(once);
+            }
+        }
+    }
+}
+
+TEST_CASE("The first 2^m 2D Sobol points and every aligned block of 2^m are (0,m,2)-nets, scrambled or not", "[sampling]") {
+    for (std::optional<uint64_t> seed : {std::optional<uint64_t>(), std::optional<uint64_t>(7), std::optional<uint64_t>(0xdeadbeefcafef00dull)}) {
+        for (int m = 1; m <= 10; m++) {
+            INFO("seed " << (seed ? std::to_string(*seed) : "none") << ", m = " << m);
+            REQUIRE(IsZeroMTwoNet(0, m, seed));
+            REQUIRE(IsZeroMTwoNet(3u << m, m, seed));  // the fourth block of 2^m
+        }
+    }
+}
+
+TEST_CASE("Owen scrambling is a bijection of the digits that differs by seed and is reproducible", "[sampling]") {
+    // Different seeds scramble the same points differently; one seed always the same way.
+    int same = 0;
+    for (uint32_t i = 0; i < 256; i++) {
+        const Vec2 a = ScrambledSobol2D(i, 11), b = ScrambledSobol2D(i, 12);
+        REQUIRE(ScrambledSobol2D(i, 11) == a);
+        if (a == b) same++;
+    }
+    CHECK(same == 0);
+    // A nested scramble maps distinct digit strings to distinct ones (here all 16-bit
+    // prefixes of the top bits: 65536 distinct inputs, 65536 distinct outputs).
+    std::vector<uint32_t> outputs;
+    for (uint32_t x = 0; x < 65536; x++) outputs.push_back(detail::OwenScramble(x << 16, 0x1234567u) >> 16);
+    std::sort(outputs.begin(), outputs.end());
+    CHECK(std::unique(outputs.begin(), outputs.end()) == outputs.end());
+}
+
+TEST_CASE("A scrambled Sobol point is uniform over seeds: chi-square of point 5 over 64 x 64 cells", "[sampling]") {
+    // Randomised QMC is unbiased because each scrambled point is uniform on [0, 1)^2: the
+    // point of one index over many seeds, binned on a 64 x 64 grid (significance 1e-3).
+    const int n = 409600, bins = 64;
+    std::vector<double> observed(size_t(bins * bins), 0.0), expected(observed.size(), double(n) / double(bins * bins));
+    for (int s = 0; s < n; s++) {
+        const Vec2 p = ScrambledSobol2D(5, SplitMix64(uint64_t(s)));
+        observed[size_t(int(p.x * bins) * bins + int(p.y * bins))] += 1.0;
+    }
+    const ChiSquare chi = ComputeChiSquare(observed, expected);
+    INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+    REQUIRE(chi.statistic < chi.threshold);
+}
+
+TEST_CASE("The independent Sampler draws the Rng's numbers in order; Start does nothing", "[sampling]") {
+    Rng rng(5, 9);
+    Sampler sampler(rng);
+    for (int i = 0; i < 100; i++) {
+        sampler.StartPixelSample(i);
+        REQUIRE(sampler.Get1D() == rng.GetFloat());
+        REQUIRE(sampler.Get2D() == rng.GetVec2());
+        sampler.StartLightPath(i);
+        REQUIRE(sampler.Get3D() == rng.GetVec3());
+    }
+}
+
+TEST_CASE("The sobol Sampler stratifies each slot of a pixel over its iterations, and light paths within an iteration", "[sampling]") {
+    const int k = 8, n = 1 << k;
+    const int pixel = 37;
+    // Slot d of the pixel's sample over iterations 0 .. n-1: a (0,k,2)-net in 2D (checked
+    // here through its 1D projections and the 16 x 16 boxes), in [0, 1).
+    for (int slot = 0; slot < 6; slot++) {
+        std::vector<int> cellsX(n, 0), cellsY(n, 0), boxes(n, 0);
+        for (int iteration = 0; iteration < n; iteration++) {
+            Sampler sampler = IterationSampler(SamplerType::kSobol, 99, iteration);
+            sampler.StartPixelSample(pixel);
+            for (int d = 0; d < slot; d++) sampler.Get1D();
+            const Vec2 u = sampler.Get2D();
+            REQUIRE((u.x >= 0.f && u.x < 1.f && u.y >= 0.f && u.y < 1.f));
+            cellsX[size_t(u.x * n)]++;
+            cellsY[size_t(u.y * n)]++;
+            boxes[size_t(int(u.x * 16) * 16 + int(u.y * 16))]++;
+        }
+        INFO("slot " << slot);
+        REQUIRE(std::count(cellsX.begin(), cellsX.end(), 1) == n);
+        REQUIRE(std::count(cellsY.begin(), cellsY.end(), 1) == n);
+        REQUIRE(std::count(boxes.begin(), boxes.end(), 1) == n);
+    }
+    // The light sub-paths 0 .. n-1 of one iteration: each slot stratified too; another
+    // iteration's are another scramble (independent), not the same points.
+    for (int iteration : {0, 5}) {
+        Sampler sampler = IterationSampler(SamplerType::kSobol, 99, iteration);
+        std::vector<int> cells(n, 0);
+        for (int path = 0; path < n; path++) {
+            sampler.StartLightPath(path);
+            sampler.Get1D();
+            cells[size_t(sampler.Get1D() * n)]++;
+        }
+        REQUIRE(std::count(cells.begin(), cells.end(), 1) == n);
+    }
+    Sampler a = IterationSampler(SamplerType::kSobol, 99, 0), b = IterationSampler(SamplerType::kSobol, 99, 1);
+    a.StartLightPath(3);
+    b.StartLightPath(3);
+    CHECK(a.Get2D() != b.Get2D());
+    // Another seed: another scramble of the same pixel's sample.
+    Sampler c = IterationSampler(SamplerType::kSobol, 100, 0);
+    Sampler d = IterationSampler(SamplerType::kSobol, 99, 0);
+    c.StartPixelSample(pixel);
+    d.StartPixelSample(pixel);
+    CHECK(c.Get2D() != d.Get2D());
+}
+
+TEST_CASE("Past its Sobol slots, or without Start, the sobol Sampler gives uniform numbers in [0, 1)", "[sampling]") {
+    // Slots from kSobolSlots on are hashed: their values over many pixels pass a chi-square
+    // test on 64 bins (significance 1e-3), as do the numbers of a sampler never started.
+    const int n = 64000, bins = 64;
+    std::vector<double> deep(bins, 0.0), unstarted(bins, 0.0), expected(bins, double(n) / bins);
+    Sampler never = IterationSampler(SamplerType::kSobol, 3, 2);
+    for (int pixel = 0; pixel < n; pixel++) {
+        Sampler sampler = IterationSampler(SamplerType::kSobol, 3, 2);
+        sampler.StartPixelSample(pixel);
+        for (uint32_t d = 0; d < Sampler::kSobolSlots; d++) sampler.Get1D();
+        const float x = sampler.Get1D(), y = never.Get1D();
+        REQUIRE((x >= 0.f && x < 1.f && y >= 0.f && y < 1.f));
+        deep[size_t(x * bins)] += 1.0;
+        unstarted[size_t(y * bins)] += 1.0;
+    }
+    for (const std::vector<double>* observed : {&deep, &unstarted}) {
+        const ChiSquare chi = ComputeChiSquare(*observed, expected);
+        INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+        REQUIRE(chi.statistic < chi.threshold);
+    }
+}
