@@ -337,26 +337,70 @@ inline uint64_t SplitMix64(uint64_t aX) {
 
 // --- Sobol points, Owen-scrambled ----------------------------------------------------
 // A point of a base-2 digital sequence is x = C i: the index's bits i_0 i_1 ... times a
-// generator matrix C over GF(2) gives the binary digits of x. We use the first two
-// dimensions of Sobol's sequence (1967). Dimension 0 is the van der Corput sequence
-// (C = identity: x is the index's bits mirrored about the binary point). Dimension 1
-// comes from the primitive polynomial x + 1; its direction numbers v_k = m_k / 2^k obey
-// Sobol's recurrence m_k = 2 m_{k-1} XOR m_{k-1}, m_1 = 1, that is
-// v_k = v_{k-1} XOR v_{k-1} / 2, v_1 = 1/2, and x = XOR of v_{k+1} over the set bits k of i.
-// Together they form a (0,2)-sequence: for every m, each aligned block of 2^m points
-// (the first 2^m among them) is a (0,m,2)-net, one point in each of the 2^m boxes of
-// size 2^-a x 2^-b, a + b = m; in particular each dimension alone puts one point in
-// each cell of width 2^-m. Digits are kept as 32-bit fixed point (bit 31 is 1/2).
+// generator matrix C over GF(2) give the binary digits of x. Sobol's sequence (1967)
+// gives dimension j the matrix whose column k is the direction number v_{k+1}, from a
+// primitive polynomial x^s + a_1 x^{s-1} + ... + a_{s-1} x + 1 over GF(2) and s odd
+// initial integers m_1..m_s (m_k < 2^k, v_k = m_k / 2^k) by the recurrence
+//     v_k = a_1 v_{k-1} XOR a_2 v_{k-2} XOR ... XOR a_{s-1} v_{k-s+1} XOR v_{k-s} XOR v_{k-s} / 2^s.
+// Dimension 0 is van der Corput's (v_k = 2^-k: x is the index's bits mirrored about the
+// binary point). Each v_k has its leading 1 at digit k (m_k odd), so C is upper
+// triangular with a unit diagonal: every dimension alone puts one point of each aligned
+// block of 2^m indices (the first 2^m among them) in each cell of width 2^-m. Two
+// dimensions form (t,m,2)-nets; dimensions 0 and 1 are a (0,2)-sequence (t = 0: one
+// point in each of the 2^m boxes of size 2^-a x 2^-b, a + b = m). The polynomials and
+// initial numbers of dimensions 1-31 are Joe and Kuo's (2008, file new-joe-kuo-6.21201),
+// chosen so that pairs of dimensions have small t. Digits are 32-bit fixed point
+// (bit 31 is 1/2).
 namespace detail {
-inline uint32_t SobolDigits(uint32_t aIndex, int aDimension) {
-    uint32_t digits = 0;
-    if (aDimension == 0) {
-        for (uint32_t v = 1u << 31; aIndex; aIndex >>= 1, v >>= 1)
-            if (aIndex & 1u) digits ^= v;
-    } else {
-        for (uint32_t v = 1u << 31; aIndex; aIndex >>= 1, v ^= v >> 1)
-            if (aIndex & 1u) digits ^= v;
+struct SobolPolynomial {
+    int mDegree;             // s
+    uint32_t mCoefficients;  // a_1 .. a_{s-1}, a_1 the most significant bit
+    uint32_t mInitial[7];    // m_1 .. m_s
+};
+inline constexpr SobolPolynomial kJoeKuo[] = {
+    {1, 0, {1}},                        {2, 1, {1, 3}},                       {3, 1, {1, 3, 1}},
+    {3, 2, {1, 1, 1}},                  {4, 1, {1, 1, 3, 3}},                 {4, 4, {1, 3, 5, 13}},
+    {5, 2, {1, 1, 5, 5, 17}},           {5, 4, {1, 1, 5, 5, 5}},              {5, 7, {1, 1, 7, 11, 19}},
+    {5, 11, {1, 1, 5, 1, 1}},           {5, 13, {1, 1, 1, 3, 11}},            {5, 14, {1, 3, 5, 5, 31}},
+    {6, 1, {1, 3, 3, 9, 7, 49}},        {6, 13, {1, 1, 1, 15, 21, 21}},       {6, 16, {1, 3, 1, 13, 27, 49}},
+    {6, 19, {1, 1, 1, 15, 7, 5}},       {6, 22, {1, 3, 1, 15, 13, 25}},       {6, 25, {1, 1, 5, 5, 19, 61}},
+    {7, 1, {1, 3, 7, 11, 23, 15, 103}}, {7, 4, {1, 3, 7, 13, 13, 15, 69}},    {7, 7, {1, 1, 3, 13, 7, 35, 63}},
+    {7, 8, {1, 3, 5, 9, 1, 25, 53}},    {7, 14, {1, 3, 1, 13, 9, 35, 107}},   {7, 19, {1, 3, 1, 5, 27, 61, 31}},
+    {7, 21, {1, 1, 5, 11, 19, 41, 61}}, {7, 28, {1, 3, 5, 3, 3, 13, 69}},     {7, 31, {1, 1, 7, 13, 1, 19, 1}},
+    {7, 32, {1, 3, 7, 5, 13, 19, 59}},  {7, 37, {1, 1, 3, 9, 25, 29, 41}},    {7, 41, {1, 3, 5, 13, 23, 1, 55}},
+    {7, 42, {1, 3, 7, 3, 13, 59, 17}},
+};
+inline constexpr int kSobolDimensions = 1 + int(sizeof(kJoeKuo) / sizeof(kJoeKuo[0]));
+
+// Column k of dimension j's generator matrix: v_{k+1} as 32-bit fixed point.
+constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> MakeSobolMatrices() {
+    std::array<std::array<uint32_t, 32>, kSobolDimensions> columns{};
+    for (int k = 0; k < 32; k++) columns[0][size_t(k)] = 1u << (31 - k);
+    for (int j = 1; j < kSobolDimensions; j++) {
+        const SobolPolynomial& p = kJoeKuo[j - 1];
+        std::array<uint32_t, 32>& v = columns[size_t(j)];
+        for (int k = 0; k < 32; k++) {
+            if (k < p.mDegree) {
+                v[size_t(k)] = p.mInitial[k] << (31 - k);
+                continue;
+            }
+            uint32_t next = v[size_t(k - p.mDegree)] ^ (v[size_t(k - p.mDegree)] >> p.mDegree);
+            for (int i = 1; i < p.mDegree; i++)
+                if ((p.mCoefficients >> (p.mDegree - 1 - i)) & 1u) next ^= v[size_t(k - i)];
+            v[size_t(k)] = next;
+        }
     }
+    return columns;
+}
+inline constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> kSobolMatrices = MakeSobolMatrices();
+
+// The digits of point aIndex's coordinate aDimension: C i, the XOR of the columns of the
+// index's set bits.
+inline uint32_t SobolDigits(uint32_t aIndex, int aDimension) {
+    const std::array<uint32_t, 32>& columns = kSobolMatrices[size_t(aDimension)];
+    uint32_t digits = 0;
+    for (size_t k = 0; aIndex; aIndex >>= 1, k++)
+        if (aIndex & 1u) digits ^= columns[k];
     return digits;
 }
 
@@ -369,7 +413,7 @@ inline uint32_t ReverseBits32(uint32_t aX) {
 }
 
 // Owen's nested uniform scrambling (1995): digit k of x is flipped or not at random,
-// the coin depending on the digits before it. A box of the net then goes to a box of
+// the coin depending on the digits before it. A box of a net then goes to a box of
 // the same shape (the net property stays) and each scrambled point is uniform on
 // [0, 1). The coins come from a hash in the Laine-Karras form (2011), with Burley's
 // (2020) constants: on the digits reversed (the first digit in bit 0), each step below
@@ -390,40 +434,46 @@ inline uint32_t OwenScramble(uint32_t aDigits, uint32_t aSeed) {
 inline float DigitsToFloat(uint32_t aDigits) { return float(aDigits >> 8) * (1.f / 16777216.f); }
 }  // namespace detail
 
-// Point aIndex of the 2D Sobol sequence, each dimension Owen-scrambled with its half of
-// aSeed: a (0,2)-sequence randomised so that every point is uniform on [0, 1)^2.
-inline Vec2 ScrambledSobol2D(uint32_t aIndex, uint64_t aSeed) {
-    return Vec2(detail::DigitsToFloat(detail::OwenScramble(detail::SobolDigits(aIndex, 0), uint32_t(aSeed))),
-                detail::DigitsToFloat(detail::OwenScramble(detail::SobolDigits(aIndex, 1), uint32_t(aSeed >> 32))));
+// Coordinate aDimension (< detail::kSobolDimensions) of point aIndex of the Sobol
+// sequence, Owen-scrambled with aSeed: every point is uniform on [0, 1), and the
+// scrambled sequence keeps the nets of the unscrambled one.
+inline float ScrambledSobol(uint32_t aIndex, int aDimension, uint32_t aSeed) {
+    return detail::DigitsToFloat(detail::OwenScramble(detail::SobolDigits(aIndex, aDimension), aSeed));
 }
 
 // --- Samplers: where an estimator's random numbers come from --------------------------
-// An estimator asks its Sampler for one dimension (Get1D), a pair (Get2D) or a pair and
-// one more (Get3D: a BSDF sample's direction and its component pick), and says before
-// each path which sample it starts: StartPixelSample(pixel) for a camera sub-path,
-// StartLightPath(p) for the p-th light sub-path (photon) of the iteration. One Sampler
-// serves one iteration. Two kinds:
+// An estimator asks its Sampler for one dimension (Get1D), two (Get2D) or three (Get3D:
+// a BSDF sample's direction and its component pick), and says before each path which
+// sample it starts: StartPixelSample(pixel) for a camera sub-path, StartLightPath(p) for
+// the p-th light sub-path (photon) of the iteration. One Sampler serves one iteration.
+// Two kinds:
 //  * independent: every number the next one of the iteration's Rng, in the order asked
 //    (Start does nothing): plain Monte Carlo, whose variance falls as 1/N.
-//  * sobol: randomised quasi-Monte Carlo, "padded" 2D Sobol points. Within a path the
-//    d-th request (1D or 2D alike: its slot d) reads point `index` of its own
-//    ScrambledSobol2D sequence, seeded by a hash of (stream, d); a 1D request reads the
-//    point's first coordinate. Which sequence a path reads:
-//      camera sub-path:  stream = its pixel,      index = the iteration number;
-//      light sub-path:   stream = the iteration,  index = p, its number in the iteration.
-//    A pixel's first 2^k iterations thus put one point in each 2^-k cell of every slot,
-//    and each slot's pairs form a (0,k,2)-net; the light sub-paths of one iteration are
-//    stratified among themselves in the same way, while the iteration number enters them
-//    only through the seed, so light sub-paths of different iterations are independent,
-//    as with Rng (and runs with different seeds are independent in every part).
-//    Slots kSobolSlots and later (long paths) get hashed independent numbers.
-//    Unbiased: for one sample, the scrambles make each slot uniform and the slots
-//    independent (independent seeds), so each path is distributed as with independent
-//    numbers; only the correlation between samples differs, which is what lowers the
-//    variance (for smooth integrands the RMSE of N samples falls towards N^-1.5 instead
-//    of N^-0.5; Owen 1997).
-//    A path that never called Start reads index 0 of ever new slots: hashed independent
-//    numbers, correct but not stratified.
+//  * sobol: randomised quasi-Monte Carlo. A path's numbers are the coordinates of one
+//    point of an Owen-scrambled Sobol sequence, in the order asked: its first request
+//    reads dimension 0 (and 1, if 2D), the next ones the following dimensions. Which
+//    point, of which randomisation:
+//      camera sub-path:  index = the iteration number,    seeds from (its pixel, dimension);
+//      light sub-path:   index = p, its number in the iteration, seeds from (iteration, dimension).
+//    A pixel's first 2^k iterations thus put one sample in each 2^-k cell of every
+//    dimension, and dimensions 0 and 1 (the pixel position) form a (0,k,2)-net; the light
+//    sub-paths of one iteration are stratified among themselves in the same way, while
+//    the iteration number enters them only through the seeds, so light sub-paths of
+//    different iterations are independent, as with Rng (and runs with different seeds
+//    are independent in every part).
+//    The dimensions come from one Sobol sequence rather than from independent 2D
+//    sequences of the same index: the scrambled van der Corput digits of one index in two
+//    such sequences are nested permutations of each other, so the first coordinates of
+//    the two would fall in the same halves, quarters, ... (coupled at every scale).
+//    From dimension kSobolDimensions on (long paths) the numbers are hashed independent
+//    ones (a hash of seed, index and dimension).
+//    Unbiased: for one point the scrambles make each coordinate uniform and, with
+//    independent seeds, the coordinates independent, so each path is distributed as with
+//    independent numbers; only the correlation between samples differs, which is what
+//    lowers the variance (Owen 1997: for smooth integrands the variance of N scrambled
+//    points falls as N^-3 up to log factors; discontinuities leave about N^-1.5).
+//    A path that never called Start reads point 0 of ever new dimensions: hashed
+//    independent numbers, correct but not stratified.
 enum class SamplerType { kIndependent, kSobol };
 
 inline const char* SamplerName(SamplerType aType) { return aType == SamplerType::kSobol ? "sobol" : "independent"; }
@@ -435,7 +485,7 @@ inline std::optional<SamplerType> ParseSampler(const std::string& aName) {
 
 class Sampler {
 public:
-    static constexpr uint32_t kSobolSlots = 64;
+    static constexpr int kSobolDimensions = detail::kSobolDimensions;
 
     // Independent numbers from aRng.
     explicit Sampler(const Rng& aRng) : mRng(aRng) {}
@@ -455,16 +505,18 @@ public:
 
     float Get1D() {
         if (mType == SamplerType::kIndependent) return mRng.GetFloat();
-        return NextSlot().x;
+        return NextDimension();
     }
     Vec2 Get2D() {
         if (mType == SamplerType::kIndependent) return mRng.GetVec2();
-        return NextSlot();
+        const float a = NextDimension();
+        return Vec2(a, NextDimension());
     }
     Vec3 Get3D() {
         if (mType == SamplerType::kIndependent) return mRng.GetVec3();
-        const Vec2 pair = NextSlot();
-        return Vec3(pair, NextSlot().x);
+        const float a = NextDimension();
+        const float b = NextDimension();
+        return Vec3(a, b, NextDimension());
     }
 
 private:
@@ -473,13 +525,13 @@ private:
     void Start(Domain aDomain, uint32_t aStream, uint32_t aIndex) {
         mStreamSeed = SplitMix64(SplitMix64(mSeed ^ SplitMix64(aDomain)) ^ aStream);
         mIndex = aIndex;
-        mSlot = 0;
+        mDimension = 0;
     }
-    Vec2 NextSlot() {
-        const uint64_t slotSeed = SplitMix64(mStreamSeed ^ mSlot);
-        if (mSlot++ < kSobolSlots) return ScrambledSobol2D(mIndex, slotSeed);
-        const uint64_t bits = SplitMix64(slotSeed ^ SplitMix64(mIndex));
-        return Vec2(detail::DigitsToFloat(uint32_t(bits)), detail::DigitsToFloat(uint32_t(bits >> 32)));
+    float NextDimension() {
+        const uint64_t seed = SplitMix64(mStreamSeed ^ mDimension);
+        if (mDimension < uint64_t(kSobolDimensions)) return ScrambledSobol(mIndex, int(mDimension++), uint32_t(seed));
+        mDimension++;
+        return detail::DigitsToFloat(uint32_t(SplitMix64(seed ^ SplitMix64(mIndex)) >> 32));
     }
 
     SamplerType mType = SamplerType::kIndependent;
@@ -488,7 +540,7 @@ private:
     uint32_t mIteration = 0;
     uint64_t mStreamSeed = 0;
     uint32_t mIndex = 0;
-    uint64_t mSlot = 0;
+    uint64_t mDimension = 0;
 };
 
 // --- Cosine-weighted hemisphere around +z: pdf = cos(theta) / pi -------------------

@@ -453,14 +453,15 @@ TEST_CASE("The van der Corput dimension mirrors the index's bits and the second 
     CHECK(detail::ReverseBits32(0x12345678u) == 0x1e6a2c48u);
 }
 
-TEST_CASE("Each dimension's first 2^k Sobol points, scrambled or not, put one point in each cell of width 2^-k", "[sampling]") {
+TEST_CASE("Every Sobol dimension's first 2^k points, scrambled or not, put one point in each cell of width 2^-k", "[sampling]") {
     for (std::optional<uint64_t> seed : {std::optional<uint64_t>(), std::optional<uint64_t>(1), std::optional<uint64_t>(0x9e3779b97f4a7c15ull)}) {
-        for (int k = 0; k <= 14; k++) {
-            for (int dim = 0; dim < 2; dim++) {
+        for (int dim = 0; dim < detail::kSobolDimensions; dim++) {
+            for (int k = 0; k <= 12; k++) {
                 std::vector<int> cells(size_t(1) << k, 0);
                 bool once = true;
                 for (uint32_t i = 0; i < (1u << k); i++) {
-                    const uint32_t digits = SobolPointDigits(i, seed)[size_t(dim)];
+                    uint32_t digits = detail::SobolDigits(i, dim);
+                    if (seed) digits = detail::OwenScramble(digits, uint32_t(*seed >> dim));
                     once = once && ++cells[k == 0 ? 0 : digits >> (32 - k)] == 1;
                 }
                 INFO("seed " << (seed ? std::to_string(*seed) : "none") << ", k = " << k << ", dimension " << dim);
@@ -468,6 +469,29 @@ TEST_CASE("Each dimension's first 2^k Sobol points, scrambled or not, put one po
             }
         }
     }
+}
+
+TEST_CASE("The Sobol points in Gray-code order are the published ones: the first eight of dimensions 0-2", "[sampling]") {
+    // Joe and Kuo's generator, which visits the indices in Gray-code order n ^ (n >> 1).
+    const float expected[8][3] = {{0.f, 0.f, 0.f},         {0.5f, 0.5f, 0.5f},     {0.75f, 0.25f, 0.25f},
+                                  {0.25f, 0.75f, 0.75f},   {0.375f, 0.375f, 0.625f}, {0.875f, 0.875f, 0.125f},
+                                  {0.625f, 0.125f, 0.875f}, {0.125f, 0.625f, 0.375f}};
+    for (uint32_t n = 0; n < 8; n++)
+        for (int dim = 0; dim < 3; dim++)
+            CHECK(detail::DigitsToFloat(detail::SobolDigits(n ^ (n >> 1), dim)) == expected[n][dim]);
+    // Dimension 4 (s = 3, a = 2, m = 1 1 1: x^3 + x^2 + 1): the recurrence gives
+    // v_4 = v_3 ^ v_1 ^ v_1 / 2^3, worked out by hand.
+    CHECK(detail::kSobolMatrices[4][3] == (detail::kSobolMatrices[4][2] ^ detail::kSobolMatrices[4][0] ^ (detail::kSobolMatrices[4][0] >> 3)));
+    CHECK(detail::kSobolMatrices[4][3] == 0xb0000000u);  // m_4 = 11 (binary 1011)
+    // Every column of every dimension:
+    for (int dim = 0; dim < detail::kSobolDimensions; dim++)
+        for (int k = 0; k < 32; k++) {
+            INFO("dimension " << dim << ", column " << k);
+            // m_k odd and below 2^k: digit k + 1 is 1 and nothing follows (a unit diagonal).
+            const uint32_t column = detail::kSobolMatrices[size_t(dim)][size_t(k)];
+            REQUIRE(((column >> (31 - k)) & 1u) == 1u);
+            REQUIRE((k == 31 || (column & ((1u << (31 - k)) - 1u)) == 0u));
+        }
 }
 
 TEST_CASE("The first 2^m 2D Sobol points and every aligned block of 2^m are (0,m,2)-nets, scrambled or not", "[sampling]") {
@@ -484,8 +508,8 @@ TEST_CASE("Owen scrambling is a bijection of the digits that differs by seed and
     // Different seeds scramble the same points differently; one seed always the same way.
     int same = 0;
     for (uint32_t i = 0; i < 256; i++) {
-        const Vec2 a = ScrambledSobol2D(i, 11), b = ScrambledSobol2D(i, 12);
-        REQUIRE(ScrambledSobol2D(i, 11) == a);
+        const Vec2 a(ScrambledSobol(i, 0, 11), ScrambledSobol(i, 1, 11)), b(ScrambledSobol(i, 0, 12), ScrambledSobol(i, 1, 12));
+        REQUIRE(ScrambledSobol(i, 0, 11) == a.x);
         if (a == b) same++;
     }
     CHECK(same == 0);
@@ -503,7 +527,8 @@ TEST_CASE("A scrambled Sobol point is uniform over seeds: chi-square of point 5 
     const int n = 409600, bins = 64;
     std::vector<double> observed(size_t(bins * bins), 0.0), expected(observed.size(), double(n) / double(bins * bins));
     for (int s = 0; s < n; s++) {
-        const Vec2 p = ScrambledSobol2D(5, SplitMix64(uint64_t(s)));
+        const uint64_t seed = SplitMix64(uint64_t(s));
+        const Vec2 p(ScrambledSobol(5, 0, uint32_t(seed)), ScrambledSobol(5, 1, uint32_t(seed >> 32)));
         observed[size_t(int(p.x * bins) * bins + int(p.y * bins))] += 1.0;
     }
     const ChiSquare chi = ComputeChiSquare(observed, expected);
@@ -523,39 +548,42 @@ TEST_CASE("The independent Sampler draws the Rng's numbers in order; Start does 
     }
 }
 
-TEST_CASE("The sobol Sampler stratifies each slot of a pixel over its iterations, and light paths within an iteration", "[sampling]") {
+TEST_CASE("The sobol Sampler stratifies each dimension of a pixel over its iterations, and light paths within an iteration", "[sampling]") {
     const int k = 8, n = 1 << k;
     const int pixel = 37;
-    // Slot d of the pixel's sample over iterations 0 .. n-1: a (0,k,2)-net in 2D (checked
-    // here through its 1D projections and the 16 x 16 boxes), in [0, 1).
-    for (int slot = 0; slot < 6; slot++) {
-        std::vector<int> cellsX(n, 0), cellsY(n, 0), boxes(n, 0);
-        for (int iteration = 0; iteration < n; iteration++) {
-            Sampler sampler = IterationSampler(SamplerType::kSobol, 99, iteration);
-            sampler.StartPixelSample(pixel);
-            for (int d = 0; d < slot; d++) sampler.Get1D();
-            const Vec2 u = sampler.Get2D();
-            REQUIRE((u.x >= 0.f && u.x < 1.f && u.y >= 0.f && u.y < 1.f));
-            cellsX[size_t(u.x * n)]++;
-            cellsY[size_t(u.y * n)]++;
-            boxes[size_t(int(u.x * 16) * 16 + int(u.y * 16))]++;
+    // Dimension d of the pixel's samples over iterations 0 .. n-1: one per cell of width
+    // 1/n, in [0, 1); the first two (the pixel position) a (0,k,2)-net (its 16 x 16 boxes).
+    std::vector<std::vector<int>> cells(size_t(Sampler::kSobolDimensions), std::vector<int>(n, 0));
+    std::vector<int> boxes(n, 0);
+    for (int iteration = 0; iteration < n; iteration++) {
+        Sampler sampler = IterationSampler(SamplerType::kSobol, 99, iteration);
+        sampler.StartPixelSample(pixel);
+        const Vec2 position = sampler.Get2D();
+        boxes[size_t(int(position.x * 16) * 16 + int(position.y * 16))]++;
+        cells[0][size_t(position.x * n)]++;
+        cells[1][size_t(position.y * n)]++;
+        for (int d = 2; d < Sampler::kSobolDimensions; d++) {
+            const float u = sampler.Get1D();
+            REQUIRE((u >= 0.f && u < 1.f));
+            cells[size_t(d)][size_t(u * n)]++;
         }
-        INFO("slot " << slot);
-        REQUIRE(std::count(cellsX.begin(), cellsX.end(), 1) == n);
-        REQUIRE(std::count(cellsY.begin(), cellsY.end(), 1) == n);
-        REQUIRE(std::count(boxes.begin(), boxes.end(), 1) == n);
     }
-    // The light sub-paths 0 .. n-1 of one iteration: each slot stratified too; another
-    // iteration's are another scramble (independent), not the same points.
+    REQUIRE(std::count(boxes.begin(), boxes.end(), 1) == n);
+    for (int d = 0; d < Sampler::kSobolDimensions; d++) {
+        INFO("dimension " << d);
+        REQUIRE(std::count(cells[size_t(d)].begin(), cells[size_t(d)].end(), 1) == n);
+    }
+    // The light sub-paths 0 .. n-1 of one iteration: each dimension stratified too;
+    // another iteration's are another scramble (independent), not the same points.
     for (int iteration : {0, 5}) {
         Sampler sampler = IterationSampler(SamplerType::kSobol, 99, iteration);
-        std::vector<int> cells(n, 0);
+        std::vector<int> second(n, 0);
         for (int path = 0; path < n; path++) {
             sampler.StartLightPath(path);
             sampler.Get1D();
-            cells[size_t(sampler.Get1D() * n)]++;
+            second[size_t(sampler.Get1D() * n)]++;
         }
-        REQUIRE(std::count(cells.begin(), cells.end(), 1) == n);
+        REQUIRE(std::count(second.begin(), second.end(), 1) == n);
     }
     Sampler a = IterationSampler(SamplerType::kSobol, 99, 0), b = IterationSampler(SamplerType::kSobol, 99, 1);
     a.StartLightPath(3);
@@ -569,8 +597,8 @@ TEST_CASE("The sobol Sampler stratifies each slot of a pixel over its iterations
     CHECK(c.Get2D() != d.Get2D());
 }
 
-TEST_CASE("Past its Sobol slots, or without Start, the sobol Sampler gives uniform numbers in [0, 1)", "[sampling]") {
-    // Slots from kSobolSlots on are hashed: their values over many pixels pass a chi-square
+TEST_CASE("Past its Sobol dimensions, or without Start, the sobol Sampler gives uniform numbers in [0, 1)", "[sampling]") {
+    // Dimensions from kSobolDimensions on are hashed: their values over many pixels pass a chi-square
     // test on 64 bins (significance 1e-3), as do the numbers of a sampler never started.
     const int n = 64000, bins = 64;
     std::vector<double> deep(bins, 0.0), unstarted(bins, 0.0), expected(bins, double(n) / bins);
@@ -578,7 +606,7 @@ TEST_CASE("Past its Sobol slots, or without Start, the sobol Sampler gives unifo
     for (int pixel = 0; pixel < n; pixel++) {
         Sampler sampler = IterationSampler(SamplerType::kSobol, 3, 2);
         sampler.StartPixelSample(pixel);
-        for (uint32_t d = 0; d < Sampler::kSobolSlots; d++) sampler.Get1D();
+        for (int d = 0; d < Sampler::kSobolDimensions; d++) sampler.Get1D();
         const float x = sampler.Get1D(), y = never.Get1D();
         REQUIRE((x >= 0.f && x < 1.f && y >= 0.f && y < 1.f));
         deep[size_t(x * bins)] += 1.0;
