@@ -64,7 +64,7 @@
 //  Nothing else in the library throws on purpose.
 //
 //  Your own integrator: a class derived from AbstractRenderer that overrides
-//  RunIteration(iteration, rng) renders through the same loop as the built-ins:
+//  RunIteration(iteration, sampler) renders through the same loop as the built-ins:
 //      smallvcm::Render(scene, options, smallvcm::MakeIntegrator<MyTracer>("mine", "my tracer"));
 //  RegisterIntegrator (or a static IntegratorRegistration) makes it known by name, to
 //  FindIntegrator and to the command line's -a. [SECTION] Integrator interface states the
@@ -296,6 +296,7 @@ struct Frame {
 // =====================================================================================
 // Provides: Rng (PCG32: 8 bytes of state, statistically strong, and seedable by
 // (seed, stream) so that every iteration of a render has its own reproducible stream),
+// Sampler (what the estimators draw from: Rng's numbers, or Owen-scrambled Sobol points),
 // and every sampling routine the integrators use, each beside the pdf it returns, so a
 // test can check that the two agree. Local directions are in a Frame: z is the axis.
 
@@ -399,12 +400,11 @@ inline constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> kSobolMa
 inline uint32_t SobolDigits(uint32_t aIndex, int aDimension) {
     const std::array<uint32_t, 32>& columns = kSobolMatrices[size_t(aDimension)];
     uint32_t digits = 0;
-    for (size_t k = 0; aIndex; aIndex >>= 1, k++)
-        if (aIndex & 1u) digits ^= columns[k];
+    for (size_t k = 0; aIndex; aIndex >>= 1, k++) digits ^= columns[k] & (0u - (aIndex & 1u));
     return digits;
 }
 
-inline uint32_t ReverseBits32(uint32_t aX) {
+constexpr uint32_t ReverseBits32(uint32_t aX) {
     aX = (aX << 16) | (aX >> 16);
     aX = ((aX & 0x00ff00ffu) << 8) | ((aX & 0xff00ff00u) >> 8);
     aX = ((aX & 0x0f0f0f0fu) << 4) | ((aX & 0xf0f0f0f0u) >> 4);
@@ -420,14 +420,34 @@ inline uint32_t ReverseBits32(uint32_t aX) {
 // changes bit j by a function of bits 0..j-1 only (x * even and the carries of + and
 // * odd move information upwards), so bit j is flipped by a function of the bits
 // below it — a nested scramble, seeded by aSeed.
-inline uint32_t OwenScramble(uint32_t aDigits, uint32_t aSeed) {
-    uint32_t x = ReverseBits32(aDigits);
+// OwenScrambleReversed works on the reversed digits and returns them reversed.
+inline uint32_t OwenScrambleReversed(uint32_t aReversedDigits, uint32_t aSeed) {
+    uint32_t x = aReversedDigits;
     x ^= x * 0x3d20adeau;
     x += aSeed;
     x *= (aSeed >> 16) | 1u;
     x ^= x * 0x05526c56u;
     x ^= x * 0x53a22864u;
-    return ReverseBits32(x);
+    return x;
+}
+inline uint32_t OwenScramble(uint32_t aDigits, uint32_t aSeed) {
+    return ReverseBits32(OwenScrambleReversed(ReverseBits32(aDigits), aSeed));
+}
+
+// The same columns with their digits reversed (the first digit in bit 0), the form the
+// scramble below works in: C i reversed is the XOR of these columns.
+constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> MakeReversedSobolMatrices() {
+    std::array<std::array<uint32_t, 32>, kSobolDimensions> columns = MakeSobolMatrices();
+    for (std::array<uint32_t, 32>& dimension : columns)
+        for (uint32_t& column : dimension) column = ReverseBits32(column);
+    return columns;
+}
+inline constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> kReversedSobolMatrices = MakeReversedSobolMatrices();
+inline uint32_t ReversedSobolDigits(uint32_t aIndex, int aDimension) {
+    const std::array<uint32_t, 32>& columns = kReversedSobolMatrices[size_t(aDimension)];
+    uint32_t digits = 0;
+    for (size_t k = 0; aIndex; aIndex >>= 1, k++) digits ^= columns[k] & (0u - (aIndex & 1u));
+    return digits;
 }
 
 // The top 24 digits as a float in [0, 1), as Rng::GetFloat.
@@ -474,6 +494,14 @@ inline float ScrambledSobol(uint32_t aIndex, int aDimension, uint32_t aSeed) {
 //    points falls as N^-3 up to log factors; discontinuities leave about N^-1.5).
 //    A path that never called Start reads point 0 of ever new dimensions: hashed
 //    independent numbers, correct but not stratified.
+//    The layout is the order of requests (docs/algorithms.md, "Samplers", per estimator):
+//      camera sub-path: pixel position (2); per vertex: next-event estimation where it
+//        runs: light pick (1), point on the light (2); BSDF direction and component
+//        (3); Russian roulette (1);
+//      light sub-path, photon: light pick (1), emission direction (2), point on the
+//        light (2); per vertex: BSDF (3), Russian roulette (1).
+//    A technique skipped at a vertex moves the path's later requests to other
+//    dimensions: every number is still uniform and independent of the others.
 enum class SamplerType { kIndependent, kSobol };
 
 inline const char* SamplerName(SamplerType aType) { return aType == SamplerType::kSobol ? "sobol" : "independent"; }
@@ -493,8 +521,11 @@ public:
     static Sampler Sobol(uint64_t aSeed, int aIteration) {
         Sampler sampler{Rng()};
         sampler.mType = SamplerType::kSobol;
-        sampler.mSeed = aSeed;
         sampler.mIteration = uint32_t(aIteration);
+        for (uint64_t domain = 0; domain < 3; domain++) sampler.mDomainSeeds[domain] = SplitMix64(aSeed ^ SplitMix64(domain + 1));
+        // Every camera sub-path of this iteration reads point aIteration: its unscrambled
+        // (reversed) digits once for all pixels.
+        for (int d = 0; d < kSobolDimensions; d++) sampler.mIterationDigits[size_t(d)] = detail::ReversedSobolDigits(sampler.mIteration, d);
         sampler.Start(kUnstarted, sampler.mIteration, 0);
         return sampler;
     }
@@ -520,24 +551,26 @@ public:
     }
 
 private:
-    enum Domain : uint64_t { kUnstarted = 1, kCameraPaths = 2, kLightPaths = 3 };
+    enum Domain { kUnstarted = 0, kCameraPaths = 1, kLightPaths = 2 };
 
     void Start(Domain aDomain, uint32_t aStream, uint32_t aIndex) {
-        mStreamSeed = SplitMix64(SplitMix64(mSeed ^ SplitMix64(aDomain)) ^ aStream);
+        mStreamSeed = SplitMix64(mDomainSeeds[aDomain] ^ aStream);
         mIndex = aIndex;
         mDimension = 0;
     }
     float NextDimension() {
         const uint64_t seed = SplitMix64(mStreamSeed ^ mDimension);
-        if (mDimension < uint64_t(kSobolDimensions)) return ScrambledSobol(mIndex, int(mDimension++), uint32_t(seed));
-        mDimension++;
-        return detail::DigitsToFloat(uint32_t(SplitMix64(seed ^ SplitMix64(mIndex)) >> 32));
+        const uint64_t d = mDimension++;
+        if (d >= uint64_t(kSobolDimensions)) return detail::DigitsToFloat(uint32_t(SplitMix64(seed ^ SplitMix64(mIndex)) >> 32));
+        const uint32_t reversed = mIndex == mIteration ? mIterationDigits[d] : detail::ReversedSobolDigits(mIndex, int(d));
+        return detail::DigitsToFloat(detail::ReverseBits32(detail::OwenScrambleReversed(reversed, uint32_t(seed))));
     }
 
     SamplerType mType = SamplerType::kIndependent;
     Rng mRng;
-    uint64_t mSeed = 0;
     uint32_t mIteration = 0;
+    uint64_t mDomainSeeds[3] = {};
+    std::array<uint32_t, detail::kSobolDimensions> mIterationDigits{};
     uint64_t mStreamSeed = 0;
     uint32_t mIndex = 0;
     uint64_t mDimension = 0;

@@ -138,6 +138,7 @@ struct Options {
     std::string mNote;
     std::string mCommand;
     bool mQuick = false;
+    smallvcm::SamplerType mSampler = smallvcm::SamplerType::kIndependent;
 };
 
 void PrintHelp() {
@@ -148,6 +149,7 @@ void PrintHelp() {
         "  --algorithms LIST      e.g. pt,vcm (default pt,lt,ppm,bpm,bpt,vcm,pm,pmfg)\n"
         "  --threads LIST         thread counts, e.g. 1,2 (default 1,2; the first is the speed-up's base)\n"
         "  --resolution WxH       image size (default 512x512)\n"
+        "  --sampler S            the estimators' sampler: independent (default) or sobol\n"
         "  --min-seconds S        measured time per configuration (default 2)\n"
         "  --min-iterations N     measured iterations at least (default 2)\n"
         "  --warmup N             warm-up iterations per thread (default 1; 0: none)\n"
@@ -225,6 +227,11 @@ Options ParseOptions(int argc, char** argv) {
             if (o.mThreads.empty()) throw Error(arg + ": no thread count given");
         }
         else if (arg == "--resolution") ParseResolution(arg, value(i), o.mWidth, o.mHeight);
+        else if (arg == "--sampler") {
+            const std::optional<smallvcm::SamplerType> sampler = smallvcm::ParseSampler(value(i));
+            if (!sampler) throw Error("--sampler: independent or sobol");
+            o.mSampler = *sampler;
+        }
         else if (arg == "--min-seconds") o.mMinSeconds = ParseNumber<double>(arg, value(i), 0.0, 3600.0);
         else if (arg == "--min-iterations") o.mMinIterations = ParseNumber<int>(arg, value(i), 1, 100000);
         else if (arg == "--warmup") o.mWarmup = ParseNumber<int>(arg, value(i), 0, 1000);
@@ -346,8 +353,8 @@ struct Measurement {
 
 // The child: loads the scene, warms up, measures, prints one line "RESULT key=value ...".
 int RunChild(int argc, char** argv) {
-    // bench --child SCENE ALGORITHM THREADS WIDTH HEIGHT MIN_SECONDS MIN_ITERATIONS WARMUP REPEAT
-    if (argc != 11) { std::fprintf(stderr, "bench --child: wrong arguments\n"); return 2; }
+    // bench --child SCENE ALGORITHM THREADS WIDTH HEIGHT MIN_SECONDS MIN_ITERATIONS WARMUP REPEAT SAMPLER
+    if (argc != 12) { std::fprintf(stderr, "bench --child: wrong arguments\n"); return 2; }
     try {
         const std::string scenePath = argv[2];
         const std::optional<Algorithm> parsed = smallvcm::ParseAlgorithm(argv[3]);
@@ -359,6 +366,8 @@ int RunChild(int argc, char** argv) {
         const int minIterations = std::atoi(argv[8]);
         const int warmup = std::atoi(argv[9]);
         const int repeat = std::atoi(argv[10]);
+        const std::optional<smallvcm::SamplerType> samplerType = smallvcm::ParseSampler(argv[11]);
+        if (!samplerType) throw Error(std::string("unknown sampler ") + argv[11]);
 
         smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath);
         scene.mCamera.SetResolution(width, height);
@@ -368,6 +377,7 @@ int RunChild(int argc, char** argv) {
         options.mAlgorithm = algorithm;
         options.mThreads = threads;
         options.mProgress = false;
+        options.mSampler = *samplerType;
 
         // Warm-up: one iteration per thread (index 0.. so that PPM's radius schedule is
         // the one of a fresh render). With one thread the bench runs the renderer itself,
@@ -436,7 +446,8 @@ Measurement MeasureInChild(const Options& aOptions, int aScene, Algorithm aAlgor
     std::vector<std::string> args = {
         "bench", "--child", scenePath, smallvcm::AlgorithmShortName(aAlgorithm), std::to_string(aThreads),
         std::to_string(aOptions.mWidth), std::to_string(aOptions.mHeight), Format("%.6f", aOptions.mMinSeconds),
-        std::to_string(aOptions.mMinIterations), std::to_string(aOptions.mWarmup), std::to_string(aOptions.mRepeat)};
+        std::to_string(aOptions.mMinIterations), std::to_string(aOptions.mWarmup), std::to_string(aOptions.mRepeat),
+        smallvcm::SamplerName(aOptions.mSampler)};
     std::vector<char*> argvChild;
     for (std::string& a : args) argvChild.push_back(a.data());
     argvChild.push_back(nullptr);
@@ -861,7 +872,7 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
     if (!aOptions.mNote.empty()) out << "| note | " << aOptions.mNote << " |\n";
     const smallvcm::RenderOptions defaults;
     out << "| image | " << aOptions.mWidth << "x" << aOptions.mHeight << ", default RenderOptions (max path length "
-        << defaults.mMaxPathLength << ", seed " << defaults.mSeed << "; pm/pmfg: " << defaults.mPhotonCount
+        << defaults.mMaxPathLength << ", seed " << defaults.mSeed << ", sampler " << smallvcm::SamplerName(aOptions.mSampler) << "; pm/pmfg: " << defaults.mPhotonCount
         << " photons per iteration, k = " << defaults.mNearestPhotons << ") |\n";
     out << "| per configuration | " << aOptions.mWarmup << " warm-up iteration(s) per thread, then >= "
         << aOptions.mMinIterations << " iterations and >= " << aOptions.mMinSeconds
