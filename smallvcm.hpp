@@ -64,7 +64,7 @@
 //  Nothing else in the library throws on purpose.
 //
 //  Your own integrator: a class derived from AbstractRenderer that overrides
-//  RunIteration(iteration, rng) renders through the same loop as the built-ins:
+//  RunIteration(iteration, sampler) renders through the same loop as the built-ins:
 //      smallvcm::Render(scene, options, smallvcm::MakeIntegrator<MyTracer>("mine", "my tracer"));
 //  RegisterIntegrator (or a static IntegratorRegistration) makes it known by name, to
 //  FindIntegrator and to the command line's -a. [SECTION] Integrator interface states the
@@ -296,6 +296,7 @@ struct Frame {
 // =====================================================================================
 // Provides: Rng (PCG32: 8 bytes of state, statistically strong, and seedable by
 // (seed, stream) so that every iteration of a render has its own reproducible stream),
+// Sampler (what the estimators draw from: Rng's numbers, or Owen-scrambled Sobol points),
 // and every sampling routine the integrators use, each beside the pdf it returns, so a
 // test can check that the two agree. Local directions are in a Frame: z is the axis.
 
@@ -324,6 +325,255 @@ public:
 private:
     uint64_t mState = 0;
     uint64_t mIncrement = 1;
+};
+
+// SplitMix64 (Steele et al. 2014): a bijective 64-bit mix whose outputs for consecutive
+// inputs look independent. Seeds derived from (seed, index) pairs go through it.
+inline uint64_t SplitMix64(uint64_t aX) {
+    aX += 0x9E3779B97F4A7C15ull;
+    aX = (aX ^ (aX >> 30)) * 0xBF58476D1CE4E5B9ull;
+    aX = (aX ^ (aX >> 27)) * 0x94D049BB133111EBull;
+    return aX ^ (aX >> 31);
+}
+
+// --- Sobol points, Owen-scrambled ----------------------------------------------------
+// A point of a base-2 digital sequence is x = C i: the index's bits i_0 i_1 ... times a
+// generator matrix C over GF(2) give the binary digits of x. Sobol's sequence (1967)
+// gives dimension j the matrix whose column k is the direction number v_{k+1}, from a
+// primitive polynomial x^s + a_1 x^{s-1} + ... + a_{s-1} x + 1 over GF(2) and s odd
+// initial integers m_1..m_s (m_k < 2^k, v_k = m_k / 2^k) by the recurrence
+//     v_k = a_1 v_{k-1} XOR a_2 v_{k-2} XOR ... XOR a_{s-1} v_{k-s+1} XOR v_{k-s} XOR v_{k-s} / 2^s.
+// Dimension 0 is van der Corput's (v_k = 2^-k: x is the index's bits mirrored about the
+// binary point). Each v_k has its leading 1 at digit k (m_k odd), so C is upper
+// triangular with a unit diagonal: every dimension alone puts one point of each aligned
+// block of 2^m indices (the first 2^m among them) in each cell of width 2^-m. Two
+// dimensions form (t,m,2)-nets; dimensions 0 and 1 are a (0,2)-sequence (t = 0: one
+// point in each of the 2^m boxes of size 2^-a x 2^-b, a + b = m). The polynomials and
+// initial numbers of dimensions 1-31 are Joe and Kuo's (2008, file new-joe-kuo-6.21201),
+// chosen so that pairs of dimensions have small t. Digits are 32-bit fixed point
+// (bit 31 is 1/2).
+namespace detail {
+struct SobolPolynomial {
+    int mDegree;             // s
+    uint32_t mCoefficients;  // a_1 .. a_{s-1}, a_1 the most significant bit
+    uint32_t mInitial[7];    // m_1 .. m_s
+};
+inline constexpr SobolPolynomial kJoeKuo[] = {
+    {1, 0, {1}},                        {2, 1, {1, 3}},                       {3, 1, {1, 3, 1}},
+    {3, 2, {1, 1, 1}},                  {4, 1, {1, 1, 3, 3}},                 {4, 4, {1, 3, 5, 13}},
+    {5, 2, {1, 1, 5, 5, 17}},           {5, 4, {1, 1, 5, 5, 5}},              {5, 7, {1, 1, 7, 11, 19}},
+    {5, 11, {1, 1, 5, 1, 1}},           {5, 13, {1, 1, 1, 3, 11}},            {5, 14, {1, 3, 5, 5, 31}},
+    {6, 1, {1, 3, 3, 9, 7, 49}},        {6, 13, {1, 1, 1, 15, 21, 21}},       {6, 16, {1, 3, 1, 13, 27, 49}},
+    {6, 19, {1, 1, 1, 15, 7, 5}},       {6, 22, {1, 3, 1, 15, 13, 25}},       {6, 25, {1, 1, 5, 5, 19, 61}},
+    {7, 1, {1, 3, 7, 11, 23, 15, 103}}, {7, 4, {1, 3, 7, 13, 13, 15, 69}},    {7, 7, {1, 1, 3, 13, 7, 35, 63}},
+    {7, 8, {1, 3, 5, 9, 1, 25, 53}},    {7, 14, {1, 3, 1, 13, 9, 35, 107}},   {7, 19, {1, 3, 1, 5, 27, 61, 31}},
+    {7, 21, {1, 1, 5, 11, 19, 41, 61}}, {7, 28, {1, 3, 5, 3, 3, 13, 69}},     {7, 31, {1, 1, 7, 13, 1, 19, 1}},
+    {7, 32, {1, 3, 7, 5, 13, 19, 59}},  {7, 37, {1, 1, 3, 9, 25, 29, 41}},    {7, 41, {1, 3, 5, 13, 23, 1, 55}},
+    {7, 42, {1, 3, 7, 3, 13, 59, 17}},
+};
+inline constexpr int kSobolDimensions = 1 + int(sizeof(kJoeKuo) / sizeof(kJoeKuo[0]));
+
+// Column k of dimension j's generator matrix: v_{k+1} as 32-bit fixed point.
+constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> MakeSobolMatrices() {
+    std::array<std::array<uint32_t, 32>, kSobolDimensions> columns{};
+    for (int k = 0; k < 32; k++) columns[0][size_t(k)] = 1u << (31 - k);
+    for (int j = 1; j < kSobolDimensions; j++) {
+        const SobolPolynomial& p = kJoeKuo[j - 1];
+        std::array<uint32_t, 32>& v = columns[size_t(j)];
+        for (int k = 0; k < 32; k++) {
+            if (k < p.mDegree) {
+                v[size_t(k)] = p.mInitial[k] << (31 - k);
+                continue;
+            }
+            uint32_t next = v[size_t(k - p.mDegree)] ^ (v[size_t(k - p.mDegree)] >> p.mDegree);
+            for (int i = 1; i < p.mDegree; i++)
+                if ((p.mCoefficients >> (p.mDegree - 1 - i)) & 1u) next ^= v[size_t(k - i)];
+            v[size_t(k)] = next;
+        }
+    }
+    return columns;
+}
+inline constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> kSobolMatrices = MakeSobolMatrices();
+
+// The digits of point aIndex's coordinate aDimension: C i, the XOR of the columns of the
+// index's set bits.
+inline uint32_t SobolDigits(uint32_t aIndex, int aDimension) {
+    const std::array<uint32_t, 32>& columns = kSobolMatrices[size_t(aDimension)];
+    uint32_t digits = 0;
+    for (size_t k = 0; aIndex; aIndex >>= 1, k++) digits ^= columns[k] & (0u - (aIndex & 1u));
+    return digits;
+}
+
+constexpr uint32_t ReverseBits32(uint32_t aX) {
+    aX = (aX << 16) | (aX >> 16);
+    aX = ((aX & 0x00ff00ffu) << 8) | ((aX & 0xff00ff00u) >> 8);
+    aX = ((aX & 0x0f0f0f0fu) << 4) | ((aX & 0xf0f0f0f0u) >> 4);
+    aX = ((aX & 0x33333333u) << 2) | ((aX & 0xccccccccu) >> 2);
+    return ((aX & 0x55555555u) << 1) | ((aX & 0xaaaaaaaau) >> 1);
+}
+
+// Owen's nested uniform scrambling (1995): digit k of x is flipped or not at random,
+// the coin depending on the digits before it. A box of a net then goes to a box of
+// the same shape (the net property stays) and each scrambled point is uniform on
+// [0, 1). The coins come from a hash in the Laine-Karras form (2011), with Burley's
+// (2020) constants: on the digits reversed (the first digit in bit 0), each step below
+// changes bit j by a function of bits 0..j-1 only (x * even and the carries of + and
+// * odd move information upwards), so bit j is flipped by a function of the bits
+// below it — a nested scramble, seeded by aSeed.
+// OwenScrambleReversed works on the reversed digits and returns them reversed.
+inline uint32_t OwenScrambleReversed(uint32_t aReversedDigits, uint32_t aSeed) {
+    uint32_t x = aReversedDigits;
+    x ^= x * 0x3d20adeau;
+    x += aSeed;
+    x *= (aSeed >> 16) | 1u;
+    x ^= x * 0x05526c56u;
+    x ^= x * 0x53a22864u;
+    return x;
+}
+inline uint32_t OwenScramble(uint32_t aDigits, uint32_t aSeed) {
+    return ReverseBits32(OwenScrambleReversed(ReverseBits32(aDigits), aSeed));
+}
+
+// The same columns with their digits reversed (the first digit in bit 0), the form the
+// scramble below works in: C i reversed is the XOR of these columns.
+constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> MakeReversedSobolMatrices() {
+    std::array<std::array<uint32_t, 32>, kSobolDimensions> columns = MakeSobolMatrices();
+    for (std::array<uint32_t, 32>& dimension : columns)
+        for (uint32_t& column : dimension) column = ReverseBits32(column);
+    return columns;
+}
+inline constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> kReversedSobolMatrices = MakeReversedSobolMatrices();
+inline uint32_t ReversedSobolDigits(uint32_t aIndex, int aDimension) {
+    const std::array<uint32_t, 32>& columns = kReversedSobolMatrices[size_t(aDimension)];
+    uint32_t digits = 0;
+    for (size_t k = 0; aIndex; aIndex >>= 1, k++) digits ^= columns[k] & (0u - (aIndex & 1u));
+    return digits;
+}
+
+// The top 24 digits as a float in [0, 1), as Rng::GetFloat.
+inline float DigitsToFloat(uint32_t aDigits) { return float(aDigits >> 8) * (1.f / 16777216.f); }
+}  // namespace detail
+
+// Coordinate aDimension (< detail::kSobolDimensions) of point aIndex of the Sobol
+// sequence, Owen-scrambled with aSeed: every point is uniform on [0, 1), and the
+// scrambled sequence keeps the nets of the unscrambled one.
+inline float ScrambledSobol(uint32_t aIndex, int aDimension, uint32_t aSeed) {
+    return detail::DigitsToFloat(detail::OwenScramble(detail::SobolDigits(aIndex, aDimension), aSeed));
+}
+
+// --- Samplers: where an estimator's random numbers come from --------------------------
+// An estimator asks its Sampler for one dimension (Get1D), two (Get2D) or three (Get3D:
+// a BSDF sample's direction and its component pick), and says before each path which
+// sample it starts: StartPixelSample(pixel) for a camera sub-path, StartLightPath(p) for
+// the p-th light sub-path (photon) of the iteration. One Sampler serves one iteration.
+// Two kinds:
+//  * independent: every number the next one of the iteration's Rng, in the order asked
+//    (Start does nothing): plain Monte Carlo, whose variance falls as 1/N.
+//  * sobol: randomised quasi-Monte Carlo. A path's numbers are the coordinates of one
+//    point of an Owen-scrambled Sobol sequence, in the order asked: its first request
+//    reads dimension 0 (and 1, if 2D), the next ones the following dimensions. Which
+//    point, of which randomisation:
+//      camera sub-path:  index = the iteration number,    seeds from (its pixel, dimension);
+//      light sub-path:   index = p, its number in the iteration, seeds from (iteration, dimension).
+//    A pixel's first 2^k iterations thus put one sample in each 2^-k cell of every
+//    dimension, and dimensions 0 and 1 (the pixel position) form a (0,k,2)-net; the light
+//    sub-paths of one iteration are stratified among themselves in the same way, while
+//    the iteration number enters them only through the seeds, so light sub-paths of
+//    different iterations are independent, as with Rng (and runs with different seeds
+//    are independent in every part).
+//    The dimensions come from one Sobol sequence rather than from independent 2D
+//    sequences of the same index: the scrambled van der Corput digits of one index in two
+//    such sequences are nested permutations of each other, so the first coordinates of
+//    the two would fall in the same halves, quarters, ... (coupled at every scale).
+//    From dimension kSobolDimensions on (long paths) the numbers are hashed independent
+//    ones (a hash of seed, index and dimension).
+//    Unbiased: for one point the scrambles make each coordinate uniform and, with
+//    independent seeds, the coordinates independent, so each path is distributed as with
+//    independent numbers; only the correlation between samples differs, which is what
+//    lowers the variance (Owen 1997: for smooth integrands the variance of N scrambled
+//    points falls as N^-3 up to log factors; discontinuities leave about N^-1.5).
+//    A path that never called Start reads point 0 of ever new dimensions: hashed
+//    independent numbers, correct but not stratified.
+//    The layout is the order of requests (docs/algorithms.md, "Samplers", per estimator):
+//      camera sub-path: pixel position (2); per vertex: next-event estimation where it
+//        runs: light pick (1), point on the light (2); BSDF direction and component
+//        (3); Russian roulette (1);
+//      light sub-path, photon: light pick (1), emission direction (2), point on the
+//        light (2); per vertex: BSDF (3), Russian roulette (1).
+//    A technique skipped at a vertex moves the path's later requests to other
+//    dimensions: every number is still uniform and independent of the others.
+enum class SamplerType { kIndependent, kSobol };
+
+inline const char* SamplerName(SamplerType aType) { return aType == SamplerType::kSobol ? "sobol" : "independent"; }
+inline std::optional<SamplerType> ParseSampler(const std::string& aName) {
+    if (aName == "independent") return SamplerType::kIndependent;
+    if (aName == "sobol") return SamplerType::kSobol;
+    return std::nullopt;
+}
+
+class Sampler {
+public:
+    static constexpr int kSobolDimensions = detail::kSobolDimensions;
+
+    // Independent numbers from aRng.
+    explicit Sampler(const Rng& aRng) : mRng(aRng) {}
+    // Sobol points for iteration aIteration of a render seeded with aSeed.
+    static Sampler Sobol(uint64_t aSeed, int aIteration) {
+        Sampler sampler{Rng()};
+        sampler.mType = SamplerType::kSobol;
+        sampler.mIteration = uint32_t(aIteration);
+        for (uint64_t domain = 0; domain < 3; domain++) sampler.mDomainSeeds[domain] = SplitMix64(aSeed ^ SplitMix64(domain + 1));
+        // Every camera sub-path of this iteration reads point aIteration: its unscrambled
+        // (reversed) digits once for all pixels.
+        for (int d = 0; d < kSobolDimensions; d++) sampler.mIterationDigits[size_t(d)] = detail::ReversedSobolDigits(sampler.mIteration, d);
+        sampler.Start(kUnstarted, sampler.mIteration, 0);
+        return sampler;
+    }
+    SamplerType Type() const { return mType; }
+
+    void StartPixelSample(int aPixel) { Start(kCameraPaths, uint32_t(aPixel), mIteration); }
+    void StartLightPath(int aPath) { Start(kLightPaths, mIteration, uint32_t(aPath)); }
+
+    float Get1D() {
+        if (mType == SamplerType::kIndependent) return mRng.GetFloat();
+        return NextDimension();
+    }
+    Vec2 Get2D() {
+        if (mType == SamplerType::kIndependent) return mRng.GetVec2();
+        const float a = NextDimension();
+        return Vec2(a, NextDimension());
+    }
+    Vec3 Get3D() {
+        if (mType == SamplerType::kIndependent) return mRng.GetVec3();
+        const float a = NextDimension();
+        const float b = NextDimension();
+        return Vec3(a, b, NextDimension());
+    }
+
+private:
+    enum Domain { kUnstarted = 0, kCameraPaths = 1, kLightPaths = 2 };
+
+    void Start(Domain aDomain, uint32_t aStream, uint32_t aIndex) {
+        mStreamSeed = SplitMix64(mDomainSeeds[aDomain] ^ aStream);
+        mIndex = aIndex;
+        mDimension = 0;
+    }
+    float NextDimension() {
+        const uint64_t seed = SplitMix64(mStreamSeed ^ mDimension);
+        const uint64_t d = mDimension++;
+        if (d >= uint64_t(kSobolDimensions)) return detail::DigitsToFloat(uint32_t(SplitMix64(seed ^ SplitMix64(mIndex)) >> 32));
+        const uint32_t reversed = mIndex == mIteration ? mIterationDigits[d] : detail::ReversedSobolDigits(mIndex, int(d));
+        return detail::DigitsToFloat(detail::ReverseBits32(detail::OwenScrambleReversed(reversed, uint32_t(seed))));
+    }
+
+    SamplerType mType = SamplerType::kIndependent;
+    Rng mRng;
+    uint32_t mIteration = 0;
+    uint64_t mDomainSeeds[3] = {};
+    std::array<uint32_t, detail::kSobolDimensions> mIterationDigits{};
+    uint64_t mStreamSeed = 0;
+    uint32_t mIndex = 0;
+    uint64_t mDimension = 0;
 };
 
 // --- Cosine-weighted hemisphere around +z: pdf = cos(theta) / pi -------------------
@@ -2600,9 +2850,9 @@ inline std::optional<ScatterSample> SampleBsdf(const Bsdf& aBsdf, const Vec3& aR
 // BSDF, then Russian roulette with the material's continuation probability, which is
 // part of how the direction was sampled, so it enters both pdfs (Bsdf::WithRoulette)
 // and the weight. Nothing when the walk ends here (a black sample, or Russian roulette).
-inline std::optional<ScatterSample> SampleScatteringWithRoulette(const Bsdf& aBsdf, Rng& aRng) {
-    std::optional<ScatterSample> sample = SampleBsdf(aBsdf, aRng.GetVec3());
-    if (sample && aRng.GetFloat() < aBsdf.ContinuationProb()) {
+inline std::optional<ScatterSample> SampleScatteringWithRoulette(const Bsdf& aBsdf, Sampler& aSampler) {
+    std::optional<ScatterSample> sample = SampleBsdf(aBsdf, aSampler.Get3D());
+    if (sample && aSampler.Get1D() < aBsdf.ContinuationProb()) {
         sample->mPdfW = aBsdf.WithRoulette(sample->mPdfW);
         sample->mReversePdfW = aBsdf.WithRoulette(sample->mReversePdfW);
         sample->mWeight = sample->mValue * (sample->mCosThetaOut / sample->mPdfW);
@@ -2735,9 +2985,11 @@ private:
 //    in the image, as light tracing's do); add extra layers in the constructor with
 //    AddLayer(name) (only when mOptions.mTechniqueLayers asks for them, by convention)
 //    and write them with AddToLayer.
-//  * RunIteration(i, rng) renders iteration i, conventionally one sample per pixel, and
-//    draws every random number from rng: stream i of the base seed, the same whichever
-//    thread runs it, so one seed and thread count give one image, bit for bit.
+//  * RunIteration(i, sampler) renders iteration i, conventionally one sample per pixel,
+//    and draws every random number from sampler (see Sampler): made from the base seed
+//    and i alone, the same whichever thread runs it, so one seed and thread count give
+//    one image, bit for bit. Before each camera sub-path it calls
+//    sampler.StartPixelSample(pixel), before each light sub-path StartLightPath(p).
 //  * After the last iteration Render() sums the films in thread order and divides by the
 //    number of iterations run: a film holds sums of per-iteration estimates.
 //  * Iteration and time budgets, threads, progress, cancellation (checked between
@@ -2795,6 +3047,7 @@ struct RenderOptions {
     double mSeconds = 0.0;        // time budget in seconds (0: none)
     int mThreads = 0;             // 0: every hardware thread
     uint64_t mSeed = 1234;        // base seed: iteration i uses stream i of it
+    SamplerType mSampler = SamplerType::kIndependent;  // where the random numbers come from
     int mMinPathLength = 0;       // in segments, as SmallVCM counts them
     int mMaxPathLength = 10;
     float mRadiusFactor = 0.003f; // merging radius = factor * scene radius (SmallVCM's default)
@@ -2828,8 +3081,8 @@ public:
     AbstractRenderer& operator=(const AbstractRenderer&) = delete;
 
     // Runs iteration aIteration (its index counts across all threads: PPM's radius
-    // depends on it) drawing every random number from aRng.
-    virtual void RunIteration(int aIteration, Rng& aRng) = 0;
+    // depends on it) drawing every random number from aSampler.
+    virtual void RunIteration(int aIteration, Sampler& aSampler) = 0;
 
     Film& GetFilm() { return mFilm; }
 
@@ -2877,11 +3130,12 @@ class EyeLight : public AbstractRenderer {
 public:
     using AbstractRenderer::AbstractRenderer;
 
-    void RunIteration(int /*aIteration*/, Rng& aRng) override {
+    void RunIteration(int /*aIteration*/, Sampler& aSampler) override {
         const Camera& camera = mScene.mCamera;
         for (int y = 0; y < camera.Height(); y++) {
             for (int x = 0; x < camera.Width(); x++) {
-                const Vec2 raster = Vec2(float(x), float(y)) + aRng.GetVec2();
+                aSampler.StartPixelSample(y * camera.Width() + x);
+                const Vec2 raster = Vec2(float(x), float(y)) + aSampler.Get2D();
                 const Ray ray = camera.GenerateRay(raster);
                 const SurfacePoint hit = mScene.Intersect(ray);
                 if (!hit.IsValid()) continue;
@@ -2923,11 +3177,12 @@ public:
             for (const char* name : kLayerNames) mLayers.push_back(mFilm.AddLayer(name));
     }
 
-    void RunIteration(int /*aIteration*/, Rng& aRng) override {
+    void RunIteration(int /*aIteration*/, Sampler& aSampler) override {
         const Camera& camera = mScene.mCamera;
         for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
             const int x = pixel % camera.Width(), y = pixel / camera.Width();
-            TraceCameraPath(aRng, pixel, Vec2(float(x), float(y)) + aRng.GetVec2());
+            aSampler.StartPixelSample(pixel);
+            TraceCameraPath(aSampler, pixel, Vec2(float(x), float(y)) + aSampler.Get2D());
         }
     }
 
@@ -2947,7 +3202,7 @@ private:
     // One camera path, the estimator's steps at each vertex: the light it hits (BSDF
     // sampling's share of direct light), next-event estimation (the light sample's
     // share), and the continuation by BSDF sampling with Russian roulette.
-    void TraceCameraPath(Rng& aRng, int aPixel, const Vec2& aRaster) {
+    void TraceCameraPath(Sampler& aSampler, int aPixel, const Vec2& aRaster) {
         Ray ray = mScene.mCamera.GenerateRay(aRaster);
         Bsdf bsdf;
         for (PathState path;; path.mPathLength++) {
@@ -2963,8 +3218,8 @@ private:
             bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid() || path.mPathLength >= mOptions.mMaxPathLength) return;
             if (!bsdf.IsDelta() && path.mPathLength + 1 >= mOptions.mMinPathLength)
-                AddContribution(aPixel, path, ConnectToLight(aRng, path, hit.mPosition, bsdf), /*aNextEvent=*/true);
-            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aRng);
+                AddContribution(aPixel, path, ConnectToLight(aSampler, path, hit.mPosition, bsdf), /*aNextEvent=*/true);
+            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aSampler);
             if (!scatter) return;
             path.mThroughput *= scatter->mWeight;
             path.mLastPdfW = scatter->mPdfW;
@@ -3002,12 +3257,12 @@ private:
 
     // Next-event estimation: one light picked, one point on it, a shadow ray; its MIS
     // weight against the BSDF sample that could have hit the same point.
-    Vec3 ConnectToLight(Rng& aRng, const PathState& aPath, const Vec3& aHitPoint, const Bsdf& aBsdf) const {
+    Vec3 ConnectToLight(Sampler& aSampler, const PathState& aPath, const Vec3& aHitPoint, const Bsdf& aBsdf) const {
         // BEGIN EXERCISE pt_nee_mis
         if (mOptions.mDirectLight == DirectLightSampling::kBsdfOnly) return Vec3(0.f);
-        const LightPick pick = mScene.PickLight(aRng.GetFloat());
+        const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
-        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2());
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aSampler.Get2D());
         if (!sample || IsBlack(sample->mRadiance)) return Vec3(0.f);
         const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample->mDirToLight);
         if (bsdf.IsBlack()) return Vec3(0.f);
@@ -3176,14 +3431,15 @@ struct PhotonMaps {
 };
 
 // Traces aPhotonCount photons and builds the global and caustic maps.
-inline PhotonMaps TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLength, Rng& aRng) {
+inline PhotonMaps TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLength, Sampler& aSampler) {
     std::vector<Photon> global, caustic;
     for (int p = 0; p < aPhotonCount; p++) {
-        const LightPick pick = aScene.PickLight(aRng.GetFloat());
+        aSampler.StartLightPath(p);
+        const LightPick pick = aScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
         const float lightPickProb = pick.mProb;
-        const Vec2 rndDirection = aRng.GetVec2();
-        const Vec2 rndPosition = aRng.GetVec2();
+        const Vec2 rndDirection = aSampler.Get2D();
+        const Vec2 rndPosition = aSampler.Get2D();
         const std::optional<LightEmission> emission = light.Emit(aScene.GetSceneSphere(), rndDirection, rndPosition);
         if (!emission || !(emission->mEmissionPdfW > 0.f)) continue;
         Vec3 power = emission->mEnergy / (emission->mEmissionPdfW * lightPickProb * float(aPhotonCount));
@@ -3201,7 +3457,7 @@ inline PhotonMaps TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPa
                 global.push_back(photon);
                 if (onlySpecular && pathLength > 1) caustic.push_back(photon);
             }
-            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aRng);
+            const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aSampler);
             if (!scatter) break;
             power *= scatter->mWeight;
             onlySpecular = onlySpecular && scatter->IsSpecular();
@@ -3227,12 +3483,13 @@ public:
 
     // The estimator's two steps: the photon maps of this iteration, then one camera path
     // per pixel that reads them.
-    void RunIteration(int /*aIteration*/, Rng& aRng) override {
-        mMaps = TracePhotons(mScene, mOptions.mPhotonCount, mOptions.mMaxPathLength, aRng);
+    void RunIteration(int /*aIteration*/, Sampler& aSampler) override {
+        mMaps = TracePhotons(mScene, mOptions.mPhotonCount, mOptions.mMaxPathLength, aSampler);
         const Camera& camera = mScene.mCamera;
         for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
-            const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aRng.GetVec2();
-            TraceCameraPath(aRng, pixel, camera.GenerateRay(raster));
+            aSampler.StartPixelSample(pixel);
+            const Vec2 raster = Vec2(float(pixel % camera.Width()), float(pixel / camera.Width())) + aSampler.Get2D();
+            TraceCameraPath(aSampler, pixel, camera.GenerateRay(raster));
         }
     }
 
@@ -3242,7 +3499,7 @@ private:
 
     // Follows the camera path through specular bounces (by ray tracing) and estimates
     // with the photon maps at each non-specular vertex; lights it sees count their emission.
-    void TraceCameraPath(Rng& aRng, int aPixel, Ray aRay) {
+    void TraceCameraPath(Sampler& aSampler, int aPixel, Ray aRay) {
         Vec3 throughput(1.f);
         bool afterSpecular = false;
         Bsdf bsdf;  // set up anew at every vertex (Setup leaves nothing of the last)
@@ -3262,11 +3519,11 @@ private:
             bsdf.Setup(aRay, hit, mScene, Transport::kRadiance);
             if (!bsdf.IsValid()) return;
             if (!bsdf.IsDelta()) {
-                if (mFinalGather) EstimatePartitioned(aRng, aPixel, pathLength, hitPoint, bsdf, throughput, afterSpecular);
+                if (mFinalGather) EstimatePartitioned(aSampler, aPixel, pathLength, hitPoint, bsdf, throughput, afterSpecular);
                 else Add(aPixel, kPhotons, throughput * Estimate(mMaps.mGlobal, hitPoint, bsdf, pathLength));
             }
             // Only specular components carry the camera path on (by ray tracing).
-            if (!ContinueSpecular(aRng, bsdf, hitPoint, throughput, aRay)) return;
+            if (!ContinueSpecular(aSampler, bsdf, hitPoint, throughput, aRay)) return;
             afterSpecular = true;
         }
     }
@@ -3285,8 +3542,8 @@ private:
     }
 
     // Samples the BSDF; continues (true) only if a specular component was picked.
-    bool ContinueSpecular(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint, Vec3& aThroughput, Ray& aRay) const {
-        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aRng.GetVec3());
+    bool ContinueSpecular(Sampler& aSampler, const Bsdf& aBsdf, const Vec3& aHitPoint, Vec3& aThroughput, Ray& aRay) const {
+        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aSampler.Get3D());
         if (!scatter || !scatter->IsSpecular()) return false;
         aThroughput *= scatter->mWeight;
         aRay = mScene.SpawnRay(aHitPoint, scatter->mDirection);
@@ -3295,26 +3552,26 @@ private:
 
     // pmfg at the first non-specular camera vertex x: the partition of the "improved
     // photon mapping" slide, each part of the light reaching x counted once.
-    void EstimatePartitioned(Rng& aRng, int aPixel, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
+    void EstimatePartitioned(Sampler& aSampler, int aPixel, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
                              const Vec3& aThroughput, bool aAfterSpecular) {
         auto layer = [&](Layer aPart) { return aAfterSpecular ? kSpecular : aPart; };
-        AddDirectLight(aRng, aPixel, layer(kDirect), aPathLength, aHitPoint, aBsdf, aThroughput);
+        AddDirectLight(aSampler, aPixel, layer(kDirect), aPathLength, aHitPoint, aBsdf, aThroughput);
         // Caustics: the caustic map here.
         Add(aPixel, layer(kCaustics), aThroughput * Estimate(mMaps.mCaustic, aHitPoint, aBsdf, aPathLength));
-        FinalGather(aRng, aPixel, layer(kIndirect), aPathLength, aHitPoint, aBsdf, aThroughput);
+        FinalGather(aSampler, aPixel, layer(kIndirect), aPathLength, aHitPoint, aBsdf, aThroughput);
     }
 
     // Direct light: one light sample (next-event estimation), no MIS, as no other part
     // counts light that reaches x straight from a light.
-    void AddDirectLight(Rng& aRng, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
+    void AddDirectLight(Sampler& aSampler, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
                         const Vec3& aThroughput) {
         if (aPathLength + 1 > mOptions.mMaxPathLength || aPathLength + 1 < mOptions.mMinPathLength) {
-            aRng.GetFloat();  // the same random numbers drawn either way
-            aRng.GetVec2();
+            aSampler.Get1D();  // the same random numbers drawn either way
+            aSampler.Get2D();
             return;
         }
-        const Light& light = *mScene.PickLight(aRng.GetFloat()).mLight;
-        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aRng.GetVec2());
+        const Light& light = *mScene.PickLight(aSampler.Get1D()).mLight;
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aSampler.Get2D());
         if (!sample || IsBlack(sample->mRadiance)) return;
         const BsdfEval bsdf = aBsdf.Evaluate(sample->mDirToLight);
         if (!bsdf.IsBlack() && !mScene.Occluded(aHitPoint, sample->mDirToLight, sample->mDistance))
@@ -3324,9 +3581,9 @@ private:
 
     // Indirect light by final gathering: one sample of x's non-specular part, followed
     // through specular bounces to a non-specular y, where the global map estimates.
-    void FinalGather(Rng& aRng, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
+    void FinalGather(Sampler& aSampler, int aPixel, Layer aLayer, int aPathLength, const Vec3& aHitPoint, const Bsdf& aBsdf,
                      const Vec3& aThroughput) {
-        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aRng.GetVec3());
+        const std::optional<ScatterSample> scatter = SampleBsdf(aBsdf, aSampler.Get3D());
         if (!scatter || scatter->IsSpecular()) return;  // the specular part is traced by the caller
         Vec3 gatherThroughput = aThroughput * scatter->mValue * (scatter->mCosThetaOut / scatter->mPdfW);
         Ray ray = mScene.SpawnRay(aHitPoint, scatter->mDirection);
@@ -3341,7 +3598,7 @@ private:
                 Add(aPixel, aLayer, gatherThroughput * Estimate(mMaps.mGlobal, hitPoint, bsdf, length));
                 return;
             }
-            if (!ContinueSpecular(aRng, bsdf, hitPoint, gatherThroughput, ray)) return;
+            if (!ContinueSpecular(aSampler, bsdf, hitPoint, gatherThroughput, ray)) return;
         }
     }
 
@@ -3639,13 +3896,13 @@ public:
     }
 
     // One iteration of the estimator, in the three stages of the section's notes.
-    void RunIteration(int aIteration, Rng& aRng) override {
+    void RunIteration(int aIteration, Sampler& aSampler) override {
         const int pathCount = mScene.mCamera.PixelCount();
         const float radius = MergeRadius(aIteration);
         mMisConstants = VcmMisConstants::Make(mOptions.mMisHeuristic, mUseVC, mUseVM, float(pathCount), radius);
 
         // 1. Light sub-paths: traced, connected to the camera, their vertices stored.
-        TraceLightSubpaths(aRng, pathCount);
+        TraceLightSubpaths(aSampler, pathCount);
         if (mLightTraceOnly) return;
 
         // 2. The range search over the stored vertices, for merging.
@@ -3654,7 +3911,7 @@ public:
                                      [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[i]); });
 
         // 3. Camera sub-paths, one per pixel.
-        for (int pixel = 0; pixel < pathCount; pixel++) TraceCameraSubpath(aRng, pixel);
+        for (int pixel = 0; pixel < pathCount; pixel++) TraceCameraSubpath(aSampler, pixel);
     }
 
     // --- what tests and tools may inspect ----------------------------------------------
@@ -3734,7 +3991,7 @@ private:
     // --- stage 1: light sub-paths ----------------------------------------------------------
     // The light side of the estimator: N_L light sub-paths, splatted to the camera as
     // they go and stored for stage 3 (light sub-path p ends at mPathEnds[p]).
-    void TraceLightSubpaths(Rng& aRng, int aPathCount) {
+    void TraceLightSubpaths(Sampler& aSampler, int aPathCount) {
         mLightVertices.clear();
         // Room for 4 stored vertices per light path before the first iteration, so the
         // vector does not grow by copying itself while it is filled (reserved pages that
@@ -3743,7 +4000,8 @@ private:
         mPathEnds.assign(size_t(aPathCount), 0);
         if (mPathRecords) mLightHistories.clear();
         for (int path = 0; path < aPathCount; path++) {
-            TraceLightSubpath(aRng);
+            aSampler.StartLightPath(path);
+            TraceLightSubpath(aSampler);
             mPathEnds[size_t(path)] = mLightVertices.size();
         }
     }
@@ -3751,8 +4009,8 @@ private:
     // One light sub-path: each vertex updates the sub-path's MIS quantities
     // [tech. rep. (34)-(36)]; a non-specular one is stored for connections and merging,
     // and connected to the camera (light tracing, t = 1).
-    void TraceLightSubpath(Rng& aRng) {
-        std::optional<SubpathState> start = GenerateLightSample(aRng);
+    void TraceLightSubpath(Sampler& aSampler) {
+        std::optional<SubpathState> start = GenerateLightSample(aSampler);
         if (!start) return;  // nothing emitted (a black texel of a textured light, a spot's cone edge)
         SubpathState& light = *start;
         Bsdf bsdf;
@@ -3776,7 +4034,7 @@ private:
             }
             // A vertex of length L is useful only if a path of length L + 1 may follow.
             if (light.mPathLength + 2 > mOptions.mMaxPathLength) return;
-            const std::optional<ScatterSample> scatter = SampleScattering(aRng, bsdf, hit.mPosition, light);
+            const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, hit.mPosition, light);
             if (!scatter) return;
             if (mPathRecords && scatter->IsSpecular()) mLightHistories.back().back().mEvent = scatter->mEvent;
         }
@@ -3797,9 +4055,10 @@ private:
     // path there, each adding its contribution: a light it hits (s = 0), and at a
     // non-specular vertex next-event estimation (s = 1), connections to the vertices of
     // this pixel's light sub-path (VC) and merging with the light vertices within r (VM).
-    void TraceCameraSubpath(Rng& aRng, int aPixel) {
+    void TraceCameraSubpath(Sampler& aSampler, int aPixel) {
         const Camera& camera = mScene.mCamera;
-        const Vec2 raster = Vec2(float(aPixel % camera.Width()), float(aPixel / camera.Width())) + aRng.GetVec2();
+        aSampler.StartPixelSample(aPixel);
+        const Vec2 raster = Vec2(float(aPixel % camera.Width()), float(aPixel / camera.Width())) + aSampler.Get2D();
         SubpathState cam = GenerateCameraSample(raster);
         if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
         if (mUseVC) ForgetPixelLightBsdfs(aPixel);
@@ -3826,7 +4085,7 @@ private:
 
             if (!bsdf.IsDelta()) {
                 if (mUseVC) {
-                    if (cam.mPathLength + 1 >= mOptions.mMinPathLength) AddToFilm(aPixel, ConnectToLight(aRng, cam, hit.mPosition, bsdf));
+                    if (cam.mPathLength + 1 >= mOptions.mMinPathLength) AddToFilm(aPixel, ConnectToLight(aSampler, cam, hit.mPosition, bsdf));
                     const size_t begin = LightSubpathBegin(aPixel), end = LightSubpathEnd(aPixel);
                     for (size_t i = begin; i < end; i++) {
                         const LightVertex& vertex = mLightVertices[i];
@@ -3839,7 +4098,7 @@ private:
                 if (mUseVM) AddToFilm(aPixel, MergeWithLightVertices(cam, hit.mPosition, bsdf));
             }
 
-            const std::optional<ScatterSample> scatter = SampleScattering(aRng, bsdf, hit.mPosition, cam);
+            const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, hit.mPosition, cam);
             if (!scatter) return;
             if (mPathRecords && scatter->IsSpecular()) mCameraHistory.back().mEvent = scatter->mEvent;
             // PPM's camera path ends where it merged; only a specular component (of a
@@ -3853,11 +4112,11 @@ private:
 
     // A light sub-path's first vertex: a light picked, a point and direction emitted, and
     // its MIS quantities [tech. rep. (31)-(33)]. Nothing when the light emits nothing there.
-    std::optional<SubpathState> GenerateLightSample(Rng& aRng) {
-        const LightPick pick = mScene.PickLight(aRng.GetFloat());
+    std::optional<SubpathState> GenerateLightSample(Sampler& aSampler) {
+        const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
-        const Vec2 rndDirection = aRng.GetVec2();
-        const Vec2 rndPosition = aRng.GetVec2();
+        const Vec2 rndDirection = aSampler.Get2D();
+        const Vec2 rndPosition = aSampler.Get2D();
         if (mPathRecords) mLightHistories.emplace_back();
         std::optional<LightEmission> emission = light.Emit(mScene.GetSceneSphere(), rndDirection, rndPosition);
         if (!emission || !(emission->mEmissionPdfW > 0.f)) return std::nullopt;
@@ -3900,9 +4159,9 @@ private:
     // Samples the continuation of a sub-path at a vertex, with Russian roulette, and
     // updates its throughput and MIS quantities [tech. rep. (34)-(36); specular
     // (53)-(55)]. Nothing when the sub-path ends.
-    std::optional<ScatterSample> SampleScattering(Rng& aRng, const Bsdf& aBsdf, const Vec3& aHitPoint,
+    std::optional<ScatterSample> SampleScattering(Sampler& aSampler, const Bsdf& aBsdf, const Vec3& aHitPoint,
                                                   SubpathState& aState) const {
-        std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(aBsdf, aRng);
+        std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(aBsdf, aSampler);
         if (!scatter) return scatter;
         const bool specular = scatter->IsSpecular();
         // For a specular event both pdfs are the component's selection probability (the
@@ -4007,10 +4266,10 @@ private:
 
     // Next-event estimation (s = 1): a point sampled on a light, connected by a shadow ray,
     // weighted by [tech. rep. (44), (45)].
-    SMALLVCM_ALWAYS_INLINE Contribution ConnectToLight(Rng& aRng, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
-        const LightPick pick = mScene.PickLight(aRng.GetFloat());
+    SMALLVCM_ALWAYS_INLINE Contribution ConnectToLight(Sampler& aSampler, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+        const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
-        const Vec2 rnd = aRng.GetVec2();
+        const Vec2 rnd = aSampler.Get2D();
         const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd);
         if (!sample || IsBlack(sample->mRadiance)) return {};
         if (mPathRecords)
@@ -5979,16 +6238,13 @@ inline void CheckRenderMemory(const Camera& aCamera, const RenderOptions& aOptio
     CheckRenderMemory(aCamera, aOptions, BuiltInIntegrator(aOptions.mAlgorithm), aThreads);
 }
 
-inline uint64_t SplitMix64(uint64_t aX) {
-    aX += 0x9E3779B97F4A7C15ull;
-    aX = (aX ^ (aX >> 30)) * 0xBF58476D1CE4E5B9ull;
-    aX = (aX ^ (aX >> 27)) * 0x94D049BB133111EBull;
-    return aX ^ (aX >> 31);
-}
-
 // The random stream of one iteration: independent of thread count and order.
 inline Rng IterationRng(uint64_t aSeed, int aIteration) {
     return Rng(SplitMix64(aSeed ^ SplitMix64(uint64_t(aIteration))), uint64_t(aIteration));
+}
+// The sampler of one iteration: the independent one draws from IterationRng.
+inline Sampler IterationSampler(SamplerType aType, uint64_t aSeed, int aIteration) {
+    return aType == SamplerType::kSobol ? Sampler::Sobol(aSeed, aIteration) : Sampler(IterationRng(aSeed, aIteration));
 }
 
 // Throws Error naming the integrator if its renderers' films cannot be summed: each must
@@ -6051,8 +6307,8 @@ public:
             for (int k = 0;; k++) {
                 const int iteration = NextIteration(aThread, k);
                 if (iteration < 0) break;
-                Rng rng = IterationRng(mOptions.mSeed, iteration);
-                aRenderer.RunIteration(iteration, rng);
+                Sampler sampler = IterationSampler(mOptions.mSampler, mOptions.mSeed, iteration);
+                aRenderer.RunIteration(iteration, sampler);
                 mCompleted++;
             }
         } catch (const std::bad_alloc&) {

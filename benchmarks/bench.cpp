@@ -149,6 +149,7 @@ struct Options {
     std::string mNote;
     std::string mCommand;
     bool mQuick = false;
+    smallvcm::SamplerType mSampler = smallvcm::SamplerType::kIndependent;
 };
 
 void PrintHelp() {
@@ -159,6 +160,7 @@ void PrintHelp() {
         "  --algorithms LIST      e.g. pt,vcm (default pt,lt,ppm,bpm,bpt,vcm,pm,pmfg)\n"
         "  --threads LIST         thread counts, e.g. 1,2 (default 1,2; the first is the speed-up's base)\n"
         "  --resolution WxH       image size (default 512x512)\n"
+        "  --sampler S            the estimators' sampler: independent (default) or sobol\n"
         "  --min-seconds S        measured time per configuration (default 2)\n"
         "  --min-iterations N     measured iterations at least (default 2)\n"
         "  --warmup N             warm-up iterations per thread (default 1; 0: none)\n"
@@ -240,6 +242,11 @@ Options ParseOptions(int argc, char** argv) {
             if (o.mThreads.empty()) throw Error(arg + ": no thread count given");
         }
         else if (arg == "--resolution") ParseResolution(arg, value(i), o.mWidth, o.mHeight);
+        else if (arg == "--sampler") {
+            const std::optional<smallvcm::SamplerType> sampler = smallvcm::ParseSampler(value(i));
+            if (!sampler) throw Error("--sampler: independent or sobol");
+            o.mSampler = *sampler;
+        }
         else if (arg == "--min-seconds") o.mMinSeconds = ParseNumber<double>(arg, value(i), 0.0, 3600.0);
         else if (arg == "--min-iterations") o.mMinIterations = ParseNumber<int>(arg, value(i), 1, 100000);
         else if (arg == "--warmup") o.mWarmup = ParseNumber<int>(arg, value(i), 0, 1000);
@@ -367,8 +374,8 @@ struct Measurement {
 
 // The child: loads the scene, warms up, measures, prints one line "RESULT key=value ...".
 int RunChild(int argc, char** argv) {
-    // bench --child SCENE ALGORITHM THREADS WIDTH HEIGHT MIN_SECONDS MIN_ITERATIONS WARMUP REPEAT [ENVMAP]
-    if (argc != 11 && argc != 12) { std::fprintf(stderr, "bench --child: wrong arguments\n"); return 2; }
+    // bench --child SCENE ALGORITHM THREADS WIDTH HEIGHT MIN_SECONDS MIN_ITERATIONS WARMUP REPEAT SAMPLER [ENVMAP]
+    if (argc != 12 && argc != 13) { std::fprintf(stderr, "bench --child: wrong arguments\n"); return 2; }
     try {
         const std::string scenePath = argv[2];
         const std::optional<Algorithm> parsed = smallvcm::ParseAlgorithm(argv[3]);
@@ -380,9 +387,11 @@ int RunChild(int argc, char** argv) {
         const int minIterations = std::atoi(argv[8]);
         const int warmup = std::atoi(argv[9]);
         const int repeat = std::atoi(argv[10]);
+        const std::optional<smallvcm::SamplerType> samplerType = smallvcm::ParseSampler(argv[11]);
+        if (!samplerType) throw Error(std::string("unknown sampler ") + argv[11]);
 
         smallvcm::GltfLoadOptions loadOptions;
-        if (argc == 12) loadOptions.mEnvironmentMap = argv[11];
+        if (argc == 13) loadOptions.mEnvironmentMap = argv[12];
         smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath, nullptr, loadOptions);
         scene.mCamera.SetResolution(width, height);
         const long baselineKb = MaxRssKb();
@@ -391,6 +400,7 @@ int RunChild(int argc, char** argv) {
         options.mAlgorithm = algorithm;
         options.mThreads = threads;
         options.mProgress = false;
+        options.mSampler = *samplerType;
 
         // Warm-up: one iteration per thread (index 0.. so that PPM's radius schedule is
         // the one of a fresh render). With one thread the bench runs the renderer itself,
@@ -402,8 +412,8 @@ int RunChild(int argc, char** argv) {
             if (threads == 1) {
                 std::unique_ptr<smallvcm::AbstractRenderer> renderer = smallvcm::CreateRenderer(scene, options);
                 for (int i = 0; i < warmup; i++) {
-                    smallvcm::Rng rng = smallvcm::IterationRng(options.mSeed, i);
-                    renderer->RunIteration(i, rng);
+                    smallvcm::Sampler sampler = smallvcm::IterationSampler(options.mSampler, options.mSeed, i);
+                    renderer->RunIteration(i, sampler);
                 }
                 LightVertexCount(*renderer, lightVertices, lightVertexCapacity);
             } else {
@@ -461,7 +471,8 @@ Measurement MeasureInChild(const Options& aOptions, int aScene, Algorithm aAlgor
     std::vector<std::string> args = {
         "bench", "--child", scenePath, smallvcm::AlgorithmShortName(aAlgorithm), std::to_string(aThreads),
         std::to_string(aOptions.mWidth), std::to_string(aOptions.mHeight), Format("%.6f", aOptions.mMinSeconds),
-        std::to_string(aOptions.mMinIterations), std::to_string(aOptions.mWarmup), std::to_string(aOptions.mRepeat)};
+        std::to_string(aOptions.mMinIterations), std::to_string(aOptions.mWarmup), std::to_string(aOptions.mRepeat),
+        smallvcm::SamplerName(aOptions.mSampler)};
     if (!aEnvironmentMap.empty()) args.push_back(aEnvironmentMap);
     std::vector<char*> argvChild;
     for (std::string& a : args) argvChild.push_back(a.data());
@@ -887,7 +898,7 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
     if (!aOptions.mNote.empty()) out << "| note | " << aOptions.mNote << " |\n";
     const smallvcm::RenderOptions defaults;
     out << "| image | " << aOptions.mWidth << "x" << aOptions.mHeight << ", default RenderOptions (max path length "
-        << defaults.mMaxPathLength << ", seed " << defaults.mSeed << "; pm/pmfg: " << defaults.mPhotonCount
+        << defaults.mMaxPathLength << ", seed " << defaults.mSeed << ", sampler " << smallvcm::SamplerName(aOptions.mSampler) << "; pm/pmfg: " << defaults.mPhotonCount
         << " photons per iteration, k = " << defaults.mNearestPhotons << ") |\n";
     out << "| per configuration | " << aOptions.mWarmup << " warm-up iteration(s) per thread, then >= "
         << aOptions.mMinIterations << " iterations and >= " << aOptions.mMinSeconds

@@ -7,7 +7,7 @@
 //   python3 benchmarks/plot_convergence.py convergence.csv     # charts and efficiency table
 //
 // For every scene and estimator ONE renderer (CreateRenderer) runs iterations 0, 1, 2, ...
-// with IterationRng(seed, i), exactly as Render() would, and at the checkpoints
+// with IterationSampler(sampler, seed, i), exactly as Render() would, and at the checkpoints
 // 1, 2, 4, 8, ... up to --max-iterations (and the last iteration, if it is not a power
 // of two, or the iteration at which --max-seconds ran out) the film is resolved and
 // compared with the scene's reference image. One CSV row per checkpoint:
@@ -108,6 +108,7 @@ void PrintHelp() {
         "  --threads T               rendering threads (default 1, so that seconds compare fairly)\n"
         "  --clock wall|cpu          seconds as wall-clock time or the thread's CPU time (cpu: --threads 1)\n"
         "  --seed N                  base seed of the estimators (default 1234)\n"
+        "  --sampler S               the estimators' sampler: independent (default) or sobol\n"
         "  --out FILE.csv            output (default convergence.csv); settings go to FILE.txt\n"
         "  --references DIR          reference images cornell_<i>_<W>x<H>.pfm\n"
         "                            (default docs/performance/references; --quick: the folder of --out)\n"
@@ -169,6 +170,7 @@ struct CommandLine {
     int mThreads = 1;
     bool mCpuClock = false;
     uint64_t mSeed = 1234;
+    smallvcm::SamplerType mSampler = smallvcm::SamplerType::kIndependent;
     uint64_t mReferenceSeed = 20240917;
     std::string mOut = "convergence.csv";
     bool mMakeReferences = false;
@@ -206,6 +208,11 @@ CommandLine Parse(int argc, char** argv) {
             if (name == "wall") cl.mCpuClock = false;
             else if (name == "cpu") cl.mCpuClock = true;
             else throw Error("--clock: unknown clock '" + name + "' (wall, cpu)");
+        }
+        else if (arg == "--sampler") {
+            const std::optional<smallvcm::SamplerType> sampler = smallvcm::ParseSampler(value(i));
+            if (!sampler) throw smallvcm::Error("--sampler: independent or sobol");
+            cl.mSampler = *sampler;
         }
         else if (arg == "--seed") cl.mSeed = ParseNumber<uint64_t>(arg, value(i), 0, UINT64_MAX, "a non-negative integer");
         else if (arg == "--out") cl.mOut = value(i);
@@ -342,8 +349,8 @@ Reference MakeReference(const CommandLine& aCl, int aScene, const smallvcm::Scen
     for (int w = 0; w < workers; w++)
         threads.emplace_back([&, w] {
             for (int i = w; i < iterations; i += workers) {
-                smallvcm::Rng rng = smallvcm::IterationRng(options.mSeed, i);
-                renderers[size_t(w)]->RunIteration(i, rng);
+                smallvcm::Sampler sampler = smallvcm::IterationSampler(options.mSampler, options.mSeed, i);
+                renderers[size_t(w)]->RunIteration(i, sampler);
             }
         });
     for (std::thread& thread : threads) thread.join();
@@ -459,6 +466,7 @@ std::vector<Row> Study(const CommandLine& aCl, const smallvcm::Scene& aScene, Al
     smallvcm::RenderOptions options;
     options.mAlgorithm = aAlgorithm;
     options.mSeed = aCl.mSeed;
+    options.mSampler = aCl.mSampler;
     options.mThreads = aCl.mThreads;
     options.mProgress = false;
     if (aCl.mPhotons) options.mPhotonCount = *aCl.mPhotons;
@@ -476,8 +484,8 @@ std::vector<Row> Study(const CommandLine& aCl, const smallvcm::Scene& aScene, Al
         auto work = [&](int aThread) {
             for (int i = aBegin; i < aEnd; i++) {
                 if (i % threadCount != aThread) continue;
-                smallvcm::Rng rng = smallvcm::IterationRng(options.mSeed, i);
-                renderers[size_t(aThread)]->RunIteration(i, rng);
+                smallvcm::Sampler sampler = smallvcm::IterationSampler(options.mSampler, options.mSeed, i);
+                renderers[size_t(aThread)]->RunIteration(i, sampler);
             }
         };
         if (threadCount == 1) { work(0); return; }
@@ -539,6 +547,7 @@ int RunStudy(const CommandLine& aCl) {
              << "threads = " << aCl.mThreads << "\n"
              << "clock = " << (aCl.mCpuClock ? "cpu (the rendering thread's CPU time)" : "wall") << "\n"
              << "seed = " << aCl.mSeed << "\n"
+             << "sampler = " << smallvcm::SamplerName(aCl.mSampler) << "\n"
              << "hardware_threads = " << std::thread::hardware_concurrency() << "\n";
     {
         const smallvcm::RenderOptions defaults;

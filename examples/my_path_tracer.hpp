@@ -24,13 +24,14 @@ public:
     // Render() makes one MyPathTracer per thread; members would be that thread's own.
     using AbstractRenderer::AbstractRenderer;
 
-    // One sample per pixel, every random number from aRng (this iteration's stream).
-    void RunIteration(int /*aIteration*/, smallvcm::Rng& aRng) override {
+    // One sample per pixel, every random number from aSampler (this iteration's).
+    void RunIteration(int /*aIteration*/, smallvcm::Sampler& aSampler) override {
         using namespace smallvcm;
         const Camera& camera = mScene.mCamera;
         for (int pixel = 0; pixel < camera.PixelCount(); pixel++) {
             const Vec2 raster(float(pixel % camera.Width()), float(pixel / camera.Width()));
-            Ray ray = camera.GenerateRay(raster + aRng.GetVec2());
+            aSampler.StartPixelSample(pixel);  // this pixel's numbers (a stratified sequence with sobol)
+            Ray ray = camera.GenerateRay(raster + aSampler.Get2D());
             Vec3 throughput(1.f), radiance(0.f);
             float bsdfPdfW = 0.f;  // pdf of the last scattering direction; 0: camera or specular
             for (int length = 1;; length++) {  // path length in segments; this segment is `length`
@@ -57,9 +58,9 @@ public:
                 Bsdf bsdf;
                 bsdf.Setup(ray, hit, mScene, Transport::kRadiance);  // a camera path carries radiance
                 if (!bsdf.IsValid() || length >= mOptions.mMaxPathLength) break;
-                if (!bsdf.IsDelta()) radiance += throughput * NextEventEstimate(bsdf, point, aRng);
+                if (!bsdf.IsDelta()) radiance += throughput * NextEventEstimate(bsdf, point, aSampler);
                 // Its weight f cos / pdf includes Russian roulette; nothing: the path ends.
-                const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aRng);
+                const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aSampler);
                 if (!scatter) break;
                 throughput *= scatter->mWeight;
                 bsdfPdfW = scatter->IsSpecular() ? 0.f : scatter->mPdfW;
@@ -77,10 +78,10 @@ private:
     }
 
     // Direct light at aPoint from one light sample, MIS-weighted against BSDF sampling.
-    smallvcm::Vec3 NextEventEstimate(const smallvcm::Bsdf& aBsdf, const smallvcm::Vec3& aPoint, smallvcm::Rng& aRng) const {
+    smallvcm::Vec3 NextEventEstimate(const smallvcm::Bsdf& aBsdf, const smallvcm::Vec3& aPoint, smallvcm::Sampler& aSampler) const {
         using namespace smallvcm;
-        const LightPick pick = mScene.PickLight(aRng.GetFloat());  // a light and its probability
-        const std::optional<LightSample> sample = pick.mLight->Illuminate(mScene.GetSceneSphere(), aPoint, aRng.GetVec2());
+        const LightPick pick = mScene.PickLight(aSampler.Get1D());  // a light and its probability
+        const std::optional<LightSample> sample = pick.mLight->Illuminate(mScene.GetSceneSphere(), aPoint, aSampler.Get2D());
         if (!sample) return Vec3(0.f);
         const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample->mDirToLight);  // its pdfs include Russian roulette
         if (bsdf.IsBlack() || mScene.Occluded(aPoint, sample->mDirToLight, sample->mDistance)) return Vec3(0.f);

@@ -99,6 +99,8 @@ void PrintHelp() {
         "  -r WIDTHxHEIGHT     resolution (default 512x512)\n"
         "  -j THREADS          threads (default: all cores; at most 4 per core)\n"
         "  --seed N            base random seed (default 1234)\n"
+        "  --sampler S         independent (default: plain Monte Carlo) or sobol (Owen-scrambled Sobol\n"
+        "                        points: each pixel's samples over the iterations stratified)\n"
         "  --min-path-length N shortest path length rendered, in segments (default 0)\n"
         "  --max-path-length N longest path length rendered, in segments (default 10)\n"
         "  --radius-factor F   merging radius as a fraction of the scene radius (default 0.003, at most 0.25)\n"
@@ -289,6 +291,12 @@ CommandLine Parse(int argc, char** argv) {
             cl.mOptions.mRadiusAlpha = ParseNumber<float>(arg, value(i), 0.f, 1.f, "a number in (0, 1]");
             if (!(cl.mOptions.mRadiusAlpha > 0.f)) throw Error("--radius-alpha: '0' is not a number in (0, 1]");
         }
+        else if (arg == "--sampler") {
+            const std::string name = value(i);
+            const std::optional<smallvcm::SamplerType> sampler = smallvcm::ParseSampler(name);
+            if (!sampler) throw Error("--sampler: unknown sampler '" + name + "' (independent, sobol)");
+            cl.mOptions.mSampler = *sampler;
+        }
         else if (arg == "--mis") {
             const std::string name = value(i);
             if (name == "balance") cl.mOptions.mMisHeuristic = smallvcm::MisHeuristic::kBalance;
@@ -388,6 +396,7 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
     run["iterations_requested"] = o.mIterations > 0 ? Json(o.mIterations) : Json(nullptr);
     run["seconds_budget"] = o.mSeconds > 0.0 ? Json(o.mSeconds) : Json(nullptr);
     run["threads"] = aThreads;
+    run["sampler"] = smallvcm::SamplerName(o.mSampler);
     run["stopped_early"] = aResult.mStopped;
     run["stop_signal"] = aStopSignal == SIGTERM ? Json("SIGTERM") : aStopSignal == SIGINT ? Json("SIGINT") : Json(nullptr);
     Json record;

@@ -160,8 +160,8 @@ Run RunProgressively(const Scene& aScene, const RenderOptions& aOptions, const R
         auto work = [&](int aThread) {
             for (int i = aBegin; i < aEnd; i++) {
                 if (i % threadCount != aThread) continue;
-                smallvcm::Rng rng = smallvcm::IterationRng(aOptions.mSeed, i);
-                renderers[size_t(aThread)]->RunIteration(i, rng);
+                smallvcm::Sampler sampler = smallvcm::IterationSampler(aOptions.mSampler, aOptions.mSeed, i);
+                renderers[size_t(aThread)]->RunIteration(i, sampler);
             }
         };
         std::vector<std::thread> threads;

@@ -642,8 +642,8 @@ Curve PhotonMappingCurve(const Kit& aKit, const Setup& aSetup, const std::string
 // one photon per iteration here, and ppm's curve would start ~20x above pm's).
 float MatchedRadiusFactor(const Setup& aSetup, int aPhotonCount, int aNearest, float aMaxRadiusFactor) {
     const Scene& scene = aSetup.mScene;
-    smallvcm::Rng rng = smallvcm::IterationRng(129101, 0);
-    const smallvcm::PhotonMaps maps = smallvcm::TracePhotons(scene, aPhotonCount, RenderOptions().mMaxPathLength, rng);
+    smallvcm::Sampler sampler(smallvcm::IterationRng(129101, 0));
+    const smallvcm::PhotonMaps maps = smallvcm::TracePhotons(scene, aPhotonCount, RenderOptions().mMaxPathLength, sampler);
     const float sceneRadius = scene.GetSceneSphere().mRadius;
     const float maxRadius = aMaxRadiusFactor * sceneRadius;
     const smallvcm::Camera& camera = scene.mCamera;

@@ -166,11 +166,11 @@ struct Photon {
 // (a light picked uniformly, its emission sampled, specular bounces with Russian roulette).
 std::vector<Photon> TracePhotons(const Scene& aScene, int aPaths, uint64_t aSeed) {
     std::vector<Photon> photons;
-    smallvcm::Rng rng(aSeed);
+    smallvcm::Sampler rng{smallvcm::Rng(aSeed)};  // independent: the Rng's numbers in order
     const int lightCount = aScene.LightCount();
     for (int i = 0; i < aPaths; i++) {
-        const int l = std::min(int(rng.GetFloat() * float(lightCount)), lightCount - 1);
-        const Vec2 rndDirection = rng.GetVec2(), rndPosition = rng.GetVec2();
+        const int l = std::min(int(rng.Get1D() * float(lightCount)), lightCount - 1);
+        const Vec2 rndDirection = rng.Get2D(), rndPosition = rng.Get2D();
         const std::optional<smallvcm::LightEmission> emission =
             aScene.GetLight(l).Emit(aScene.GetSceneSphere(), rndDirection, rndPosition);
         if (!emission || !(emission->mEmissionPdfW > 0.f)) continue;

@@ -123,6 +123,8 @@ TEST_CASE("Bad options exit with code 2 and one line naming the option", "[cli]"
         {"--radius-alpha 0", 2, "--radius-alpha"},
         {"--radius-alpha 2", 2, "--radius-alpha"},
         {"--mis foo", 2, "--mis"},
+        {"--sampler halton", 2, "--sampler"},
+        {"--sampler", 2, "--sampler"},
         {"--min-path-length 5 --max-path-length 3", 2, "--min-path-length"},
         {"--frobnicate", 2, "--frobnicate"},
         {"-i", 2, "-i"},  // missing value
@@ -247,6 +249,22 @@ TEST_CASE("A tiny good run writes a PFM of the requested size", "[cli]") {
     for (const smallvcm::Vec3& pixel : image.mPixels) finite = finite && smallvcm::IsFinite(pixel);
     CHECK(finite);
     CHECK(smallvcm::MeanValue(image) > 0.0);
+}
+
+TEST_CASE("--sampler sobol renders the same seed differently, reproducibly, and the sidecar records it", "[cli][sidecar]") {
+    TemporaryFolder folder;
+    const std::string independent = folder / "independent.pfm", sobol = folder / "sobol.pfm", again = folder / "again.pfm";
+    for (const auto& [arguments, output] : {std::pair<std::string, std::string>{"", independent},
+                                            {"--sampler sobol", sobol}, {"--sampler sobol", again}}) {
+        const Run run = RunProgram("-s 4 -a pt -i 2 -r 32x32 -j 2 " + arguments + " -o " + Quote(output));
+        INFO(run);
+        REQUIRE(run.mExitCode == 0);
+    }
+    const smallvcm::Image a = smallvcm::ReadPfm(independent), b = smallvcm::ReadPfm(sobol), c = smallvcm::ReadPfm(again);
+    CHECK(a.mPixels != b.mPixels);
+    CHECK(b.mPixels == c.mPixels);
+    const nlohmann::json sidecar = nlohmann::json::parse(ReadText(sobol + ".json"));
+    CHECK(sidecar["run"]["sampler"] == "sobol");
 }
 
 TEST_CASE("--help lists every built-in and the linked-in integrators with their descriptions", "[cli][integrator_api]") {
@@ -604,6 +622,7 @@ TEST_CASE("Every image gets a sidecar saying how it was made, fingerprinting the
     CHECK(s["run"]["seconds_budget"].is_null());
     CHECK(s["run"]["threads"] == 2);
     CHECK(s["run"]["stopped_early"] == false);
+    CHECK(s["run"]["sampler"] == "independent");
     CHECK(s["mean"].get<double>() == Approx(smallvcm::MeanValue(smallvcm::ReadPfm(output))).epsilon(1e-12));
     CHECK((s["smallvcm_commit"].is_null() || s["smallvcm_commit"].is_string()));
 }

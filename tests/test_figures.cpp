@@ -125,8 +125,8 @@ void RunIterations(const Scene& aScene, const RenderOptions& aOptions, int aIter
     std::unique_ptr<AbstractRenderer> renderer = CreateRenderer(aScene, aOptions);
     Image previousSum(aScene.mCamera.Width(), aScene.mCamera.Height());
     for (int i = 0; i < aIterations; i++) {
-        Rng rng = IterationRng(aOptions.mSeed, i);
-        renderer->RunIteration(i, rng);
+        Sampler sampler = IterationSampler(aOptions.mSampler, aOptions.mSeed, i);
+        renderer->RunIteration(i, sampler);
         Image sum = renderer->GetFilm().Resolve(1.0);
         Image iteration = sum;
         for (size_t p = 0; p < iteration.mPixels.size(); p++) iteration.mPixels[p] -= previousSum.mPixels[p];

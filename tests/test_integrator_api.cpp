@@ -49,8 +49,8 @@ public:
         std::lock_guard<std::mutex> lock(gRecord.mMutex);
         gRecord.mRenderers++;
     }
-    void RunIteration(int aIteration, Rng& aRng) override {
-        const float first = aRng.GetFloat();
+    void RunIteration(int aIteration, Sampler& aSampler) override {
+        const float first = aSampler.Get1D();
         for (int pixel = 0; pixel < mScene.mCamera.PixelCount(); pixel++) {
             mFilm.AddColor(pixel, Vec3(1.f));
             mFilm.AddToLayer(mIndexLayer, pixel, Vec3(float(aIteration)));
@@ -68,13 +68,13 @@ private:
 class SlowRenderer : public AbstractRenderer {
 public:
     using AbstractRenderer::AbstractRenderer;
-    void RunIteration(int, Rng&) override { std::this_thread::sleep_for(std::chrono::milliseconds(5)); }
+    void RunIteration(int, Sampler&) override { std::this_thread::sleep_for(std::chrono::milliseconds(5)); }
 };
 
 class ThrowingRenderer : public AbstractRenderer {
 public:
     using AbstractRenderer::AbstractRenderer;
-    void RunIteration(int aIteration, Rng&) override {
+    void RunIteration(int aIteration, Sampler&) override {
         if (aIteration == 3) throw std::runtime_error("my integrator: iteration 3 failed");
     }
 };
@@ -85,7 +85,7 @@ public:
     WrongFilmRenderer(const Scene& aScene, const RenderOptions& aOptions) : AbstractRenderer(aScene, aOptions) {
         mFilm = Film(3, 3);
     }
-    void RunIteration(int, Rng&) override {}
+    void RunIteration(int, Sampler&) override {}
 };
 
 Scene SmallCornell() { return LoadCornell(4, 12, 8); }

@@ -38,8 +38,8 @@ MeanAndError IterationStatistics(const Scene& aScene, Algorithm aAlgorithm, int 
     std::vector<double> means;
     double previous = 0.0;
     for (int i = 0; i < aIterations; i++) {
-        Rng rng = IterationRng(31, i);
-        renderer->RunIteration(i, rng);
+        Sampler sampler = IterationSampler(options.mSampler, 31, i);
+        renderer->RunIteration(i, sampler);
         const double cumulative = MeanValue(renderer->GetFilm().Resolve(1.0));
         means.push_back(cumulative - previous);
         previous = cumulative;
@@ -217,8 +217,8 @@ TEST_CASE("The density estimate on a plane under a point light converges to the 
         double sum = 0.0;
         const int maps = 32;
         for (int i = 0; i < maps; i++) {
-            Rng rng(77, uint64_t(photons + i));
-            const PhotonMaps photonMaps = TracePhotons(scene, photons, 10, rng);
+            Sampler sampler(Rng(77, uint64_t(photons + i)));
+            const PhotonMaps photonMaps = TracePhotons(scene, photons, 10, sampler);
             sum += double(Luminance(photonMaps.mGlobal.EstimateRadiance(Vec3(0.f), bsdf, 400, 100.f, 10)));
         }
         const double bias = sum / maps / expected - 1.0;

@@ -405,3 +405,216 @@ TEST_CASE("Consecutive Rng floats are uncorrelated", "[sampling]") {
     const double correlation = sumProduct / sumSqr;
     REQUIRE(std::abs(correlation) <= 5.0 / std::sqrt(double(n)));
 }
+
+// ---------------------------------------------------------------------------------
+// Sobol points and the Sampler
+// ---------------------------------------------------------------------------------
+namespace {
+
+// The digits of point aIndex of the 2D Sobol sequence, each dimension scrambled with its
+// half of aSeed (or not at all).
+std::array<uint32_t, 2> SobolPointDigits(uint32_t aIndex, std::optional<uint64_t> aSeed) {
+    std::array<uint32_t, 2> digits = {detail::SobolDigits(aIndex, 0), detail::SobolDigits(aIndex, 1)};
+    if (aSeed) {
+        digits[0] = detail::OwenScramble(digits[0], uint32_t(*aSeed));
+        digits[1] = detail::OwenScramble(digits[1], uint32_t(*aSeed >> 32));
+    }
+    return digits;
+}
+
+// True if points aFirst .. aFirst + 2^m - 1 put exactly one point in each box
+// [i 2^-a, (i+1) 2^-a) x [j 2^-b, (j+1) 2^-b) for every a + b = m: a (0,m,2)-net.
+bool IsZeroMTwoNet(uint32_t aFirst, int aM, std::optional<uint64_t> aSeed) {
+    const uint32_t count = 1u << aM;
+    for (int a = 0; a <= aM; a++) {
+        const int b = aM - a;
+        std::vector<int> boxes(count, 0);
+        for (uint32_t i = aFirst; i < aFirst + count; i++) {
+            const std::array<uint32_t, 2> d = SobolPointDigits(i, aSeed);
+            const uint32_t x = a == 0 ? 0u : d[0] >> (32 - a), y = b == 0 ? 0u : d[1] >> (32 - b);
+            if (++boxes[(x << b) | y] > 1) return false;
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
+TEST_CASE("The van der Corput dimension mirrors the index's bits and the second Sobol dimension follows v_k = v_{k-1} xor v_{k-1}/2", "[sampling]") {
+    CHECK(detail::SobolDigits(1, 0) == 0x80000000u);
+    CHECK(detail::SobolDigits(6, 0) == 0x60000000u);  // 0.011 in binary
+    // Dimension 1: v_1 = 0.1, v_2 = 0.11, v_3 = 0.101, v_4 = 0.1111 (binary).
+    CHECK(detail::SobolDigits(1, 1) == 0x80000000u);
+    CHECK(detail::SobolDigits(2, 1) == 0xc0000000u);
+    CHECK(detail::SobolDigits(4, 1) == 0xa0000000u);
+    CHECK(detail::SobolDigits(8, 1) == 0xf0000000u);
+    CHECK(detail::SobolDigits(3, 1) == (0x80000000u ^ 0xc0000000u));
+    CHECK(detail::ReverseBits32(0x00000001u) == 0x80000000u);
+    CHECK(detail::ReverseBits32(0x12345678u) == 0x1e6a2c48u);
+}
+
+TEST_CASE("Every Sobol dimension's first 2^k points, scrambled or not, put one point in each cell of width 2^-k", "[sampling]") {
+    for (std::optional<uint64_t> seed : {std::optional<uint64_t>(), std::optional<uint64_t>(1), std::optional<uint64_t>(0x9e3779b97f4a7c15ull)}) {
+        for (int dim = 0; dim < detail::kSobolDimensions; dim++) {
+            for (int k = 0; k <= 12; k++) {
+                std::vector<int> cells(size_t(1) << k, 0);
+                bool once = true;
+                for (uint32_t i = 0; i < (1u << k); i++) {
+                    uint32_t digits = detail::SobolDigits(i, dim);
+                    if (seed) digits = detail::OwenScramble(digits, uint32_t(*seed >> dim));
+                    once = once && ++cells[k == 0 ? 0 : digits >> (32 - k)] == 1;
+                }
+                INFO("seed " << (seed ? std::to_string(*seed) : "none") << ", k = " << k << ", dimension " << dim);
+                REQUIRE(once);
+            }
+        }
+    }
+}
+
+TEST_CASE("The Sobol points in Gray-code order are the published ones: the first eight of dimensions 0-2", "[sampling]") {
+    // Joe and Kuo's generator, which visits the indices in Gray-code order n ^ (n >> 1).
+    const float expected[8][3] = {{0.f, 0.f, 0.f},         {0.5f, 0.5f, 0.5f},     {0.75f, 0.25f, 0.25f},
+                                  {0.25f, 0.75f, 0.75f},   {0.375f, 0.375f, 0.625f}, {0.875f, 0.875f, 0.125f},
+                                  {0.625f, 0.125f, 0.875f}, {0.125f, 0.625f, 0.375f}};
+    for (uint32_t n = 0; n < 8; n++)
+        for (int dim = 0; dim < 3; dim++)
+            CHECK(detail::DigitsToFloat(detail::SobolDigits(n ^ (n >> 1), dim)) == expected[n][dim]);
+    // Dimension 4 (s = 3, a = 2, m = 1 1 1: x^3 + x^2 + 1): the recurrence gives
+    // v_4 = v_3 ^ v_1 ^ v_1 / 2^3, worked out by hand.
+    CHECK(detail::kSobolMatrices[4][3] == (detail::kSobolMatrices[4][2] ^ detail::kSobolMatrices[4][0] ^ (detail::kSobolMatrices[4][0] >> 3)));
+    CHECK(detail::kSobolMatrices[4][3] == 0xb0000000u);  // m_4 = 11 (binary 1011)
+    // Every column of every dimension:
+    for (int dim = 0; dim < detail::kSobolDimensions; dim++)
+        for (int k = 0; k < 32; k++) {
+            INFO("dimension " << dim << ", column " << k);
+            // m_k odd and below 2^k: digit k + 1 is 1 and nothing follows (a unit diagonal).
+            const uint32_t column = detail::kSobolMatrices[size_t(dim)][size_t(k)];
+            REQUIRE(((column >> (31 - k)) & 1u) == 1u);
+            REQUIRE((k == 31 || (column & ((1u << (31 - k)) - 1u)) == 0u));
+        }
+}
+
+TEST_CASE("The first 2^m 2D Sobol points and every aligned block of 2^m are (0,m,2)-nets, scrambled or not", "[sampling]") {
+    for (std::optional<uint64_t> seed : {std::optional<uint64_t>(), std::optional<uint64_t>(7), std::optional<uint64_t>(0xdeadbeefcafef00dull)}) {
+        for (int m = 1; m <= 10; m++) {
+            INFO("seed " << (seed ? std::to_string(*seed) : "none") << ", m = " << m);
+            REQUIRE(IsZeroMTwoNet(0, m, seed));
+            REQUIRE(IsZeroMTwoNet(3u << m, m, seed));  // the fourth block of 2^m
+        }
+    }
+}
+
+TEST_CASE("Owen scrambling is a bijection of the digits that differs by seed and is reproducible", "[sampling]") {
+    // Different seeds scramble the same points differently; one seed always the same way.
+    int same = 0;
+    for (uint32_t i = 0; i < 256; i++) {
+        const Vec2 a(ScrambledSobol(i, 0, 11), ScrambledSobol(i, 1, 11)), b(ScrambledSobol(i, 0, 12), ScrambledSobol(i, 1, 12));
+        REQUIRE(ScrambledSobol(i, 0, 11) == a.x);
+        if (a == b) same++;
+    }
+    CHECK(same == 0);
+    // A nested scramble maps distinct digit strings to distinct ones (here all 16-bit
+    // prefixes of the top bits: 65536 distinct inputs, 65536 distinct outputs).
+    std::vector<uint32_t> outputs;
+    for (uint32_t x = 0; x < 65536; x++) outputs.push_back(detail::OwenScramble(x << 16, 0x1234567u) >> 16);
+    std::sort(outputs.begin(), outputs.end());
+    CHECK(std::unique(outputs.begin(), outputs.end()) == outputs.end());
+}
+
+TEST_CASE("A scrambled Sobol point is uniform over seeds: chi-square of point 5 over 64 x 64 cells", "[sampling]") {
+    // Randomised QMC is unbiased because each scrambled point is uniform on [0, 1)^2: the
+    // point of one index over many seeds, binned on a 64 x 64 grid (significance 1e-3).
+    const int n = 409600, bins = 64;
+    std::vector<double> observed(size_t(bins * bins), 0.0), expected(observed.size(), double(n) / double(bins * bins));
+    for (int s = 0; s < n; s++) {
+        const uint64_t seed = SplitMix64(uint64_t(s));
+        const Vec2 p(ScrambledSobol(5, 0, uint32_t(seed)), ScrambledSobol(5, 1, uint32_t(seed >> 32)));
+        observed[size_t(int(p.x * bins) * bins + int(p.y * bins))] += 1.0;
+    }
+    const ChiSquare chi = ComputeChiSquare(observed, expected);
+    INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+    REQUIRE(chi.statistic < chi.threshold);
+}
+
+TEST_CASE("The independent Sampler draws the Rng's numbers in order; Start does nothing", "[sampling]") {
+    Rng rng(5, 9);
+    Sampler sampler(rng);
+    for (int i = 0; i < 100; i++) {
+        sampler.StartPixelSample(i);
+        REQUIRE(sampler.Get1D() == rng.GetFloat());
+        REQUIRE(sampler.Get2D() == rng.GetVec2());
+        sampler.StartLightPath(i);
+        REQUIRE(sampler.Get3D() == rng.GetVec3());
+    }
+}
+
+TEST_CASE("The sobol Sampler stratifies each dimension of a pixel over its iterations, and light paths within an iteration", "[sampling]") {
+    const int k = 8, n = 1 << k;
+    const int pixel = 37;
+    // Dimension d of the pixel's samples over iterations 0 .. n-1: one per cell of width
+    // 1/n, in [0, 1); the first two (the pixel position) a (0,k,2)-net (its 16 x 16 boxes).
+    std::vector<std::vector<int>> cells(size_t(Sampler::kSobolDimensions), std::vector<int>(n, 0));
+    std::vector<int> boxes(n, 0);
+    for (int iteration = 0; iteration < n; iteration++) {
+        Sampler sampler = IterationSampler(SamplerType::kSobol, 99, iteration);
+        sampler.StartPixelSample(pixel);
+        const Vec2 position = sampler.Get2D();
+        boxes[size_t(int(position.x * 16) * 16 + int(position.y * 16))]++;
+        cells[0][size_t(position.x * n)]++;
+        cells[1][size_t(position.y * n)]++;
+        for (int d = 2; d < Sampler::kSobolDimensions; d++) {
+            const float u = sampler.Get1D();
+            REQUIRE((u >= 0.f && u < 1.f));
+            cells[size_t(d)][size_t(u * n)]++;
+        }
+    }
+    REQUIRE(std::count(boxes.begin(), boxes.end(), 1) == n);
+    for (int d = 0; d < Sampler::kSobolDimensions; d++) {
+        INFO("dimension " << d);
+        REQUIRE(std::count(cells[size_t(d)].begin(), cells[size_t(d)].end(), 1) == n);
+    }
+    // The light sub-paths 0 .. n-1 of one iteration: each dimension stratified too;
+    // another iteration's are another scramble (independent), not the same points.
+    for (int iteration : {0, 5}) {
+        Sampler sampler = IterationSampler(SamplerType::kSobol, 99, iteration);
+        std::vector<int> second(n, 0);
+        for (int path = 0; path < n; path++) {
+            sampler.StartLightPath(path);
+            sampler.Get1D();
+            second[size_t(sampler.Get1D() * n)]++;
+        }
+        REQUIRE(std::count(second.begin(), second.end(), 1) == n);
+    }
+    Sampler a = IterationSampler(SamplerType::kSobol, 99, 0), b = IterationSampler(SamplerType::kSobol, 99, 1);
+    a.StartLightPath(3);
+    b.StartLightPath(3);
+    CHECK(a.Get2D() != b.Get2D());
+    // Another seed: another scramble of the same pixel's sample.
+    Sampler c = IterationSampler(SamplerType::kSobol, 100, 0);
+    Sampler d = IterationSampler(SamplerType::kSobol, 99, 0);
+    c.StartPixelSample(pixel);
+    d.StartPixelSample(pixel);
+    CHECK(c.Get2D() != d.Get2D());
+}
+
+TEST_CASE("Past its Sobol dimensions, or without Start, the sobol Sampler gives uniform numbers in [0, 1)", "[sampling]") {
+    // Dimensions from kSobolDimensions on are hashed: their values over many pixels pass a chi-square
+    // test on 64 bins (significance 1e-3), as do the numbers of a sampler never started.
+    const int n = 64000, bins = 64;
+    std::vector<double> deep(bins, 0.0), unstarted(bins, 0.0), expected(bins, double(n) / bins);
+    Sampler never = IterationSampler(SamplerType::kSobol, 3, 2);
+    for (int pixel = 0; pixel < n; pixel++) {
+        Sampler sampler = IterationSampler(SamplerType::kSobol, 3, 2);
+        sampler.StartPixelSample(pixel);
+        for (int d = 0; d < Sampler::kSobolDimensions; d++) sampler.Get1D();
+        const float x = sampler.Get1D(), y = never.Get1D();
+        REQUIRE((x >= 0.f && x < 1.f && y >= 0.f && y < 1.f));
+        deep[size_t(x * bins)] += 1.0;
+        unstarted[size_t(y * bins)] += 1.0;
+    }
+    for (const std::vector<double>* observed : {&deep, &unstarted}) {
+        const ChiSquare chi = ComputeChiSquare(*observed, expected);
+        INFO("chi2 = " << chi.statistic << " with " << chi.dof << " dof, threshold " << chi.threshold);
+        REQUIRE(chi.statistic < chi.threshold);
+    }
+}

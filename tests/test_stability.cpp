@@ -62,8 +62,8 @@ TEST_CASE("Thousands of iterations with a shrinking radius stay finite and do no
         std::vector<double> means;
         double previous = 0.0;
         for (int i = 0; i < 3000; i++) {
-            Rng rng = IterationRng(17, i);
-            renderer->RunIteration(i, rng);
+            Sampler sampler = IterationSampler(options.mSampler, 17, i);
+            renderer->RunIteration(i, sampler);
             if (i % 500 == 499) REQUIRE(BadPixels(renderer->GetFilm().Resolve(1.0 / (i + 1))) == 0);
             const double cumulative = MeanValue(renderer->GetFilm().Resolve(1.0));
             means.push_back(cumulative - previous);

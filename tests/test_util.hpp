@@ -410,9 +410,11 @@ struct BlockStatistics {
 
 // Runs aIterations single iterations of one renderer and records, per block of
 // aBlockSize x aBlockSize pixels, the sum and sum of squares of the block's mean.
-inline BlockStatistics RenderBlocks(const Scene& aScene, Algorithm aAlgorithm, int aIterations, int aBlockSize, uint64_t aSeed) {
+inline BlockStatistics RenderBlocks(const Scene& aScene, Algorithm aAlgorithm, int aIterations, int aBlockSize, uint64_t aSeed,
+                                    SamplerType aSampler = SamplerType::kIndependent) {
     RenderOptions options;
     options.mAlgorithm = aAlgorithm;
+    options.mSampler = aSampler;
     options.mProgress = false;
     std::unique_ptr<AbstractRenderer> renderer = CreateRenderer(aScene, options);
     const int width = aScene.mCamera.Width(), height = aScene.mCamera.Height();
@@ -424,8 +426,8 @@ inline BlockStatistics RenderBlocks(const Scene& aScene, Algorithm aAlgorithm, i
     stats.mSumSqr = stats.mSum;
     Image previous(width, height);
     for (int i = 0; i < aIterations; i++) {
-        Rng rng = IterationRng(aSeed, i);
-        renderer->RunIteration(i, rng);
+        Sampler sampler = IterationSampler(aSampler, aSeed, i);
+        renderer->RunIteration(i, sampler);
         const Image cumulative = renderer->GetFilm().Resolve(1.0);
         std::vector<glm::dvec3> blocks(stats.mSum.size(), glm::dvec3(0.0));
         for (int y = 0; y < stats.mBlocksY * aBlockSize; y++)

@@ -158,8 +158,8 @@ RecordedComparison CompareRecordedWeights(int aSceneIndex, const MisCase& aCase,
     VertexCM renderer(scene, options);
     std::vector<VertexCM::PathRecord> records;
     renderer.SetPathRecords(&records);
-    Rng rng = IterationRng(aSeed, 0);
-    renderer.RunIteration(0, rng);
+    Sampler sampler = IterationSampler(options.mSampler, aSeed, 0);
+    renderer.RunIteration(0, sampler);
 
     // The constants of the path space, from the scene and the options alone: N_L light
     // sub-paths (one per pixel) and the radius of iteration 0, r_0 = factor x scene radius.
