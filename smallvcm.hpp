@@ -395,14 +395,14 @@ constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> MakeSobolMatric
 }
 inline constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> kSobolMatrices = MakeSobolMatrices();
 
-// The digits of point aIndex's coordinate aDimension: C i, the XOR of the columns of the
-// index's set bits.
-inline uint32_t SobolDigits(uint32_t aIndex, int aDimension) {
-    const std::array<uint32_t, 32>& columns = kSobolMatrices[size_t(aDimension)];
+// C i: the XOR of the columns aColumns[k] of the index's set bits k.
+inline uint32_t XorOfColumns(const std::array<uint32_t, 32>& aColumns, uint32_t aIndex) {
     uint32_t digits = 0;
-    for (size_t k = 0; aIndex; aIndex >>= 1, k++) digits ^= columns[k] & (0u - (aIndex & 1u));
+    for (size_t k = 0; aIndex; aIndex >>= 1, k++) digits ^= aColumns[k] & (0u - (aIndex & 1u));
     return digits;
 }
+// The digits of point aIndex's coordinate aDimension.
+inline uint32_t SobolDigits(uint32_t aIndex, int aDimension) { return XorOfColumns(kSobolMatrices[size_t(aDimension)], aIndex); }
 
 constexpr uint32_t ReverseBits32(uint32_t aX) {
     aX = (aX << 16) | (aX >> 16);
@@ -444,10 +444,7 @@ constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> MakeReversedSob
 }
 inline constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> kReversedSobolMatrices = MakeReversedSobolMatrices();
 inline uint32_t ReversedSobolDigits(uint32_t aIndex, int aDimension) {
-    const std::array<uint32_t, 32>& columns = kReversedSobolMatrices[size_t(aDimension)];
-    uint32_t digits = 0;
-    for (size_t k = 0; aIndex; aIndex >>= 1, k++) digits ^= columns[k] & (0u - (aIndex & 1u));
-    return digits;
+    return XorOfColumns(kReversedSobolMatrices[size_t(aDimension)], aIndex);
 }
 
 // The top 24 digits as a float in [0, 1), as Rng::GetFloat.
