@@ -443,9 +443,6 @@ constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> MakeReversedSob
     return columns;
 }
 inline constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> kReversedSobolMatrices = MakeReversedSobolMatrices();
-inline uint32_t ReversedSobolDigits(uint32_t aIndex, int aDimension) {
-    return XorOfColumns(kReversedSobolMatrices[size_t(aDimension)], aIndex);
-}
 
 // The top 24 digits as a float in [0, 1), as Rng::GetFloat.
 inline float DigitsToFloat(uint32_t aDigits) { return float(aDigits >> 8) * (1.f / 16777216.f); }
@@ -520,9 +517,6 @@ public:
         sampler.mType = SamplerType::kSobol;
         sampler.mIteration = uint32_t(aIteration);
         for (uint64_t domain = 0; domain < 3; domain++) sampler.mDomainSeeds[domain] = SplitMix64(aSeed ^ SplitMix64(domain + 1));
-        // Every camera sub-path of this iteration reads point aIteration: its unscrambled
-        // (reversed) digits once for all pixels.
-        for (int d = 0; d < kSobolDimensions; d++) sampler.mIterationDigits[size_t(d)] = detail::ReversedSobolDigits(sampler.mIteration, d);
         sampler.Start(kUnstarted, sampler.mIteration, 0);
         return sampler;
     }
@@ -550,27 +544,36 @@ public:
 private:
     enum Domain { kUnstarted = 0, kCameraPaths = 1, kLightPaths = 2 };
 
+    // A path's scramble seeds, one per dimension in the order asked, come from an Rng seeded
+    // by its domain and stream only: every point of the stream (a pixel's iterations, an
+    // iteration's light paths) is scrambled alike, as a scrambled net must be.
     void Start(Domain aDomain, uint32_t aStream, uint32_t aIndex) {
-        mStreamSeed = SplitMix64(mDomainSeeds[aDomain] ^ aStream);
+        mSeeds = Rng(SplitMix64(mDomainSeeds[aDomain] ^ aStream));
         mIndex = aIndex;
         mDimension = 0;
     }
     float NextDimension() {
-        const uint64_t seed = SplitMix64(mStreamSeed ^ mDimension);
-        const uint64_t d = mDimension++;
-        if (d >= uint64_t(kSobolDimensions)) return detail::DigitsToFloat(uint32_t(SplitMix64(seed ^ SplitMix64(mIndex)) >> 32));
-        const uint32_t reversed = mIndex == mIteration ? mIterationDigits[d] : detail::ReversedSobolDigits(mIndex, int(d));
-        return detail::DigitsToFloat(detail::ReverseBits32(detail::OwenScrambleReversed(reversed, uint32_t(seed))));
+        const uint32_t seed = mSeeds.NextUint();
+        const size_t d = mDimension++;
+        if (d >= size_t(kSobolDimensions)) return detail::DigitsToFloat(uint32_t(SplitMix64(seed ^ SplitMix64(mIndex)) >> 32));
+        // The digits are linear in the index: C i = C j xor C (i xor j). Each dimension keeps
+        // the digits of the last index it gave (j); consecutive light paths differ in few
+        // low bits, and a camera sub-path's index (the iteration) not at all.
+        mDigits[d] ^= detail::XorOfColumns(detail::kReversedSobolMatrices[d], mDigitsIndex[d] ^ mIndex);
+        mDigitsIndex[d] = mIndex;
+        return detail::DigitsToFloat(detail::ReverseBits32(detail::OwenScrambleReversed(mDigits[d], seed)));
     }
 
     SamplerType mType = SamplerType::kIndependent;
     Rng mRng;
     uint32_t mIteration = 0;
     uint64_t mDomainSeeds[3] = {};
-    std::array<uint32_t, detail::kSobolDimensions> mIterationDigits{};
-    uint64_t mStreamSeed = 0;
+    Rng mSeeds;
     uint32_t mIndex = 0;
-    uint64_t mDimension = 0;
+    size_t mDimension = 0;
+    // Per dimension: the reversed digits of point mDigitsIndex (point 0's are all zero).
+    std::array<uint32_t, detail::kSobolDimensions> mDigits{};
+    std::array<uint32_t, detail::kSobolDimensions> mDigitsIndex{};
 };
 
 // --- Cosine-weighted hemisphere around +z: pdf = cos(theta) / pi -------------------
