@@ -2355,9 +2355,11 @@ private:
 // Evaluate, Pdf (both directions, as MIS needs) and Sample. Relies on: Scene.
 //
 // A material is a sum of components, picked by sampling in proportion to the luminance
-// of their albedos (SmallVCM): Lambert, normalised Phong, Fresnel-weighted mirror, and
-// refraction. Evaluate and Pdf see only the non-specular part; the specular (delta)
-// components exist only through Sample. Evaluate, EvaluatePath, Pdf and Sample give the
+// of their albedos (SmallVCM): Lambert, normalised Phong, Fresnel-weighted mirror (plus
+// an unweighted one in front: the opaque share of partly transmissive glass), and
+// refraction, (1 - F) times the material's transmittance (its tint and glass share).
+// Evaluate and Pdf see only the non-specular part; the specular (delta) components exist
+// only through Sample. Evaluate, EvaluatePath, Pdf and Sample give the
 // BSDF's own pdfs; Russian roulette enters them in one place, Bsdf::WithRoulette, through
 // which EvaluateWithRoulette, EvaluatePathWithRoulette and SampleScatteringWithRoulette
 // (what the integrators use) return pdfs that include it.
