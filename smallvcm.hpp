@@ -4194,6 +4194,10 @@ private:
         const bool specular = scatter->IsSpecular();
         // For a specular event both pdfs are the component's selection probability (the
         // Fresnel term is the same for both directions of a reflection or refraction).
+        // Where a one-sided share sits beside glass (diffuse under glass, the opaque rest
+        // of partly transmissive glass) a refraction's selection probability differs
+        // between the two sides; every technique still drops the same ratio, so the
+        // weights still sum to one (unbiased), only not exactly the balance heuristic.
         // The cosine converts the reverse pdf at this vertex to area: the geometric one.
         VcmMis::AfterScatter(mMisConstants, aState.mMis, aBsdf.GeometricCos(scatter->mDirection, scatter->mCosThetaOut),
                              scatter->mPdfW, scatter->mReversePdfW, specular);
