@@ -1057,11 +1057,19 @@ struct Material {
     float mPhongExponent = 1.f;
     Vec3 mMirrorReflectance{0.f};
     float mIor = -1.f;        // < 0: no refraction; > 0: glass, mirror part Fresnel-weighted
+    // Glass (mIor > 0) refracts (1 - F) mTransmittance: the tint of the light that crosses
+    // the surface, times the share of the surface that is glass (glTF: base colour x
+    // transmission, docs/scene_format.md); 1 is clear glass. mOpaqueMirror is a mirror
+    // that F does not weight, on the front side only: the smooth specular of the opaque
+    // rest of a partly transmissive surface, beside the glass's own F x mMirrorReflectance.
+    Vec3 mTransmittance{1.f};
+    Vec3 mOpaqueMirror{0.f};
     bool mTwoSided = false;   // diffuse and Phong reflect on both sides (glTF doubleSided)
     // Base-colour texture (index into Scene::mTextures, -1 for none). Its texel multiplies
-    // the diffuse reflectance and tints the Phong and mirror parts above mSpecularUntinted,
-    // the share no base colour reaches (glTF: specular = 0.04 (1 - metallic) + metallic x
-    // base colour, so mSpecularUntinted = 0.04 (1 - metallic)).
+    // the diffuse reflectance and the transmittance, and tints the Phong and mirror parts
+    // above mSpecularUntinted, the share no base colour reaches (glTF: specular = 0.04
+    // (1 - metallic) + metallic x base colour, so mSpecularUntinted = 0.04 (1 - metallic)).
+    // On glass the tinted mirror is mOpaqueMirror: the Fresnel reflection stays untinted.
     int mBaseColorTexture = -1;
     Vec3 mSpecularUntinted{0.f};
     // Normal map (glTF normalTexture; index into Scene::mTextures, -1 for none; linear
@@ -1090,15 +1098,15 @@ struct Material {
     float AlphaCutoff() const { return mAlphaMode == AlphaMode::kBlend ? 0.5f : mAlphaCutoff; }
 
     bool HasNonSpecular() const { return !IsBlack(mDiffuseReflectance) || !IsBlack(mPhongReflectance); }
-    bool HasSpecular() const { return !IsBlack(mMirrorReflectance) || mIor > 0.f; }
+    bool HasSpecular() const { return !IsBlack(mMirrorReflectance) || !IsBlack(mOpaqueMirror) || mIor > 0.f; }
 
     // Russian roulette continuation probability: an upper bound of the material's
     // albedo, as in SmallVCM (floor 0.8, walls 0.803922, mirror and glass 1). It depends
     // on the material only, never on the direction, so the pdf of a path is the same
     // whichever sub-path visits the vertex -- which the MIS weights rely on.
     float ContinuationProbability() const {
-        const float reflect = MaxComponent(mDiffuseReflectance + mPhongReflectance + mMirrorReflectance);
-        const float refract = mIor > 0.f ? 1.f : 0.f;
+        const float reflect = MaxComponent(mDiffuseReflectance + mPhongReflectance + mMirrorReflectance + mOpaqueMirror);
+        const float refract = mIor > 0.f ? MaxComponent(mTransmittance) : 0.f;
         return std::min(1.f, reflect + refract);
     }
 };
@@ -1111,7 +1119,8 @@ struct Material {
 // side it is seen from.
 struct MaterialConstants {
     // The reflectances of the components (diffuse, Phong, mirror), one after the other.
-    struct Reflectances { Vec3 mDiffuse{0.f}, mPhong{0.f}, mMirror{0.f}; };
+    // (With glass, the opaque mirror and the transmittance too: Material's.)
+    struct Reflectances { Vec3 mDiffuse{0.f}, mPhong{0.f}, mMirror{0.f}, mOpaqueMirror{0.f}, mTransmittance{1.f}; };
     // Bsdf's normalised selection probabilities (diffuse, Phong, mirror, refraction) seen
     // from one side, whether only specular components are left, and whether anything is
     // (Bsdf::IsDelta(), IsValid()).
@@ -1133,7 +1142,8 @@ inline bool SameMaterialConstants(const MaterialConstants& aA, const MaterialCon
         return aX.mProbabilities == aY.mProbabilities && aX.mIsDelta == aY.mIsDelta && aX.mValid == aY.mValid;
     };
     return aA.mReflectance.mDiffuse == aB.mReflectance.mDiffuse && aA.mReflectance.mPhong == aB.mReflectance.mPhong &&
-           aA.mReflectance.mMirror == aB.mReflectance.mMirror && aA.mContinuationProb == aB.mContinuationProb &&
+           aA.mReflectance.mMirror == aB.mReflectance.mMirror && aA.mReflectance.mOpaqueMirror == aB.mReflectance.mOpaqueMirror &&
+           aA.mReflectance.mTransmittance == aB.mReflectance.mTransmittance && aA.mContinuationProb == aB.mContinuationProb &&
            aA.mFixedProbabilities == aB.mFixedProbabilities && sameSide(aA.mFront, aB.mFront) &&
            sameSide(aA.mBack, aB.mBack);
 }
@@ -2348,9 +2358,11 @@ private:
 // Evaluate, Pdf (both directions, as MIS needs) and Sample. Relies on: Scene.
 //
 // A material is a sum of components, picked by sampling in proportion to the luminance
-// of their albedos (SmallVCM): Lambert, normalised Phong, Fresnel-weighted mirror, and
-// refraction. Evaluate and Pdf see only the non-specular part; the specular (delta)
-// components exist only through Sample. Evaluate, EvaluatePath, Pdf and Sample give the
+// of their albedos (SmallVCM): Lambert, normalised Phong, Fresnel-weighted mirror (plus
+// an unweighted one in front: the opaque share of partly transmissive glass), and
+// refraction, (1 - F) times the material's transmittance (its tint and glass share).
+// Evaluate and Pdf see only the non-specular part; the specular (delta) components exist
+// only through Sample. Evaluate, EvaluatePath, Pdf and Sample give the
 // BSDF's own pdfs; Russian roulette enters them in one place, Bsdf::WithRoulette, through
 // which EvaluateWithRoulette, EvaluatePathWithRoulette and SampleScatteringWithRoulette
 // (what the integrators use) return pdfs that include it.
@@ -2497,14 +2509,22 @@ public:
         if (aConstants)
             mReflectance = aConstants->mReflectance;
         else
-            mReflectance = Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance};
+            mReflectance = ReflectancesOf(aMaterial);
         if (aBaseColorTexel) {
+            // The base colour tints what glTF's base colour reaches: not the dielectric's
+            // untinted specular share, nor glass's Fresnel reflection.
             const Vec3& texel = *aBaseColorTexel;
+            const auto tint = [&](Vec3& ioSpecular) {
+                if (!IsBlack(ioSpecular)) ioSpecular = aMaterial.mSpecularUntinted + (ioSpecular - aMaterial.mSpecularUntinted) * texel;
+            };
             mReflectance.mDiffuse *= texel;
-            if (!IsBlack(mReflectance.mPhong))
-                mReflectance.mPhong = aMaterial.mSpecularUntinted + (mReflectance.mPhong - aMaterial.mSpecularUntinted) * texel;
-            if (!IsBlack(mReflectance.mMirror))
-                mReflectance.mMirror = aMaterial.mSpecularUntinted + (mReflectance.mMirror - aMaterial.mSpecularUntinted) * texel;
+            tint(mReflectance.mPhong);
+            if (aMaterial.mIor > 0.f) {
+                tint(mReflectance.mOpaqueMirror);
+                mReflectance.mTransmittance *= texel;
+            } else {
+                tint(mReflectance.mMirror);
+            }
         }
         // A two-sided non-glass material turns both normals towards whoever looks at it,
         // deciding by the geometric one (the side the ray really arrives from).
@@ -2551,7 +2571,7 @@ public:
         MaterialConstants constants;
         constants.mContinuationProb = aMaterial.ContinuationProbability();
         constants.mFixedProbabilities = aMaterial.mBaseColorTexture < 0 && aMaterial.mIor < 0.f;
-        constants.mReflectance = Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance};
+        constants.mReflectance = ReflectancesOf(aMaterial);
         const Reflectances& reflectance = constants.mReflectance;
         for (const float cosFix : {1.f, -1.f}) {  // only its sign matters without refraction
             MaterialConstants::Side& side = cosFix > 0.f ? constants.mFront : constants.mBack;
@@ -2691,7 +2711,7 @@ private:
             s.mPdfW = s.mReversePdfW = p[kReflect];
             s.mCosThetaOut = std::abs(localDirGen.z);
             s.mDirection = mFrame.ToWorld(localDirGen);
-            s.mValue = mFresnel * mReflectance.mMirror / s.mCosThetaOut;
+            s.mValue = MirrorReflectance() / s.mCosThetaOut;
             if (IsBlack(s.mValue)) sample.reset();
             return sample;
         } else {
@@ -2709,7 +2729,7 @@ private:
             // camera paths carry (eta_fix / eta_gen)^2; light paths (importance) do not
             // (Veach 1997, sec. 5.2).
             const float scale = mTransport == Transport::kImportance ? 1.f : Sqr(refraction->mEtaFixOverEtaGen);
-            s.mValue = Vec3((1.f - mFresnel) * scale / s.mCosThetaOut);
+            s.mValue = Vec3((1.f - mFresnel) * scale / s.mCosThetaOut) * mReflectance.mTransmittance;
             if (IsBlack(s.mValue)) sample.reset();
             return sample;
         }
@@ -2741,6 +2761,16 @@ private:
     enum Component { kDiffuse = 0, kPhong = 1, kReflect = 2, kRefract = 3 };
     // The reflectances of the components at this point.
     using Reflectances = MaterialConstants::Reflectances;
+    static Reflectances ReflectancesOf(const Material& aMaterial) {
+        return Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance,
+                            aMaterial.mOpaqueMirror, aMaterial.mTransmittance};
+    }
+    // The delta reflection's reflectance: glass's F x mirror, plus (front side only) the
+    // mirror of an opaque share that F does not weight (Material::mOpaqueMirror).
+    Vec3 MirrorReflectance() const {
+        return mLocalDirFix.z > 0.f ? mFresnel * mReflectance.mMirror + mReflectance.mOpaqueMirror
+                                    : mFresnel * mReflectance.mMirror;
+    }
 
     static Vec3 ReflectLocal(const Vec3& aLocal) { return Vec3(-aLocal.x, -aLocal.y, aLocal.z); }
 
@@ -2769,7 +2799,8 @@ private:
             p[kPhong] = Luminance(aReflectance.mPhong);
         }
         p[kReflect] = aFresnel * Luminance(aReflectance.mMirror);
-        p[kRefract] = aIor > 0.f ? 1.f - aFresnel : 0.f;
+        if (frontSide) p[kReflect] += Luminance(aReflectance.mOpaqueMirror);
+        p[kRefract] = aIor > 0.f ? (1.f - aFresnel) * Luminance(aReflectance.mTransmittance) : 0.f;
         return p;
     }
     // The same normalised to sum to 1; nothing when they are all zero: a black material,
@@ -4166,6 +4197,10 @@ private:
         const bool specular = scatter->IsSpecular();
         // For a specular event both pdfs are the component's selection probability (the
         // Fresnel term is the same for both directions of a reflection or refraction).
+        // Where a one-sided share sits beside glass (diffuse under glass, the opaque rest
+        // of partly transmissive glass) a refraction's selection probability differs
+        // between the two sides; every technique still drops the same ratio, so the
+        // weights still sum to one (unbiased), only not exactly the balance heuristic.
         // The cosine converts the reverse pdf at this vertex to area: the geometric one.
         VcmMis::AfterScatter(mMisConstants, aState.mMis, aBsdf.GeometricCos(scatter->mDirection, scatter->mCosThetaOut),
                              scatter->mPdfW, scatter->mReversePdfW, specular);
@@ -8095,42 +8130,70 @@ private:
                 const float roughness = float(pbr.roughnessFactor);
                 if (!(metallic >= 0.f && metallic <= 1.f) || !(roughness >= 0.f && roughness <= 1.f))
                     Fail(what + ": metallicFactor and roughnessFactor must be in [0, 1]");
+                // KHR_materials_transmission: the dielectric's share t of the surface is
+                // glass, so g = (1 - metallic) t is glass (refraction tinted by the base
+                // colour, Fresnel reflection untinted) and the rest is the opaque mapping
+                // with (1 - t) of its dielectric part.
                 auto transmission = source.extensions.find("KHR_materials_transmission");
-                const double transmissionFactor = transmission != source.extensions.end()
-                    ? NumberOr(transmission->second, "transmissionFactor", 0.0) : 0.0;
-                if (transmissionFactor > 0.0) {
-                    if (pbr.baseColorTexture.index >= 0) Approximated("baseColorTexture on glass (clear glass is used)");
-                    auto ior = source.extensions.find("KHR_materials_ior");
-                    material.mMirrorReflectance = Vec3(1.f);
-                    material.mIor = float(ior != source.extensions.end() ? NumberOr(ior->second, "ior", 1.5) : 1.5);
+                float t = 0.f;
+                if (transmission != source.extensions.end()) {
+                    t = float(NumberOr(transmission->second, "transmissionFactor", 0.0));
+                    if (!(t >= 0.f && t <= 1.f))
+                        Fail(what + ": KHR_materials_transmission.transmissionFactor must be a number in [0, 1]");
+                    if (transmission->second.Has("transmissionTexture"))
+                        Approximated("transmissionTexture (transmissionFactor is used)");
+                }
+                const float glass = (1.f - metallic) * t;
+                const float dielectric = (1.f - metallic) * (1.f - t);  // the opaque dielectric share
+                float ior = 1.5f;
+                if (glass > 0.f) {
+                    auto iorExtension = source.extensions.find("KHR_materials_ior");
+                    if (iorExtension != source.extensions.end()) ior = float(NumberOr(iorExtension->second, "ior", 1.5));
+                    if (!(ior >= 1.f || ior == 0.f) || !std::isfinite(ior))
+                        Fail(what + ": KHR_materials_ior.ior must be a number >= 1, or 0");
+                    if (roughness > 0.f) Approximated("roughnessFactor on transmission (rendered as smooth glass)");
+                    if (source.extensions.count("KHR_materials_volume"))
+                        Approximated("KHR_materials_volume (no absorption in the volume: the tint applies at each crossing)");
+                }
+                // The opaque rest, as without transmission when t = 0.
+                const Vec3 specular = dielectric * Vec3(0.04f) + metallic * baseColor;
+                material.mDiffuseReflectance = dielectric * 0.96f * baseColor;
+                if (pbr.baseColorTexture.index >= 0) {
+                    const TextureUse use = UseTexture(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
+                                                      pbr.baseColorTexture.extensions, true, "baseColorTexture", what, cutOut);
+                    material.mBaseColorTexture = use.mTexture;
+                    texCoordSets.push_back({"baseColorTexture", use.mTexCoord});
+                    material.mSpecularUntinted = Vec3(0.04f * dielectric);
+                }
+                const bool refracts = glass > 0.f && ior > 0.f;  // ior 0: F = 1, glass is a mirror
+                if (roughness > 0.f) {
+                    material.mPhongReflectance = specular;
+                    material.mPhongExponent = std::min(10000.f, std::max(0.f, 2.f / std::pow(roughness, 4.f) - 2.f));
+                } else if (refracts) {
+                    material.mOpaqueMirror = specular;
                 } else {
-                    const Vec3 specular = glm::mix(Vec3(0.04f), baseColor, metallic);
-                    material.mDiffuseReflectance = (1.f - metallic) * 0.96f * baseColor;
-                    if (pbr.baseColorTexture.index >= 0) {
-                        const TextureUse use = UseTexture(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
-                                                          pbr.baseColorTexture.extensions, true, "baseColorTexture", what, cutOut);
-                        material.mBaseColorTexture = use.mTexture;
-                        texCoordSets.push_back({"baseColorTexture", use.mTexCoord});
-                        material.mSpecularUntinted = Vec3(0.04f * (1.f - metallic));
-                    }
-                    if (roughness == 0.f) {
-                        material.mMirrorReflectance = specular;
-                    } else {
-                        material.mPhongReflectance = specular;
-                        material.mPhongExponent = std::min(10000.f, std::max(0.f, 2.f / std::pow(roughness, 4.f) - 2.f));
-                    }
+                    material.mMirrorReflectance = specular;
+                }
+                if (refracts) {
+                    material.mIor = ior;
+                    material.mMirrorReflectance = Vec3(glass);
+                    material.mTransmittance = glass * baseColor;
+                } else if (glass > 0.f) {
+                    material.mMirrorReflectance += Vec3(glass);
                 }
             }
             CheckColor(material.mDiffuseReflectance, what + ": the diffuse reflectance", true);
             CheckColor(material.mPhongReflectance, what + ": the Phong reflectance", true);
             CheckColor(material.mMirrorReflectance, what + ": the mirror reflectance", true);
+            CheckColor(material.mOpaqueMirror, what + ": the opaque mirror reflectance", true);
+            CheckColor(material.mTransmittance, what + ": the transmittance", true);
             if (MaxComponent(material.mDiffuseReflectance + material.mPhongReflectance) > 1.f)
                 Fail(what + ": diffuse + Phong reflectance exceeds 1 (it would create energy)");
             if (!std::isfinite(material.mPhongExponent) || material.mPhongExponent < 0.f)
                 Fail(what + ": the Phong exponent must be finite and >= 0");
             if (!std::isfinite(material.mIor) || (material.mIor >= 0.f && material.mIor < 1e-3f))
                 Fail(what + ": ior must be a positive index of refraction, or -1 for none");
-            if (material.mIor > 0.f && !IsBlack(material.mDiffuseReflectance + material.mPhongReflectance))
+            if (material.mIor > 0.f && !IsBlack(material.mDiffuseReflectance + material.mPhongReflectance + material.mOpaqueMirror))
                 material.mTwoSided = false;  // glass decides inside from outside by the normal
 
             // Emission: emissiveFactor times KHR_materials_emissive_strength.

@@ -70,16 +70,17 @@ STAGES = [
     ("scenes", ["test_transport", "test_integrators", "test_lights"], "[transport],[integrators],[lights]", 600, []),
     ("photons+stability", ["test_photon_mapping", "test_stability"], "[photon_mapping],[stability]", 600, []),
     ("figures+convergence", ["test_figures", "test_convergence"], "[figures],[convergence]", 900, ["convergence"]),
-    # Last: a scene without cut-outs runs none of their code, so only cut-out mutants (and
-    # the survivors of the stages above) get here.
-    ("cutouts", ["test_cutouts", "test_geometry", "test_gltf"], "[cutouts]", 120, []),
+    # Last: a scene without cut-outs runs none of their code, and no render runs the glTF
+    # loader's glass rule, so only cut-out and loader mutants (and the survivors of the
+    # stages above) get here.
+    ("cutouts+glass", ["test_cutouts", "test_geometry", "test_gltf"], "[cutouts],[gltf][glass]", 120, []),
 ]
 # The rest of the suite (every other test file; built with the Makefile, with the
 # programs its tests run: build/smallvcm for the command line, build/bench, build/minimal):
 # everything except the golden images and what the stages above already ran.
 REST_TARGETS = ["build/tests/run_tests", "build/smallvcm", "build/bench", "build/minimal"]
 REST_SPEC = "~[regression]~[sampling]~[bsdf]~[camera]~[mis]~[light_units]~[lights]~[exercise]~[transport]" \
-            "~[integrators]~[photon_mapping]~[stability]~[figures]~[convergence]~[cutouts]"
+            "~[integrators]~[photon_mapping]~[stability]~[figures]~[convergence]~[cutouts]~[glass]"
 REST_TIMEOUT = 900
 REST_BUILD_TIMEOUT = 5400
 

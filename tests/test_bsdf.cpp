@@ -77,8 +77,42 @@ Material DiffuseGlass() {
     return m;
 }
 
+// glTF's KHR_materials_transmission rule (docs/scene_format.md 4.2) at t = 0.5, m = 0,
+// b = (0.8, 0.5, 0.2): half the surface is glass (mirror 0.5 x F, transmittance 0.5 b),
+// the rest diffuse 0.48 b with ks = 0.02, a mirror that F does not weight at r = 0
+// (HalfGlass), a Phong lobe of exponent 30 at r = 0.5 (RoughHalfGlass). Energy conserving:
+// 0.5 (F + (1 - F) b) + 0.48 b + 0.02 <= 1.
+const Vec3 kTint(0.8f, 0.5f, 0.2f);
+Material HalfGlass() {
+    Material m;
+    m.mName = "tinted half glass";
+    m.mDiffuseReflectance = 0.48f * kTint;
+    m.mOpaqueMirror = Vec3(0.02f);
+    m.mMirrorReflectance = Vec3(0.5f);
+    m.mTransmittance = 0.5f * kTint;
+    m.mIor = 1.5f;
+    return m;
+}
+Material RoughHalfGlass() {
+    Material m = HalfGlass();
+    m.mName = "tinted half glass, Phong";
+    m.mOpaqueMirror = Vec3(0.f);
+    m.mPhongReflectance = Vec3(0.02f);
+    m.mPhongExponent = 30.f;
+    return m;
+}
+// Tinted glass (t = 1, b = (0.8, 0.5, 0.2), ior 1.5).
+Material TintedGlass() {
+    Material m = Glass();
+    m.mName = "tinted glass";
+    m.mTransmittance = kTint;
+    m.mIor = 1.5f;
+    return m;
+}
+
 std::vector<Material> NonSpecularMaterials() {
-    return {Lambert(Vec3(0.8f, 0.5f, 0.2f)), Phong(1.f), Phong(10.f), Phong(90.f), GlossyFloor(), DiffuseMirror(), DiffuseGlass()};
+    return {Lambert(Vec3(0.8f, 0.5f, 0.2f)), Phong(1.f), Phong(10.f), Phong(90.f), GlossyFloor(), DiffuseMirror(), DiffuseGlass(),
+            HalfGlass(), RoughHalfGlass()};
 }
 
 // --- directions ----------------------------------------------------------------------
@@ -398,17 +432,20 @@ TEST_CASE("Sampled directions follow Pdf() and the specular selection probabilit
     };
     const std::vector<Case> cases = {{Lambert(Vec3(0.8f)), 0.6f},  {Phong(1.f), 0.9f},       {Phong(10.f), 0.7f},
                                      {Phong(90.f), 0.5f},          {Phong(10.f), 0.15f},     {GlossyFloor(), 0.8f},
-                                     {GlossyFloor(), 0.25f},       {DiffuseMirror(), 0.4f},  {DiffuseGlass(), 0.3f}};
+                                     {GlossyFloor(), 0.25f},       {DiffuseMirror(), 0.4f},  {DiffuseGlass(), 0.3f},
+                                     {HalfGlass(), 0.35f},         {RoughHalfGlass(), 0.8f}};
     for (const Case& c : cases) {
         INFO(c.material.mName << ", cos incident " << c.cosIn);
         const Bsdf bsdf = Make(DirectionAt(c.cosIn, 1.3f), c.material);
         REQUIRE(bsdf.IsValid());
         // Specular selection, from SmallVCM's rule (probabilities ~ luminance of the
-        // diffuse, Phong, F mirror and (1 - F) refraction albedos), computed here.
+        // diffuse, Phong, F mirror (+ the opaque mirror) and (1 - F) x transmittance
+        // refraction albedos), computed here.
         const Material& m = c.material;
         const double fresnel = m.mIor > 0.f ? FresnelReference(c.cosIn, 1.0, m.mIor) : 1.0;
         const double weights[4] = {Luminance(m.mDiffuseReflectance), Luminance(m.mPhongReflectance),
-                                   fresnel * Luminance(m.mMirrorReflectance), m.mIor > 0.f ? 1.0 - fresnel : 0.0};
+                                   fresnel * Luminance(m.mMirrorReflectance) + Luminance(m.mOpaqueMirror),
+                                   m.mIor > 0.f ? (1.0 - fresnel) * Luminance(m.mTransmittance) : 0.0};
         const double total = weights[0] + weights[1] + weights[2] + weights[3];
         double mass = 0.0;
         const ChiSquare chi = SampleDirectionChiSquare(bsdf, 300000, weights[2] / total, weights[3] / total, 322, &mass);
@@ -649,4 +686,120 @@ TEST_CASE("Continuation probabilities of SmallVCM's materials: floor 0.8, walls 
         checked++;
     }
     REQUIRE(checked == 7);
+}
+
+// ---------------------------------------------------------------------------------
+// Tinted and partly transmissive glass (glTF's KHR_materials_transmission rule)
+// ---------------------------------------------------------------------------------
+
+TEST_CASE("Half glass: reflection 0.5 F untinted plus the opaque mirror in front, refraction 0.5 (1 - F) b, picked by luminance", "[bsdf][glass]") {
+    // HalfGlass: diffuse 0.48 b, mirror 0.5 x F + 0.02 (front side only), refraction
+    // (1 - F) 0.5 b; selection weights Lum(0.48 b), 0.5 F + 0.02, (1 - F) Lum(0.5 b) in
+    // front, 0.5 F and (1 - F) Lum(0.5 b) behind (the opaque share is one-sided).
+    const Material material = HalfGlass();
+    const double lumB = 0.212671 * 0.8 + 0.715160 * 0.5 + 0.072169 * 0.2;
+    for (const float cosIn : {0.95f, 0.6f, 0.2f, -0.99f, -0.85f, -0.3f}) {
+        INFO("cos incident " << cosIn);
+        const bool front = cosIn > 0.f;
+        const Vec3 fix = front ? DirectionAt(cosIn, 0.7f) : -DirectionAt(-cosIn, 0.7f);
+        const double fresnel = front ? FresnelReference(cosIn, 1.0, 1.5) : FresnelReference(-cosIn, 1.5, 1.0);
+        const double eta = front ? 1.0 / 1.5 : 1.5;  // eta_fix / eta_gen
+        const double wDiffuse = front ? 0.48 * lumB : 0.0, wReflect = 0.5 * fresnel + (front ? 0.02 : 0.0),
+                     wRefract = (1.0 - fresnel) * 0.5 * lumB, total = wDiffuse + wReflect + wRefract;
+        for (const Transport transport : {Transport::kImportance, Transport::kRadiance}) {
+            const Bsdf bsdf = Make(fix, material, transport);
+            REQUIRE(bsdf.IsValid());
+            CHECK(bsdf.IsDelta() == !front);
+            const float justAboveDiffuse = float(wDiffuse / total) + 1e-4f;
+            const std::optional<ScatterSample> reflect = bsdf.Sample(Vec3(0.3f, 0.3f, justAboveDiffuse));
+            const std::optional<ScatterSample> refract = bsdf.Sample(Vec3(0.3f, 0.3f, 0.99999f));
+            REQUIRE(reflect);
+            REQUIRE(reflect->mEvent == kEventReflect);
+            CHECK(reflect->mPdfW == Approx(wReflect / total).epsilon(1e-5));
+            for (int c = 0; c < 3; c++)
+                CHECK(reflect->mValue[c] * reflect->mCosThetaOut == Approx(0.5 * fresnel + (front ? 0.02 : 0.0)).epsilon(1e-5));
+            if (fresnel == 1.0) continue;  // total internal reflection: nothing refracts
+            REQUIRE(refract);
+            REQUIRE(refract->mEvent == kEventRefract);
+            CHECK(refract->mPdfW == Approx(wRefract / total).epsilon(1e-5));
+            const double scale = transport == Transport::kRadiance ? eta * eta : 1.0;
+            for (int c = 0; c < 3; c++)
+                CHECK(refract->mValue[c] * refract->mCosThetaOut == Approx((1.0 - fresnel) * 0.5 * kTint[c] * scale).epsilon(1e-5));
+        }
+    }
+}
+
+TEST_CASE("Half glass and tinted glass return their albedo per channel: 0.5 F + 0.02 + 0.5 (1 - F) b + 0.48 b in front, 0.5 F + 0.5 (1 - F) b behind", "[bsdf][glass]") {
+    // Monte Carlo albedo (importance, no eta^2) against the sum of the components'
+    // albedos, within 4 measured standard errors; every sample weighs its component's
+    // reflectance over its luminance share, so the SE is the spread of those weights.
+    for (const float cosIn : {0.9f, 0.5f, 0.1f, -0.95f, -0.7f}) {
+        const bool front = cosIn > 0.f;
+        const Vec3 fix = front ? DirectionAt(cosIn, 1.1f) : -DirectionAt(-cosIn, 1.1f);
+        const double fresnel = front ? FresnelReference(cosIn, 1.0, 1.5) : FresnelReference(-cosIn, 1.5, 1.0);
+        for (int c = 0; c < 3; c++) {
+            INFO("cos incident " << cosIn << ", channel " << c);
+            const double half = 0.5 * fresnel + 0.5 * (1.0 - fresnel) * kTint[c] + (front ? 0.02 + 0.48 * kTint[c] : 0.0);
+            const MeanAndError albedo = Albedo(Make(fix, HalfGlass(), Transport::kImportance), 40000, 340, c);
+            INFO("half glass: " << albedo.mean << " +- " << albedo.standardError << ", expected " << half);
+            CHECK(std::abs(albedo.mean - half) <= 4.0 * albedo.standardError + 1e-6);
+            CHECK(half <= 1.0);
+            const double tinted = fresnel + (1.0 - fresnel) * kTint[c];
+            const MeanAndError glass = Albedo(Make(fix, TintedGlass(), Transport::kImportance), 40000, 341, c);
+            INFO("tinted glass: " << glass.mean << " +- " << glass.standardError << ", expected " << tinted);
+            CHECK(std::abs(glass.mean - tinted) <= 4.0 * glass.standardError + 1e-6);
+        }
+    }
+}
+
+TEST_CASE("A base-colour texel tints glass's refraction and its opaque share above the untinted part, never its Fresnel reflection", "[bsdf][glass]") {
+    Material material = HalfGlass();
+    material.mOpaqueMirror = Vec3(0.1f);
+    material.mSpecularUntinted = Vec3(0.02f);
+    const Vec3 texel(0.5f, 1.f, 0.25f);
+    const float cosIn = 0.7f;
+    const double fresnel = FresnelReference(cosIn, 1.0, 1.5);
+    Bsdf bsdf;
+    bsdf.Setup(DirectionAt(cosIn, 0.2f), kNormal, material, Transport::kImportance, &texel);
+    REQUIRE(bsdf.IsValid());
+    // The diffuse pick's f is Lambert's 0.48 b texel / pi.
+    const std::optional<ScatterSample> diffuse = bsdf.Sample(Vec3(0.4f, 0.6f, 0.f));
+    REQUIRE(diffuse);
+    REQUIRE(diffuse->mEvent == kEventDiffuse);
+    const std::optional<ScatterSample> refract = bsdf.Sample(Vec3(0.3f, 0.3f, 0.99999f));
+    REQUIRE(refract);
+    REQUIRE(refract->mEvent == kEventRefract);
+    // The reflection: the largest z below the refraction's share picks it.
+    const double lumD = Luminance(0.48f * kTint * texel), lumT = Luminance(0.5f * kTint * texel);
+    const double wReflect = 0.5 * fresnel + Luminance(Vec3(0.02f) + 0.08f * texel);
+    const double total = lumD + wReflect + (1.0 - fresnel) * lumT;
+    const std::optional<ScatterSample> reflect = bsdf.Sample(Vec3(0.3f, 0.3f, float((lumD + 0.5 * wReflect) / total)));
+    REQUIRE(reflect);
+    REQUIRE(reflect->mEvent == kEventReflect);
+    for (int c = 0; c < 3; c++) {
+        INFO("channel " << c);
+        CHECK(diffuse->mValue[c] == Approx(0.48 * kTint[c] * texel[c] / kPi).epsilon(1e-5));
+        CHECK(refract->mValue[c] * refract->mCosThetaOut == Approx((1.0 - fresnel) * 0.5 * kTint[c] * texel[c]).epsilon(1e-5));
+        CHECK(reflect->mValue[c] * reflect->mCosThetaOut == Approx(0.5 * fresnel + 0.02 + 0.08 * texel[c]).epsilon(1e-5));
+    }
+    CHECK(refract->mPdfW == Approx((1.0 - fresnel) * lumT / total).epsilon(1e-5));
+}
+
+TEST_CASE("Clear glass, a plain mirror and Lambert give the same bits as before transmittance and the opaque mirror existed", "[bsdf][glass]") {
+    // The defaults (transmittance 1, opaque mirror 0) must enter exactly: 1 x and + 0 in
+    // float, and Luminance(1, 1, 1) == 1 (what keeps the golden images bit for bit).
+    CHECK(Luminance(Vec3(1.f)) == 1.f);
+    for (const float cosIn : {0.8f, 0.3f, -0.9f}) {
+        const Vec3 fix = cosIn > 0.f ? DirectionAt(cosIn, 0.4f) : -DirectionAt(-cosIn, 0.4f);
+        const Bsdf bsdf = Make(fix, Glass(), Transport::kRadiance);
+        const float fresnel = FresnelDielectric(bsdf.CosThetaFix(), 1.6f);
+        const std::optional<ScatterSample> reflect = bsdf.Sample(Vec3(0.5f, 0.5f, 0.f));
+        const std::optional<ScatterSample> refract = bsdf.Sample(Vec3(0.5f, 0.5f, 0.99999f));
+        REQUIRE(reflect);
+        REQUIRE(refract);
+        CHECK(reflect->mPdfW == fresnel / (fresnel + (1.f - fresnel)));
+        CHECK(reflect->mValue.x == fresnel * 1.f / reflect->mCosThetaOut);
+        const float eta = cosIn > 0.f ? 1.f / 1.6f : 1.6f;
+        CHECK(refract->mValue.x == (1.f - fresnel) * (eta * eta) / refract->mCosThetaOut);
+    }
 }

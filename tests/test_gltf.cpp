@@ -1695,3 +1695,151 @@ TEST_CASE("A URI that decodes to a NUL byte is refused: no file name holds one",
     CHECK(LoadError(folder / "image.gltf") == folder / "image.gltf" + ": image 0 'base%20colour.png%00.txt': the URI decodes to a "
                                                                      "NUL byte, which no file name holds");
 }
+
+// --- KHR_materials_transmission: the glass share, its tint, and what is not modelled --------
+
+namespace {
+
+// material_glass.gltf with its floor material replaced by aMaterial (a JSON object),
+// written into aFolder.
+std::string GlassFloorFile(const TemporaryFolder& aFolder, const std::string& aMaterial) {
+    const std::string text = ReadText("data/gltf/material_glass.gltf");
+    const size_t materials = text.find(R"("materials")");
+    const size_t begin = text.find(R"({
+      "name": "floor",)", materials);
+    const size_t end = text.find(R"({
+      "name": "light",)", materials);
+    REQUIRE(materials != std::string::npos);
+    REQUIRE(begin != std::string::npos);
+    REQUIRE(end != std::string::npos);
+    const std::string replaced = text.substr(0, begin) + aMaterial + ",\n    " + text.substr(end);
+    return WriteTemporary(aFolder, "glass.gltf", replaced);
+}
+Material GlassFloor(const std::string& aMaterial, GltfLoadReport* oReport = nullptr) {
+    TemporaryFolder folder;
+    const Scene scene = LoadGltfScene(GlassFloorFile(folder, aMaterial), oReport);
+    REQUIRE(scene.mTriangles.size() == 4);
+    return scene.mMaterials.at(size_t(scene.mTriangles[0].mMaterialId));
+}
+std::string GlassFloorError(const std::string& aMaterial) {
+    TemporaryFolder folder;
+    return LoadError(GlassFloorFile(folder, aMaterial));
+}
+// One material: base colour b, metallic m, roughness r, the transmission and ior extensions.
+std::string PbrGlass(const std::string& aBase, float aMetallic, float aRoughness, const std::string& aExtensions) {
+    std::ostringstream json;
+    json << R"({"name": "floor", "pbrMetallicRoughness": {"baseColorFactor": [)" << aBase << R"(, 1], "metallicFactor": )"
+         << aMetallic << R"(, "roughnessFactor": )" << aRoughness << R"(}, "extensions": {)" << aExtensions << "}}";
+    return json.str();
+}
+std::string ApproximatedNote(const GltfLoadReport& aReport) {
+    for (const std::string& note : aReport.mNotes)
+        if (note.find("approximated (not modelled)") != std::string::npos) return note;
+    return "";
+}
+
+} // namespace
+
+TEST_CASE("KHR_materials_transmission: g = (1 - m) t of the surface is glass tinted by b, the rest the opaque mapping, number by number", "[gltf][glass]") {
+    // docs/scene_format.md 4.2: g = (1 - m) t; glass: mirror g (times F), transmittance
+    // g b, ior; the rest: diffuse (1 - m)(1 - t) 0.96 b, specular ks = (1 - m)(1 - t) 0.04
+    // + m b, a mirror F does not weight (r = 0) or Phong (r > 0).
+    const std::string tint = "0.8, 0.5, 0.2";
+    const Vec3 b(0.8f, 0.5f, 0.2f);
+    SECTION("t = 0: the opaque mapping, no glass") {
+        const Material m = GlassFloor(PbrGlass(tint, 0.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": 0})"));
+        CheckMaterial(m, 0.96f * b, Vec3(0.f), 1.f, Vec3(0.04f), -1.f, false);
+        CHECK_VEC3(m.mOpaqueMirror, Vec3(0.f), 0.f);
+    }
+    SECTION("t = 0.5, r = 0: half glass (mirror 0.5, transmittance 0.5 b), half the opaque mapping") {
+        const Material m = GlassFloor(PbrGlass(tint, 0.f, 0.f,
+                                               R"("KHR_materials_transmission": {"transmissionFactor": 0.5}, "KHR_materials_ior": {"ior": 1.4})"));
+        CheckMaterial(m, 0.48f * b, Vec3(0.f), 1.f, Vec3(0.5f), 1.4f, false);
+        CHECK_VEC3(m.mTransmittance, Vec3(0.4f, 0.25f, 0.1f), 1e-7f);
+        CHECK_VEC3(m.mOpaqueMirror, Vec3(0.02f), 1e-8f);
+    }
+    SECTION("t = 1: tinted glass (transmittance b), nothing opaque") {
+        const Material m = GlassFloor(PbrGlass(tint, 0.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": 1})"));
+        CheckMaterial(m, Vec3(0.f), Vec3(0.f), 1.f, Vec3(1.f), 1.5f, false);
+        CHECK_VEC3(m.mTransmittance, b, 0.f);
+        CHECK_VEC3(m.mOpaqueMirror, Vec3(0.f), 0.f);
+    }
+    SECTION("t = 1, m = 0.25, r = 0.5: glass 0.75, the metal a Phong lobe 0.25 b with n = 30") {
+        const Material m = GlassFloor(PbrGlass(tint, 0.25f, 0.5f, R"("KHR_materials_transmission": {"transmissionFactor": 1})"));
+        CheckMaterial(m, Vec3(0.f), 0.25f * b, 30.f, Vec3(0.75f), 1.5f, false);
+        CHECK_VEC3(m.mTransmittance, 0.75f * b, 1e-7f);
+        CHECK_VEC3(m.mOpaqueMirror, Vec3(0.f), 0.f);
+    }
+    SECTION("t = 0.6, m = 0.5, r = 0.25: glass 0.3, diffuse 0.2 0.96 b, Phong 0.2 0.04 + 0.5 b with n = 510") {
+        const Material m = GlassFloor(PbrGlass(tint, 0.5f, 0.25f, R"("KHR_materials_transmission": {"transmissionFactor": 0.6})"));
+        CheckMaterial(m, 0.2f * 0.96f * b, Vec3(0.008f) + 0.5f * b, 510.f, Vec3(0.3f), 1.5f, false);
+        CHECK_VEC3(m.mTransmittance, 0.3f * b, 1e-7f);
+    }
+    SECTION("m = 1: a metal, whatever t says (glTF: metals do not transmit)") {
+        const Material m = GlassFloor(PbrGlass(tint, 1.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": 1})"));
+        CheckMaterial(m, Vec3(0.f), Vec3(0.f), 1.f, b, -1.f, false);
+    }
+    SECTION("ior 0 (KHR_materials_ior: F = 1): the glass share is a mirror") {
+        const Material m = GlassFloor(PbrGlass(tint, 0.f, 0.f,
+                                               R"("KHR_materials_transmission": {"transmissionFactor": 0.5}, "KHR_materials_ior": {"ior": 0})"));
+        CheckMaterial(m, 0.48f * b, Vec3(0.f), 1.f, Vec3(0.52f), -1.f, false);
+    }
+    SECTION("doubleSided on partly transmissive glass: one-sided (glass tells inside from outside)") {
+        std::string json = PbrGlass(tint, 0.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": 0.5})");
+        json.insert(1, R"("doubleSided": true, )");
+        CHECK_FALSE(GlassFloor(json).mTwoSided);
+    }
+}
+
+TEST_CASE("What the glass rule does not model is named in the load note; clear glass adds nothing to it", "[gltf][glass]") {
+    GltfLoadReport report;
+    GlassFloor(PbrGlass("1, 1, 1", 0.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": 1})"), &report);
+    CHECK(ApproximatedNote(report).empty());
+    GltfLoadReport rough;
+    const Material m = GlassFloor(PbrGlass("1, 1, 1", 0.f, 0.4f,
+                                           R"("KHR_materials_transmission": {"transmissionFactor": 1, "transmissionTexture": {"index": 0}}, "KHR_materials_volume": {"thicknessFactor": 0.1})"),
+                                  &rough);
+    CHECK(m.mIor == 1.5f);
+    CHECK(IsBlack(m.mPhongReflectance));  // t = 1, m = 0: no opaque share for the roughness to shape
+    const std::string note = ApproximatedNote(rough);
+    CHECK_THAT(note, Catch::Contains("roughnessFactor on transmission (rendered as smooth glass)"));
+    CHECK_THAT(note, Catch::Contains("transmissionTexture (transmissionFactor is used)"));
+    CHECK_THAT(note, Catch::Contains("KHR_materials_volume (no absorption in the volume"));
+}
+
+TEST_CASE("A transmissionFactor outside [0, 1] or not a number, and an ior below 1 other than 0, are one clear error", "[gltf][glass]") {
+    for (const std::string factor : {"-0.1", "1.5", "\"half\"", "1e39"}) {
+        INFO("transmissionFactor " << factor);
+        const std::string error =
+            GlassFloorError(PbrGlass("1, 1, 1", 0.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": )" + factor + "}"));
+        CHECK_THAT(error, Catch::Contains("material 0 'floor': KHR_materials_transmission.transmissionFactor must be a number in [0, 1]"));
+        CHECK(error.find('\n') == std::string::npos);
+    }
+    for (const std::string ior : {"0.5", "-1", "\"glass\""}) {
+        INFO("ior " << ior);
+        const std::string error = GlassFloorError(PbrGlass(
+            "1, 1, 1", 0.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": 1}, "KHR_materials_ior": {"ior": )" + ior + "}"));
+        CHECK_THAT(error, Catch::Contains("material 0 'floor': KHR_materials_ior.ior must be a number >= 1, or 0"));
+    }
+    // An ior on an opaque material is not read (as before): no error.
+    CHECK(GlassFloorError(PbrGlass("1, 1, 1", 0.f, 0.f, R"("KHR_materials_ior": {"ior": 0.5})")).empty());
+}
+
+TEST_CASE("A base-colour texture on glass tints the refraction and the opaque share, never the Fresnel reflection", "[gltf][glass][textures]") {
+    TemporaryFolder folder;
+    Image image(1, 1);
+    image.mPixels = {Vec3(0.5f)};
+    std::string text = ReadText(WriteTexturedFloor(folder, image, 10497, 1.f));
+    text = Replaced(text, R"("roughnessFactor": 1, )", R"("roughnessFactor": 0, )");
+    text = Replaced(text, R"("baseColorTexture": {"index": 0}}}])",
+                    R"("baseColorTexture": {"index": 0}}, "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.5}}}])");
+    std::ofstream(folder / "floor.gltf") << text;
+    GltfLoadReport report;
+    const Scene scene = LoadGltfScene(folder / "floor.gltf", &report);
+    const Material& m = scene.mMaterials.at(0);
+    CHECK(m.mBaseColorTexture >= 0);
+    CHECK(m.mIor == 1.5f);
+    CHECK_VEC3(m.mSpecularUntinted, Vec3(0.02f), 1e-8f);
+    CHECK_VEC3(m.mTransmittance, Vec3(0.25f, 0.5f, 0.5f), 1e-7f);
+    CHECK(ApproximatedNote(report).empty());
+}
