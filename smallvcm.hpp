@@ -8144,6 +8144,8 @@ private:
                         Approximated("transmissionTexture (transmissionFactor is used)");
                 }
                 const float glass = (1.f - metallic) * t;
+                if (t > 0.f && glass == 0.f)  // glTF's metallicFactor defaults to 1: a metal
+                    Approximated("KHR_materials_transmission on a fully metallic material (no glass: metallicFactor is 1; set it to 0 for glass)");
                 const float dielectric = (1.f - metallic) * (1.f - t);  // the opaque dielectric share
                 float ior = 1.5f;
                 if (glass > 0.f) {

@@ -1805,6 +1805,11 @@ TEST_CASE("What the glass rule does not model is named in the load note; clear g
     CHECK_THAT(note, Catch::Contains("roughnessFactor on transmission (rendered as smooth glass)"));
     CHECK_THAT(note, Catch::Contains("transmissionTexture (transmissionFactor is used)"));
     CHECK_THAT(note, Catch::Contains("KHR_materials_volume (no absorption in the volume"));
+    // Transmission on a metal (metallicFactor 1, glTF's default) is no glass: said, not hidden.
+    GltfLoadReport metal;
+    const Material m1 = GlassFloor(PbrGlass("1, 1, 1", 1.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": 1})"), &metal);
+    CHECK(m1.mIor < 0.f);
+    CHECK_THAT(ApproximatedNote(metal), Catch::Contains("KHR_materials_transmission on a fully metallic material"));
 }
 
 TEST_CASE("A transmissionFactor outside [0, 1] or not a number, and an ior below 1 other than 0, are one clear error", "[gltf][glass]") {
