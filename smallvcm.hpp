@@ -995,20 +995,37 @@ struct UvTransform {
 // keep its alpha channel (mAlpha, linear coverage in [0, 1]; glTF: alpha is never
 // sRGB-encoded): only the base colour of a material with a cut-out does (Material::
 // mAlphaTexture), so other textures carry no fourth channel.
+// The texels are held either as linear colours (mTexels) or, as the glTF loader keeps its
+// 8-bit images, as three bytes each (mEncoded) with the linear value of each byte
+// (mDecode): a quarter of the memory, and the same colours, so the same images.
 struct Texture {
     int mWidth = 0, mHeight = 0;
-    std::vector<Vec3> mTexels;  // row by row from the top
+    std::vector<Vec3> mTexels;      // row by row from the top; empty when mEncoded holds them
+    std::vector<uint8_t> mEncoded;  // R, G, B bytes of each texel, in the same order, or empty
+    std::array<float, 256> mDecode{};  // the linear value of each byte of mEncoded
     std::vector<float> mAlpha;  // the same texels' alpha, or empty
     TextureWrap mWrapU = TextureWrap::kRepeat, mWrapV = TextureWrap::kRepeat;
     UvTransform mUvTransform;
 
-    Vec3 Lookup(const Vec2& aTexCoord) const { return Bilinear(mTexels, aTexCoord); }
+    size_t TexelCount() const { return mEncoded.empty() ? mTexels.size() : mEncoded.size() / 3; }
+    Vec3 Texel(size_t aIndex) const {
+        if (mEncoded.empty()) return mTexels[aIndex];
+        const uint8_t* rgb = &mEncoded[3 * aIndex];
+        return Vec3(mDecode[rgb[0]], mDecode[rgb[1]], mDecode[rgb[2]]);
+    }
+    Vec3 Lookup(const Vec2& aTexCoord) const {
+        if (mEncoded.empty()) return Bilinear<Vec3>([&](size_t aIndex) { return mTexels[aIndex]; }, aTexCoord);
+        return Bilinear<Vec3>([&](size_t aIndex) { return Texel(aIndex); }, aTexCoord);
+    }
     // The alpha at aTexCoord, filtered and wrapped like the colour (1 without alpha).
-    float LookupAlpha(const Vec2& aTexCoord) const { return mAlpha.empty() ? 1.f : Bilinear(mAlpha, aTexCoord); }
+    float LookupAlpha(const Vec2& aTexCoord) const {
+        return mAlpha.empty() ? 1.f : Bilinear<float>([&](size_t aIndex) { return mAlpha[aIndex]; }, aTexCoord);
+    }
 
 private:
-    template <typename T>
-    T Bilinear(const std::vector<T>& aTexels, const Vec2& aTexCoord) const {
+    // aTexel(i) is texel i (row by row from the top), a T.
+    template <typename T, typename Fetch>
+    T Bilinear(const Fetch& aTexel, const Vec2& aTexCoord) const {
         const Vec2 uv = mUvTransform.Apply(aTexCoord);
         const float x = Reduce(uv.x, mWrapU) * float(mWidth) - 0.5f;
         const float y = Reduce(uv.y, mWrapV) * float(mHeight) - 0.5f;
@@ -1016,7 +1033,7 @@ private:
         const float tx = x - fx, ty = y - fy;
         const int x0 = int(fx), y0 = int(fy);
         const auto at = [&](int aX, int aY) {
-            return aTexels[size_t(Wrap(aY, mHeight, mWrapV)) * size_t(mWidth) + size_t(Wrap(aX, mWidth, mWrapU))];
+            return aTexel(size_t(Wrap(aY, mHeight, mWrapV)) * size_t(mWidth) + size_t(Wrap(aX, mWidth, mWrapU)));
         };
         return (1.f - ty) * ((1.f - tx) * at(x0, y0) + tx * at(x0 + 1, y0)) +
                ty * ((1.f - tx) * at(x0, y0 + 1) + tx * at(x0 + 1, y0 + 1));
@@ -2182,7 +2199,8 @@ private:
                 throw Error(which + " refers to a missing or empty emission texture");
             light.mEmissionTextureCopy = mTextures[size_t(light.mEmissionTexture)];
             light.mBrightestEmissionTexel = Vec3(0.f);
-            for (const Vec3& texel : light.mEmissionTextureCopy.mTexels) {
+            for (size_t i = 0; i < light.mEmissionTextureCopy.TexelCount(); i++) {
+                const Vec3 texel = light.mEmissionTextureCopy.Texel(i);
                 if (!IsFinite(texel) || texel.x < 0.f || texel.y < 0.f || texel.z < 0.f)
                     throw Error(which + ": its emission texture has a negative or non-finite texel");
                 light.mBrightestEmissionTexel = glm::max(light.mBrightestEmissionTexel, texel);
@@ -2305,7 +2323,8 @@ private:
         if (aTexture < 0 || aTexture >= int(mTextures.size())) return false;
         const Texture& texture = mTextures[size_t(aTexture)];
         const size_t texels = size_t(texture.mWidth) * size_t(texture.mHeight);
-        return texture.mWidth > 0 && texture.mHeight > 0 && texture.mTexels.size() == texels &&
+        return texture.mWidth > 0 && texture.mHeight > 0 && texture.TexelCount() == texels &&
+               (texture.mEncoded.empty() || texture.mTexels.empty()) && texture.mEncoded.size() % 3 == 0 &&
                (texture.mAlpha.empty() || texture.mAlpha.size() == texels);
     }
     void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
@@ -7924,16 +7943,14 @@ private:
         Texture result;
         result.mWidth = image.mWidth;
         result.mHeight = image.mHeight;
-        result.mTexels.resize(size_t(image.mWidth) * size_t(image.mHeight));
-        float toLinear[256];
+        // The bytes as they are, with the linear value of each (Texture::mDecode).
+        result.mEncoded.assign(image.mRgb.begin(), image.mRgb.end());
+        float* toLinear = result.mDecode.data();
         for (int v = 0; v < 256; v++) toLinear[v] = aSrgb ? SrgbToLinear(float(v) / 255.f) : float(v) / 255.f;
-        const unsigned char* rgb = image.mRgb.data();
-        for (size_t i = 0; i < result.mTexels.size(); i++)
-            result.mTexels[i] = Vec3(toLinear[rgb[3 * i]], toLinear[rgb[3 * i + 1]], toLinear[rgb[3 * i + 2]]);
         // Alpha is linear whatever the colour's encoding (glTF 2.0, "Metallic-Roughness
         // Material": the alpha channel is not sRGB-encoded); an image without one is opaque.
         if (aAlpha) {
-            result.mAlpha.assign(result.mTexels.size(), 1.f);
+            result.mAlpha.assign(result.TexelCount(), 1.f);
             for (size_t i = 0; i < image.mAlpha.size(); i++) result.mAlpha[i] = float(image.mAlpha[i]) / 255.f;
         }
         if (texture.sampler >= 0) {
