@@ -7397,6 +7397,7 @@ public:
         if (mModel.scenes.empty()) Fail("the file has no scene");
         if (sceneIndex >= int(mModel.scenes.size())) Fail("the default scene " + std::to_string(sceneIndex) + " does not exist");
         for (int root : mModel.scenes[size_t(sceneIndex)].nodes) VisitNode(root, Mat4(1.0), 0);
+        FinishPrimitiveNotes();
         if (mOptions.mCamera >= 0 && !mHasCamera)
             Fail("camera " + std::to_string(mOptions.mCamera) + " was asked for, but the scene has " + std::to_string(mCameraNodes) +
                  " camera node(s)" + (mCameraNodes > 0 ? " (0.." + std::to_string(mCameraNodes - 1) + ")" : std::string()));
@@ -8370,6 +8371,7 @@ private:
         for (size_t p = 0; p < mesh.primitives.size(); p++) {
             const tinygltf::Primitive& primitive = mesh.primitives[p];
             const std::string what = aWhat + ", mesh " + std::to_string(aMeshIndex) + " primitive " + std::to_string(p);
+            mNotedPrimitive = {aMeshIndex, int(p), flip};
             if (primitive.mode != -1 && primitive.mode != TINYGLTF_MODE_TRIANGLES)
                 Fail(what + ": primitive mode " + std::to_string(primitive.mode) + " is not supported (only TRIANGLES)");
             if (!primitive.targets.empty()) Fail(what + ": morph targets are not supported");
@@ -8462,24 +8464,24 @@ private:
                     if (glm::dot(normals[i0] + normals[i1] + normals[i2], *normal) < 0.f) againstWinding++;
                 }
             }
-            if (againstWinding > 0 && mReport.mNotes.size() < 64)
-                mReport.mNotes.push_back(what + ": NORMAL points against the winding on " + std::to_string(againstWinding) +
-                                         " of " + std::to_string(triangleIds.size()) +
-                                         " triangles (the winding decides the front, as in glTF; shading turns the "
-                                         "normals to it)");
+            if (againstWinding > 0)
+                NotePrimitive(kNoteAgainstWinding, what + ": NORMAL points against the winding on " + std::to_string(againstWinding) +
+                                                       " of " + std::to_string(triangleIds.size()) +
+                                                       " triangles (the winding decides the front, as in glTF; shading turns the "
+                                                       "normals to it)");
             // An emissive primitive instance is one area light over all its triangles.
             if (!IsBlack(mMaterialEmission[size_t(material)]) && !triangleIds.empty())
                 mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)], mMaterialEmitsTwoSided[size_t(material)],
                                     mMaterialEmissionTexture[size_t(material)]);
             // Whether its outside reflects depends on the material: say which.
             const bool twoSided = mScene.mMaterials[size_t(material)].mTwoSided;
-            if (LooksInsideOut(world, indices, flip) && mReport.mNotes.size() < 64)
-                mReport.mNotes.push_back(what + " looks inside-out: a closed mesh with negative volume (its triangles face "
-                                         "inwards; " +
-                                         (twoSided ? std::string("its doubleSided material reflects on both sides, but")
-                                                   : std::string("its material is not doubleSided, so its outside is black; "
-                                                                 "and")) +
-                                         " one-sided emission and glass work inside out)");
+            if (LooksInsideOut(world, indices, flip))
+                NotePrimitive(kNoteInsideOut, what + " looks inside-out: a closed mesh with negative volume (its triangles face "
+                                                     "inwards; " +
+                                                     (twoSided ? std::string("its doubleSided material reflects on both sides, but")
+                                                               : std::string("its material is not doubleSided, so its outside is "
+                                                                             "black; and")) +
+                                                     " one-sided emission and glass work inside out)");
         }
     }
 
@@ -8580,6 +8582,26 @@ private:
         return corners;
     }
 
+    // A note about the primitive being read (mNotedPrimitive), made once per mesh
+    // primitive, kind and handedness of the transform: the other nodes that place the same
+    // mesh add no line of their own, only a count that FinishPrimitiveNotes appends (a
+    // model placed a hundred times would otherwise fill the notes with one problem).
+    enum PrimitiveNoteKind { kNoteAgainstWinding, kNoteInsideOut, kNoteNormalLength };
+    void NotePrimitive(PrimitiveNoteKind aKind, const std::string& aText) {
+        const auto key = std::make_tuple(std::get<0>(mNotedPrimitive), std::get<1>(mNotedPrimitive), std::get<2>(mNotedPrimitive), int(aKind));
+        auto known = mPrimitiveNotes.find(key);
+        if (known != mPrimitiveNotes.end()) { known->second.second++; return; }
+        const bool room = mReport.mNotes.size() < 64;
+        mPrimitiveNotes[key] = {room ? mReport.mNotes.size() : std::string::npos, 0};
+        if (room) mReport.mNotes.push_back(aText);
+    }
+    void FinishPrimitiveNotes() {
+        for (const auto& [key, note] : mPrimitiveNotes)
+            if (note.first != std::string::npos && note.second > 0)
+                mReport.mNotes[note.first] += " (and in " + std::to_string(note.second) + " more placement" +
+                                              (note.second == 1 ? "" : "s") + " of mesh " + std::to_string(std::get<0>(key)) + ")";
+    }
+
     // The vertex normals (NORMAL) of a primitive in world space, or none when it has no
     // NORMAL. glTF: a VEC3 FLOAT accessor with one unit vector per vertex, transformed by
     // the inverse transpose of the node's matrix. A non-finite or zero normal is refused
@@ -8608,9 +8630,9 @@ private:
             const double worldLength = glm::length(w);
             if (worldLength > 0.0 && std::isfinite(worldLength)) world[v] = Vec3(w / worldLength);
         }
-        if (notUnit > 0 && mReport.mNotes.size() < 64)
-            mReport.mNotes.push_back(aWhat + ": NORMAL of " + std::to_string(notUnit) + " of " + std::to_string(aVertexCount) +
-                                     " vertices is not of unit length (glTF requires it): normalised");
+        if (notUnit > 0)
+            NotePrimitive(kNoteNormalLength, aWhat + ": NORMAL of " + std::to_string(notUnit) + " of " + std::to_string(aVertexCount) +
+                                                 " vertices is not of unit length (glTF requires it): normalised");
         return world;
     }
 
@@ -8900,6 +8922,10 @@ private:
     static constexpr size_t kMaxTriangles = size_t(1) << 22;  // ~1 GB of scene and BVH; raise for big meshes
     size_t mTriangleCount = 0;  // triangles read so far, degenerate ones included
     std::set<int> mVisitedNodes;
+    std::tuple<int, int, bool> mNotedPrimitive{-1, -1, false};  // mesh, primitive and mirroring being read
+    // (mesh, primitive, mirroring, PrimitiveNoteKind) -> (its note's index, or npos when the
+    // notes were full; placements after the first)
+    std::map<std::tuple<int, int, bool, int>, std::pair<size_t, size_t>> mPrimitiveNotes;
 };
 
 } // namespace detail

@@ -1000,6 +1000,21 @@ TEST_CASE("A closed mesh wound inwards is noted as inside-out; outward, open and
     }
 }
 
+TEST_CASE("A note about a mesh is made once however many nodes place it, with the count of the others", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    // Three nodes place the inside-out cube (node 0, its child node 1 and node 1's child).
+    const std::string nodes = R"(, {"mesh": 0, "translation": [5, 0, 0], "children": [2]}, {"mesh": 0, "translation": [0, 5, 0]})";
+    const std::string path = WriteTemporary(folder, "three.gltf", MeshGltf(Cube(Vec3(0.f), true), nodes));
+    GltfLoadReport report;
+    LoadGltfScene(path, &report);
+    std::vector<std::string> notes;
+    for (const std::string& note : report.mNotes)
+        if (note.find("looks inside-out") != std::string::npos) notes.push_back(note);
+    REQUIRE(notes.size() == 1);
+    CHECK_THAT(notes[0], Catch::StartsWith("node 0, mesh 0 primitive 0 looks inside-out") &&
+                             Catch::EndsWith("(and in 2 more placements of mesh 0)"));
+}
+
 TEST_CASE("An inside-out mesh reflects outside only with a doubleSided material, and the note says which", "[gltf][shading]") {
     testutil::TemporaryFolder folder;
     for (bool doubleSided : {false, true}) {
