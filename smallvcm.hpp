@@ -6648,6 +6648,7 @@ struct GltfLoadReport {
     int mSkippedDegenerateTriangles = 0;  // zero-area triangles, dropped
     std::string mCamera;                  // which camera: "camera 0 'Name'", or "a default camera ..."
     bool mDefaultCamera = false;          // the file has no camera: one frames the scene
+    bool mInteriorCamera = false;         // ... and, as the scene is an interior, stands inside it
     bool mDefaultBackground = false;      // the file has no emitter: the default sky and sun were added
     std::vector<std::string> mNotes;      // what was approximated, ignored or looks wrong, one line each
     // Where the loading time went (wall clock): reading (the file, its JSON, buffers and
@@ -6666,7 +6667,8 @@ struct GltfLoadOptions {
     uint64_t mMaxTotalBytes = uint64_t(4) << 30; // the scene file and its files together
     // Which camera: the N-th camera node met in the scene's depth-first walk (-1: the first,
     // or, when the file has none, a default camera that frames the scene's bounding box
-    // from the front (+Z) and a little above, for images of mDefaultCameraAspect = W / H).
+    // from the front (+Z) and a little above, or stands inside an interior (one whose
+    // geometry encloses the box's centre), for images of mDefaultCameraAspect = W / H).
     int mCamera = -1;
     float mDefaultCameraAspect = 1.f;
     // The background light: the file's (kFromFile: and, when the file has no emitter at
@@ -8824,7 +8826,11 @@ private:
         mReport.mNotes.push_back(std::string(glowOnly ? "the scene's only lights are emissive textures (glow maps)"
                                                       : "the scene has no light") +
                                  ": added the default sky and sun (a sun from above, behind and left of the camera; "
-                                 "--envmap FILE, --background R,G,B or --background none replace them)");
+                                 "--envmap FILE, --background R,G,B or --background none replace them)" +
+                                 (mReport.mInteriorCamera ? std::string("; the default camera is inside an interior, which "
+                                                                        "they light only through its openings: a closed room "
+                                                                        "renders black, give it lights")
+                                                          : std::string()));
     }
 
     // A scene in which nothing emits renders black with every estimator: refused, with why
@@ -8847,10 +8853,12 @@ private:
              (lights == 0 ? "add lights to the file" : "lights that emit"));
     }
 
-    // A camera for a file without one: it looks at the centre of the bounding box of all
-    // geometry from the front (+Z, glTF's front) and 15 degrees above, with a 40-degree
-    // vertical field of view, just far enough (plus 5%) that all eight corners of the box
-    // lie inside the frame at the image's aspect ratio.
+    // A camera for a file without one. An interior (InteriorView: the geometry encloses the
+    // centre of its bounding box) gets a camera inside it (AddInteriorCamera). Any other
+    // scene gets one that looks at the centre of the bounding box of all geometry from the
+    // front (+Z, glTF's front) and 15 degrees above, with a 40-degree vertical field of
+    // view, just far enough (plus 5%) that all eight corners of the box lie inside the
+    // frame at the image's aspect ratio.
     void AddDefaultCamera() {
         Aabb box;
         for (const Triangle& triangle : mScene.mTriangles) { box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2); }
@@ -8858,6 +8866,7 @@ private:
         if (mScene.mTriangles.empty() && mScene.mSpheres.empty()) Fail("the scene has no geometry");
         const float aspect = mOptions.mDefaultCameraAspect;
         if (!(aspect > 0.f) || !std::isfinite(aspect)) Fail("the default camera's aspect ratio must be a positive number");
+        if (AddInteriorCamera(box, aspect)) return;
         const double pi = 3.14159265358979323846;
         const double tanHalfVertical = std::tan(0.5 * 40.0 * pi / 180.0);
         const double tanHalfHorizontal = tanHalfVertical * double(aspect);
@@ -8881,6 +8890,102 @@ private:
         mScene.mCamera.Setup(position, Vec3(forward), Vec3(0.f, 1.f, 0.f), float(horizontalFov * 180.0 / pi));
         mReport.mDefaultCamera = true;
         mReport.mCamera = "a default camera (the file has none): from the front, 15 degrees above, framing the whole scene";
+    }
+
+    // The first surface each ray (aOrigin, aDirections[i]) meets: its distance (infinity
+    // when none) and whether it shows its front (the glTF winding's side; a sphere's
+    // outside) to the ray. Triangles of a doubleSided material are passed through: they
+    // have no inside (a curtain, a leaf, a sheet of paper) to tell. Every other triangle
+    // and sphere is tested (the BVH is built later, by Scene::Finalize): a handful of rays
+    // costs about what a pass over the geometry does.
+    struct EnclosureHit {
+        float mDistance = std::numeric_limits<float>::infinity();
+        bool mFront = false;
+    };
+    std::vector<EnclosureHit> FirstHits(const Vec3& aOrigin, const std::vector<Vec3>& aDirections) const {
+        std::vector<EnclosureHit> hits(aDirections.size());
+        for (const Triangle& triangle : mScene.mTriangles) {
+            if (mScene.mMaterials[size_t(triangle.mMaterialId)].mTwoSided) continue;
+            const Vec3 e1 = triangle.mP1 - triangle.mP0, e2 = triangle.mP2 - triangle.mP0, s = aOrigin - triangle.mP0;
+            const Vec3 q = glm::cross(s, e1);
+            for (size_t r = 0; r < aDirections.size(); r++) {
+                // Moeller-Trumbore; det > 0 where the ray meets the front (cross(e1, e2) faces it).
+                const Vec3 p = glm::cross(aDirections[r], e2);
+                const float det = glm::dot(e1, p);
+                if (det == 0.f) continue;
+                const float inverse = 1.f / det, u = glm::dot(s, p) * inverse;
+                if (u < 0.f || u > 1.f) continue;
+                const float v = glm::dot(aDirections[r], q) * inverse;
+                if (v < 0.f || u + v > 1.f) continue;
+                const float t = glm::dot(e2, q) * inverse;
+                if (t > 0.f && t < hits[r].mDistance) hits[r] = {t, det > 0.f};
+            }
+        }
+        for (const Sphere& sphere : mScene.mSpheres) {
+            const Vec3 toOrigin = aOrigin - sphere.mCenter;
+            const float c = glm::dot(toOrigin, toOrigin) - sphere.mRadius * sphere.mRadius;
+            for (size_t r = 0; r < aDirections.size(); r++) {
+                const float b = glm::dot(toOrigin, aDirections[r]), discriminant = b * b - c;
+                if (discriminant < 0.f) continue;
+                const float root = std::sqrt(discriminant);
+                const float t = c > 0.f ? -b - root : -b + root;  // outside: the near side; inside: the far one
+                if (t > 0.f && t < hits[r].mDistance) hits[r] = {t, c > 0.f};
+            }
+        }
+        return hits;
+    }
+
+    // The directions of the enclosure test: eight horizontal ones, every 45 degrees from
+    // +X (so +Z is the third), and straight down last.
+    static std::vector<Vec3> EnclosureDirections() {
+        std::vector<Vec3> directions;
+        const float diagonal = 0.70710678f;
+        for (const Vec3& d : {Vec3(1.f, 0.f, 0.f), Vec3(diagonal, 0.f, diagonal), Vec3(0.f, 0.f, 1.f), Vec3(-diagonal, 0.f, diagonal),
+                              Vec3(-1.f, 0.f, 0.f), Vec3(-diagonal, 0.f, -diagonal), Vec3(0.f, 0.f, -1.f), Vec3(diagonal, 0.f, -diagonal),
+                              Vec3(0.f, -1.f, 0.f)})
+            directions.push_back(d);
+        return directions;
+    }
+    // The enclosure test of a point: the first surface in each EnclosureDirections
+    // direction is a front face, not closer than aClearance. Up is not asked: an atrium or
+    // a courtyard may be open to the sky. Returns the hits, in that order, or none.
+    std::optional<std::vector<EnclosureHit>> Enclosed(const Vec3& aPoint, float aClearance) const {
+        std::vector<EnclosureHit> hits = FirstHits(aPoint, EnclosureDirections());
+        for (const EnclosureHit& hit : hits)
+            if (!hit.mFront || !(hit.mDistance > aClearance)) return std::nullopt;
+        return hits;
+    }
+
+    // The default camera of an interior: a scene whose geometry encloses the centre of its
+    // bounding box (Enclosed: front faces all around it and below it) gets a camera inside,
+    // not one that would show the outside of a wall. The camera looks level along the
+    // longer horizontal axis of the box (-Z when it is the longer or they are equal, else
+    // -X), with a 60-degree vertical field of view, from the first of these points that is
+    // enclosed too: back from the centre by 60% of the way to the surface behind it and
+    // down by half the way to the floor below it (about eye height in a room); only down;
+    // the centre itself. False, and no camera, when the centre is not enclosed.
+    bool AddInteriorCamera(const Aabb& aBox, float aAspect) {
+        const Vec3 center = aBox.Centroid();
+        const float clearance = 1e-3f * glm::length(aBox.mMax - aBox.mMin);
+        const std::optional<std::vector<EnclosureHit>> around = Enclosed(center, clearance);
+        if (!around) return false;
+        const Vec3 extent = aBox.mMax - aBox.mMin;
+        const bool alongZ = extent.z >= extent.x;
+        const Vec3 forward = alongZ ? Vec3(0.f, 0.f, -1.f) : Vec3(-1.f, 0.f, 0.f);
+        const float behind = (*around)[alongZ ? 2 : 0].mDistance;  // EnclosureDirections: +Z is 2, +X is 0
+        const float below = (*around)[8].mDistance;
+        Vec3 position = center;
+        for (const Vec3& candidate : {center - 0.6f * behind * forward - Vec3(0.f, 0.5f * below, 0.f),
+                                      center - Vec3(0.f, 0.5f * below, 0.f)})
+            if (Enclosed(candidate, clearance)) { position = candidate; break; }
+        const double pi = 3.14159265358979323846;
+        const double tanHalfHorizontal = std::tan(0.5 * 60.0 * pi / 180.0) * double(aAspect);
+        mScene.mCamera.Setup(position, forward, Vec3(0.f, 1.f, 0.f), float(2.0 * std::atan(tanHalfHorizontal) * 180.0 / pi));
+        mReport.mDefaultCamera = true;
+        mReport.mInteriorCamera = true;
+        mReport.mCamera = std::string("a default camera (the file has none): inside, as the geometry encloses the centre of its "
+                                      "bounding box (an interior), looking along ") + (alongZ ? "-Z" : "-X");
+        return true;
     }
 
     std::string mPath;
