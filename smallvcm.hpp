@@ -8983,6 +8983,10 @@ private:
         mScene.mCamera.Setup(position, forward, Vec3(0.f, 1.f, 0.f), float(2.0 * std::atan(tanHalfHorizontal) * 180.0 / pi));
         mReport.mDefaultCamera = true;
         mReport.mInteriorCamera = true;
+        // A room's shell is a closed mesh wound inwards: its inside-out note is then no warning.
+        for (std::string& note : mReport.mNotes)
+            if (note.find(" looks inside-out: ") != std::string::npos)
+                note += " -- the default camera stands inside: for the shell of an interior, facing inwards is right";
         mReport.mCamera = std::string("a default camera (the file has none): inside, as the geometry encloses the centre of its "
                                       "bounding box (an interior), looking along ") + (alongZ ? "-Z" : "-X");
         return true;

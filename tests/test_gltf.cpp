@@ -772,9 +772,15 @@ TEST_CASE("A file without a camera whose geometry encloses its centre gets a cam
         CHECK(tableHits > 0);
         // The room has no light: the default sky and sun, and the note says they reach an
         // interior only through its openings.
-        bool noted = false;
-        for (const std::string& note : report.mNotes) noted = noted || note.find("inside an interior") != std::string::npos;
+        bool noted = false, shellNoted = false;
+        for (const std::string& note : report.mNotes) {
+            noted = noted || note.find("inside an interior") != std::string::npos;
+            // The room is a closed mesh wound inwards (only when closed): its note says why.
+            shellNoted = shellNoted || (note.find("looks inside-out") != std::string::npos &&
+                                        note.find("for the shell of an interior, facing inwards is right") != std::string::npos);
+        }
         CHECK(noted);
+        CHECK(shellNoted != openTop);
     }
 }
 
