@@ -48,7 +48,7 @@ IMPL_OBJ := $(BUILD)/smallvcm_impl.o
 TEST_SRC := $(filter-out tests/catch_main.cpp,$(wildcard tests/*.cpp))
 TEST_OBJ := $(patsubst tests/%.cpp,$(BUILD)/tests/%.o,$(TEST_SRC))
 
-.PHONY: all deps demo model-image envmap-image test unit check fuzz convergence bench bench-embree figures clean exercise grade compare student-figures
+.PHONY: all deps demo model-image envmap-image test unit check fuzz convergence bench bench-embree bench-large figures clean exercise grade compare student-figures
 
 all: $(BUILD)/smallvcm $(BUILD)/minimal $(BUILD)/my_path_tracer $(BUILD)/convergence $(BUILD)/bench $(BUILD)/tests/run_tests
 
@@ -263,6 +263,15 @@ bench: deps $(BUILD)/bench
 	$(BUILD)/bench --repeat 2 --markdown docs/performance/bench.md --csv docs/performance/bench
 	/usr/bin/python3 benchmarks/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
 	$(COMPACT_PNG) docs/performance
+
+# make bench-large ASSETS=DIR: the large benchmark scene (benchmarks/large_scene.py: a closed
+# atrium hall furnished with real models that stay outside the repository) loaded and
+# rendered with the defaults, pt and vcm on 1 and 2 threads, 3 rounds (ROUNDS=N); about 3
+# minutes. Without the models in DIR it says where to get them (benchmarks/README.md) and
+# does nothing else.
+ROUNDS ?= 3
+bench-large: deps $(BUILD)/smallvcm
+	benchmarks/large_scene.sh "$(ASSETS)" $(ROUNDS)
 
 # make bench-embree: smallvcm's BVH beside Embree 3 (Debian's libembree-dev, installed if
 # missing; a benchmark-only dependency the header never includes) on generated meshes and

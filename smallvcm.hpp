@@ -998,20 +998,37 @@ struct UvTransform {
 // keep its alpha channel (mAlpha, linear coverage in [0, 1]; glTF: alpha is never
 // sRGB-encoded): only the base colour of a material with a cut-out does (Material::
 // mAlphaTexture), so other textures carry no fourth channel.
+// The texels are held either as linear colours (mTexels) or, as the glTF loader keeps its
+// 8-bit images, as three bytes each (mEncoded) with the linear value of each byte
+// (mDecode): a quarter of the memory, and the same colours, so the same images.
 struct Texture {
     int mWidth = 0, mHeight = 0;
-    std::vector<Vec3> mTexels;  // row by row from the top
+    std::vector<Vec3> mTexels;      // row by row from the top; empty when mEncoded holds them
+    std::vector<uint8_t> mEncoded;  // R, G, B bytes of each texel, in the same order, or empty
+    std::array<float, 256> mDecode{};  // the linear value of each byte of mEncoded
     std::vector<float> mAlpha;  // the same texels' alpha, or empty
     TextureWrap mWrapU = TextureWrap::kRepeat, mWrapV = TextureWrap::kRepeat;
     UvTransform mUvTransform;
 
-    Vec3 Lookup(const Vec2& aTexCoord) const { return Bilinear(mTexels, aTexCoord); }
+    size_t TexelCount() const { return mEncoded.empty() ? mTexels.size() : mEncoded.size() / 3; }
+    Vec3 Texel(size_t aIndex) const {
+        if (mEncoded.empty()) return mTexels[aIndex];
+        const uint8_t* rgb = &mEncoded[3 * aIndex];
+        return Vec3(mDecode[rgb[0]], mDecode[rgb[1]], mDecode[rgb[2]]);
+    }
+    Vec3 Lookup(const Vec2& aTexCoord) const {
+        if (mEncoded.empty()) return Bilinear<Vec3>([&](size_t aIndex) { return mTexels[aIndex]; }, aTexCoord);
+        return Bilinear<Vec3>([&](size_t aIndex) { return Texel(aIndex); }, aTexCoord);
+    }
     // The alpha at aTexCoord, filtered and wrapped like the colour (1 without alpha).
-    float LookupAlpha(const Vec2& aTexCoord) const { return mAlpha.empty() ? 1.f : Bilinear(mAlpha, aTexCoord); }
+    float LookupAlpha(const Vec2& aTexCoord) const {
+        return mAlpha.empty() ? 1.f : Bilinear<float>([&](size_t aIndex) { return mAlpha[aIndex]; }, aTexCoord);
+    }
 
 private:
-    template <typename T>
-    T Bilinear(const std::vector<T>& aTexels, const Vec2& aTexCoord) const {
+    // aTexel(i) is texel i (row by row from the top), a T.
+    template <typename T, typename Fetch>
+    T Bilinear(const Fetch& aTexel, const Vec2& aTexCoord) const {
         const Vec2 uv = mUvTransform.Apply(aTexCoord);
         const float x = Reduce(uv.x, mWrapU) * float(mWidth) - 0.5f;
         const float y = Reduce(uv.y, mWrapV) * float(mHeight) - 0.5f;
@@ -1019,7 +1036,7 @@ private:
         const float tx = x - fx, ty = y - fy;
         const int x0 = int(fx), y0 = int(fy);
         const auto at = [&](int aX, int aY) {
-            return aTexels[size_t(Wrap(aY, mHeight, mWrapV)) * size_t(mWidth) + size_t(Wrap(aX, mWidth, mWrapU))];
+            return aTexel(size_t(Wrap(aY, mHeight, mWrapV)) * size_t(mWidth) + size_t(Wrap(aX, mWidth, mWrapU)));
         };
         return (1.f - ty) * ((1.f - tx) * at(x0, y0) + tx * at(x0 + 1, y0)) +
                ty * ((1.f - tx) * at(x0, y0 + 1) + tx * at(x0 + 1, y0 + 1));
@@ -2195,7 +2212,8 @@ private:
                 throw Error(which + " refers to a missing or empty emission texture");
             light.mEmissionTextureCopy = mTextures[size_t(light.mEmissionTexture)];
             light.mBrightestEmissionTexel = Vec3(0.f);
-            for (const Vec3& texel : light.mEmissionTextureCopy.mTexels) {
+            for (size_t i = 0; i < light.mEmissionTextureCopy.TexelCount(); i++) {
+                const Vec3 texel = light.mEmissionTextureCopy.Texel(i);
                 if (!IsFinite(texel) || texel.x < 0.f || texel.y < 0.f || texel.z < 0.f)
                     throw Error(which + ": its emission texture has a negative or non-finite texel");
                 light.mBrightestEmissionTexel = glm::max(light.mBrightestEmissionTexel, texel);
@@ -2318,7 +2336,8 @@ private:
         if (aTexture < 0 || aTexture >= int(mTextures.size())) return false;
         const Texture& texture = mTextures[size_t(aTexture)];
         const size_t texels = size_t(texture.mWidth) * size_t(texture.mHeight);
-        return texture.mWidth > 0 && texture.mHeight > 0 && texture.mTexels.size() == texels &&
+        return texture.mWidth > 0 && texture.mHeight > 0 && texture.TexelCount() == texels &&
+               (texture.mEncoded.empty() || texture.mTexels.empty()) && texture.mEncoded.size() % 3 == 0 &&
                (texture.mAlpha.empty() || texture.mAlpha.size() == texels);
     }
     void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
@@ -6667,6 +6686,7 @@ struct GltfLoadReport {
     int mSkippedDegenerateTriangles = 0;  // zero-area triangles, dropped
     std::string mCamera;                  // which camera: "camera 0 'Name'", or "a default camera ..."
     bool mDefaultCamera = false;          // the file has no camera: one frames the scene
+    bool mInteriorCamera = false;         // ... and, as the scene is an interior, stands inside it
     bool mDefaultBackground = false;      // the file has no emitter: the default sky and sun were added
     std::vector<std::string> mNotes;      // what was approximated, ignored or looks wrong, one line each
     // Where the loading time went (wall clock): reading (the file, its JSON, buffers and
@@ -6685,7 +6705,8 @@ struct GltfLoadOptions {
     uint64_t mMaxTotalBytes = uint64_t(4) << 30; // the scene file and its files together
     // Which camera: the N-th camera node met in the scene's depth-first walk (-1: the first,
     // or, when the file has none, a default camera that frames the scene's bounding box
-    // from the front (+Z) and a little above, for images of mDefaultCameraAspect = W / H).
+    // from the front (+Z) and a little above, or stands inside an interior (one whose
+    // geometry encloses the box's centre), for images of mDefaultCameraAspect = W / H).
     int mCamera = -1;
     float mDefaultCameraAspect = 1.f;
     // The background light: the file's (kFromFile: and, when the file has no emitter at
@@ -7416,6 +7437,7 @@ public:
         if (mModel.scenes.empty()) Fail("the file has no scene");
         if (sceneIndex >= int(mModel.scenes.size())) Fail("the default scene " + std::to_string(sceneIndex) + " does not exist");
         for (int root : mModel.scenes[size_t(sceneIndex)].nodes) VisitNode(root, Mat4(1.0), 0);
+        FinishPrimitiveNotes();
         if (mOptions.mCamera >= 0 && !mHasCamera)
             Fail("camera " + std::to_string(mOptions.mCamera) + " was asked for, but the scene has " + std::to_string(mCameraNodes) +
                  " camera node(s)" + (mCameraNodes > 0 ? " (0.." + std::to_string(mCameraNodes - 1) + ")" : std::string()));
@@ -7962,16 +7984,14 @@ private:
         Texture result;
         result.mWidth = image.mWidth;
         result.mHeight = image.mHeight;
-        result.mTexels.resize(size_t(image.mWidth) * size_t(image.mHeight));
-        float toLinear[256];
+        // The bytes as they are, with the linear value of each (Texture::mDecode).
+        result.mEncoded.assign(image.mRgb.begin(), image.mRgb.end());
+        float* toLinear = result.mDecode.data();
         for (int v = 0; v < 256; v++) toLinear[v] = aSrgb ? SrgbToLinear(float(v) / 255.f) : float(v) / 255.f;
-        const unsigned char* rgb = image.mRgb.data();
-        for (size_t i = 0; i < result.mTexels.size(); i++)
-            result.mTexels[i] = Vec3(toLinear[rgb[3 * i]], toLinear[rgb[3 * i + 1]], toLinear[rgb[3 * i + 2]]);
         // Alpha is linear whatever the colour's encoding (glTF 2.0, "Metallic-Roughness
         // Material": the alpha channel is not sRGB-encoded); an image without one is opaque.
         if (aAlpha) {
-            result.mAlpha.assign(result.mTexels.size(), 1.f);
+            result.mAlpha.assign(result.TexelCount(), 1.f);
             for (size_t i = 0; i < image.mAlpha.size(); i++) result.mAlpha[i] = float(image.mAlpha[i]) / 255.f;
         }
         if (texture.sampler >= 0) {
@@ -8421,6 +8441,7 @@ private:
         for (size_t p = 0; p < mesh.primitives.size(); p++) {
             const tinygltf::Primitive& primitive = mesh.primitives[p];
             const std::string what = aWhat + ", mesh " + std::to_string(aMeshIndex) + " primitive " + std::to_string(p);
+            mNotedPrimitive = {aMeshIndex, int(p), flip};
             if (primitive.mode != -1 && primitive.mode != TINYGLTF_MODE_TRIANGLES)
                 Fail(what + ": primitive mode " + std::to_string(primitive.mode) + " is not supported (only TRIANGLES)");
             if (!primitive.targets.empty()) Fail(what + ": morph targets are not supported");
@@ -8513,24 +8534,24 @@ private:
                     if (glm::dot(normals[i0] + normals[i1] + normals[i2], *normal) < 0.f) againstWinding++;
                 }
             }
-            if (againstWinding > 0 && mReport.mNotes.size() < 64)
-                mReport.mNotes.push_back(what + ": NORMAL points against the winding on " + std::to_string(againstWinding) +
-                                         " of " + std::to_string(triangleIds.size()) +
-                                         " triangles (the winding decides the front, as in glTF; shading turns the "
-                                         "normals to it)");
+            if (againstWinding > 0)
+                NotePrimitive(kNoteAgainstWinding, what + ": NORMAL points against the winding on " + std::to_string(againstWinding) +
+                                                       " of " + std::to_string(triangleIds.size()) +
+                                                       " triangles (the winding decides the front, as in glTF; shading turns the "
+                                                       "normals to it)");
             // An emissive primitive instance is one area light over all its triangles.
             if (!IsBlack(mMaterialEmission[size_t(material)]) && !triangleIds.empty())
                 mScene.AddAreaLight(triangleIds, mMaterialEmission[size_t(material)], mMaterialEmitsTwoSided[size_t(material)],
                                     mMaterialEmissionTexture[size_t(material)]);
             // Whether its outside reflects depends on the material: say which.
             const bool twoSided = mScene.mMaterials[size_t(material)].mTwoSided;
-            if (LooksInsideOut(world, indices, flip) && mReport.mNotes.size() < 64)
-                mReport.mNotes.push_back(what + " looks inside-out: a closed mesh with negative volume (its triangles face "
-                                         "inwards; " +
-                                         (twoSided ? std::string("its doubleSided material reflects on both sides, but")
-                                                   : std::string("its material is not doubleSided, so its outside is black; "
-                                                                 "and")) +
-                                         " one-sided emission and glass work inside out)");
+            if (LooksInsideOut(world, indices, flip))
+                NotePrimitive(kNoteInsideOut, what + " looks inside-out: a closed mesh with negative volume (its triangles face "
+                                                     "inwards; " +
+                                                     (twoSided ? std::string("its doubleSided material reflects on both sides, but")
+                                                               : std::string("its material is not doubleSided, so its outside is "
+                                                                             "black; and")) +
+                                                     " one-sided emission and glass work inside out)");
         }
     }
 
@@ -8631,6 +8652,26 @@ private:
         return corners;
     }
 
+    // A note about the primitive being read (mNotedPrimitive), made once per mesh
+    // primitive, kind and handedness of the transform: the other nodes that place the same
+    // mesh add no line of their own, only a count that FinishPrimitiveNotes appends (a
+    // model placed a hundred times would otherwise fill the notes with one problem).
+    enum PrimitiveNoteKind { kNoteAgainstWinding, kNoteInsideOut, kNoteNormalLength };
+    void NotePrimitive(PrimitiveNoteKind aKind, const std::string& aText) {
+        const auto key = std::make_tuple(std::get<0>(mNotedPrimitive), std::get<1>(mNotedPrimitive), std::get<2>(mNotedPrimitive), int(aKind));
+        auto known = mPrimitiveNotes.find(key);
+        if (known != mPrimitiveNotes.end()) { known->second.second++; return; }
+        const bool room = mReport.mNotes.size() < 64;
+        mPrimitiveNotes[key] = {room ? mReport.mNotes.size() : std::string::npos, 0};
+        if (room) mReport.mNotes.push_back(aText);
+    }
+    void FinishPrimitiveNotes() {
+        for (const auto& [key, note] : mPrimitiveNotes)
+            if (note.first != std::string::npos && note.second > 0)
+                mReport.mNotes[note.first] += " (and in " + std::to_string(note.second) + " more placement" +
+                                              (note.second == 1 ? "" : "s") + " of mesh " + std::to_string(std::get<0>(key)) + ")";
+    }
+
     // The vertex normals (NORMAL) of a primitive in world space, or none when it has no
     // NORMAL. glTF: a VEC3 FLOAT accessor with one unit vector per vertex, transformed by
     // the inverse transpose of the node's matrix. A non-finite or zero normal is refused
@@ -8659,9 +8700,9 @@ private:
             const double worldLength = glm::length(w);
             if (worldLength > 0.0 && std::isfinite(worldLength)) world[v] = Vec3(w / worldLength);
         }
-        if (notUnit > 0 && mReport.mNotes.size() < 64)
-            mReport.mNotes.push_back(aWhat + ": NORMAL of " + std::to_string(notUnit) + " of " + std::to_string(aVertexCount) +
-                                     " vertices is not of unit length (glTF requires it): normalised");
+        if (notUnit > 0)
+            NotePrimitive(kNoteNormalLength, aWhat + ": NORMAL of " + std::to_string(notUnit) + " of " + std::to_string(aVertexCount) +
+                                                 " vertices is not of unit length (glTF requires it): normalised");
         return world;
     }
 
@@ -8853,7 +8894,11 @@ private:
         mReport.mNotes.push_back(std::string(glowOnly ? "the scene's only lights are emissive textures (glow maps)"
                                                       : "the scene has no light") +
                                  ": added the default sky and sun (a sun from above, behind and left of the camera; "
-                                 "--envmap FILE, --background R,G,B or --background none replace them)");
+                                 "--envmap FILE, --background R,G,B or --background none replace them)" +
+                                 (mReport.mInteriorCamera ? std::string("; the default camera is inside an interior, which "
+                                                                        "they light only through its openings: a closed room "
+                                                                        "renders black, give it lights")
+                                                          : std::string()));
     }
 
     // A scene in which nothing emits renders black with every estimator: refused, with why
@@ -8876,10 +8921,12 @@ private:
              (lights == 0 ? "add lights to the file" : "lights that emit"));
     }
 
-    // A camera for a file without one: it looks at the centre of the bounding box of all
-    // geometry from the front (+Z, glTF's front) and 15 degrees above, with a 40-degree
-    // vertical field of view, just far enough (plus 5%) that all eight corners of the box
-    // lie inside the frame at the image's aspect ratio.
+    // A camera for a file without one. An interior (InteriorView: the geometry encloses the
+    // centre of its bounding box) gets a camera inside it (AddInteriorCamera). Any other
+    // scene gets one that looks at the centre of the bounding box of all geometry from the
+    // front (+Z, glTF's front) and 15 degrees above, with a 40-degree vertical field of
+    // view, just far enough (plus 5%) that all eight corners of the box lie inside the
+    // frame at the image's aspect ratio.
     void AddDefaultCamera() {
         Aabb box;
         for (const Triangle& triangle : mScene.mTriangles) { box.Extend(triangle.mP0); box.Extend(triangle.mP1); box.Extend(triangle.mP2); }
@@ -8887,6 +8934,7 @@ private:
         if (mScene.mTriangles.empty() && mScene.mSpheres.empty()) Fail("the scene has no geometry");
         const float aspect = mOptions.mDefaultCameraAspect;
         if (!(aspect > 0.f) || !std::isfinite(aspect)) Fail("the default camera's aspect ratio must be a positive number");
+        if (AddInteriorCamera(box, aspect)) return;
         const double pi = 3.14159265358979323846;
         const double tanHalfVertical = std::tan(0.5 * 40.0 * pi / 180.0);
         const double tanHalfHorizontal = tanHalfVertical * double(aspect);
@@ -8910,6 +8958,106 @@ private:
         mScene.mCamera.Setup(position, Vec3(forward), Vec3(0.f, 1.f, 0.f), float(horizontalFov * 180.0 / pi));
         mReport.mDefaultCamera = true;
         mReport.mCamera = "a default camera (the file has none): from the front, 15 degrees above, framing the whole scene";
+    }
+
+    // The first surface each ray (aOrigin, aDirections[i]) meets: its distance (infinity
+    // when none) and whether it shows its front (the glTF winding's side; a sphere's
+    // outside) to the ray. Triangles of a doubleSided material are passed through: they
+    // have no inside (a curtain, a leaf, a sheet of paper) to tell. Every other triangle
+    // and sphere is tested (the BVH is built later, by Scene::Finalize): a handful of rays
+    // costs about what a pass over the geometry does.
+    struct EnclosureHit {
+        float mDistance = std::numeric_limits<float>::infinity();
+        bool mFront = false;
+    };
+    std::vector<EnclosureHit> FirstHits(const Vec3& aOrigin, const std::vector<Vec3>& aDirections) const {
+        std::vector<EnclosureHit> hits(aDirections.size());
+        for (const Triangle& triangle : mScene.mTriangles) {
+            if (mScene.mMaterials[size_t(triangle.mMaterialId)].mTwoSided) continue;
+            const Vec3 e1 = triangle.mP1 - triangle.mP0, e2 = triangle.mP2 - triangle.mP0, s = aOrigin - triangle.mP0;
+            const Vec3 q = glm::cross(s, e1);
+            for (size_t r = 0; r < aDirections.size(); r++) {
+                // Moeller-Trumbore; det > 0 where the ray meets the front (cross(e1, e2) faces it).
+                const Vec3 p = glm::cross(aDirections[r], e2);
+                const float det = glm::dot(e1, p);
+                if (det == 0.f) continue;
+                const float inverse = 1.f / det, u = glm::dot(s, p) * inverse;
+                if (u < 0.f || u > 1.f) continue;
+                const float v = glm::dot(aDirections[r], q) * inverse;
+                if (v < 0.f || u + v > 1.f) continue;
+                const float t = glm::dot(e2, q) * inverse;
+                if (t > 0.f && t < hits[r].mDistance) hits[r] = {t, det > 0.f};
+            }
+        }
+        for (const Sphere& sphere : mScene.mSpheres) {
+            const Vec3 toOrigin = aOrigin - sphere.mCenter;
+            const float c = glm::dot(toOrigin, toOrigin) - sphere.mRadius * sphere.mRadius;
+            for (size_t r = 0; r < aDirections.size(); r++) {
+                const float b = glm::dot(toOrigin, aDirections[r]), discriminant = b * b - c;
+                if (discriminant < 0.f) continue;
+                const float root = std::sqrt(discriminant);
+                const float t = c > 0.f ? -b - root : -b + root;  // outside: the near side; inside: the far one
+                if (t > 0.f && t < hits[r].mDistance) hits[r] = {t, c > 0.f};
+            }
+        }
+        return hits;
+    }
+
+    // The directions of the enclosure test: eight horizontal ones, every 45 degrees from
+    // +X (so +Z is the third), and straight down last.
+    static std::vector<Vec3> EnclosureDirections() {
+        std::vector<Vec3> directions;
+        const float diagonal = 0.70710678f;
+        for (const Vec3& d : {Vec3(1.f, 0.f, 0.f), Vec3(diagonal, 0.f, diagonal), Vec3(0.f, 0.f, 1.f), Vec3(-diagonal, 0.f, diagonal),
+                              Vec3(-1.f, 0.f, 0.f), Vec3(-diagonal, 0.f, -diagonal), Vec3(0.f, 0.f, -1.f), Vec3(diagonal, 0.f, -diagonal),
+                              Vec3(0.f, -1.f, 0.f)})
+            directions.push_back(d);
+        return directions;
+    }
+    // The enclosure test of a point: the first surface in each EnclosureDirections
+    // direction is a front face, not closer than aClearance. Up is not asked: an atrium or
+    // a courtyard may be open to the sky. Returns the hits, in that order, or none.
+    std::optional<std::vector<EnclosureHit>> Enclosed(const Vec3& aPoint, float aClearance) const {
+        std::vector<EnclosureHit> hits = FirstHits(aPoint, EnclosureDirections());
+        for (const EnclosureHit& hit : hits)
+            if (!hit.mFront || !(hit.mDistance > aClearance)) return std::nullopt;
+        return hits;
+    }
+
+    // The default camera of an interior: a scene whose geometry encloses the centre of its
+    // bounding box (Enclosed: front faces all around it and below it) gets a camera inside,
+    // not one that would show the outside of a wall. The camera looks level along the
+    // longer horizontal axis of the box (-Z when it is the longer or they are equal, else
+    // -X), with a 60-degree vertical field of view, from the first of these points that is
+    // enclosed too: back from the centre by 60% of the way to the surface behind it and
+    // down by half the way to the floor below it (about eye height in a room); only down;
+    // the centre itself. False, and no camera, when the centre is not enclosed.
+    bool AddInteriorCamera(const Aabb& aBox, float aAspect) {
+        const Vec3 center = aBox.Centroid();
+        const float clearance = 1e-3f * glm::length(aBox.mMax - aBox.mMin);
+        const std::optional<std::vector<EnclosureHit>> around = Enclosed(center, clearance);
+        if (!around) return false;
+        const Vec3 extent = aBox.mMax - aBox.mMin;
+        const bool alongZ = extent.z >= extent.x;
+        const Vec3 forward = alongZ ? Vec3(0.f, 0.f, -1.f) : Vec3(-1.f, 0.f, 0.f);
+        const float behind = (*around)[alongZ ? 2 : 0].mDistance;  // EnclosureDirections: +Z is 2, +X is 0
+        const float below = (*around)[8].mDistance;
+        Vec3 position = center;
+        for (const Vec3& candidate : {center - 0.6f * behind * forward - Vec3(0.f, 0.5f * below, 0.f),
+                                      center - Vec3(0.f, 0.5f * below, 0.f)})
+            if (Enclosed(candidate, clearance)) { position = candidate; break; }
+        const double pi = 3.14159265358979323846;
+        const double tanHalfHorizontal = std::tan(0.5 * 60.0 * pi / 180.0) * double(aAspect);
+        mScene.mCamera.Setup(position, forward, Vec3(0.f, 1.f, 0.f), float(2.0 * std::atan(tanHalfHorizontal) * 180.0 / pi));
+        mReport.mDefaultCamera = true;
+        mReport.mInteriorCamera = true;
+        // A room's shell is a closed mesh wound inwards: its inside-out note is then no warning.
+        for (std::string& note : mReport.mNotes)
+            if (note.find(" looks inside-out: ") != std::string::npos)
+                note += " -- the default camera stands inside: for the shell of an interior, facing inwards is right";
+        mReport.mCamera = std::string("a default camera (the file has none): inside, as the geometry encloses the centre of its "
+                                      "bounding box (an interior), looking along ") + (alongZ ? "-Z" : "-X");
+        return true;
     }
 
     std::string mPath;
@@ -8951,6 +9099,10 @@ private:
     static constexpr size_t kMaxTriangles = size_t(1) << 22;  // ~1 GB of scene and BVH; raise for big meshes
     size_t mTriangleCount = 0;  // triangles read so far, degenerate ones included
     std::set<int> mVisitedNodes;
+    std::tuple<int, int, bool> mNotedPrimitive{-1, -1, false};  // mesh, primitive and mirroring being read
+    // (mesh, primitive, mirroring, PrimitiveNoteKind) -> (its note's index, or npos when the
+    // notes were full; placements after the first)
+    std::map<std::tuple<int, int, bool, int>, std::pair<size_t, size_t>> mPrimitiveNotes;
 };
 
 } // namespace detail

@@ -380,6 +380,28 @@ MUTANTS = [
          find="if (!(t >= 0.f && t <= 1.f))",
          replace="if (!(t >= 0.f))",
          impl=True),
+    # --- default camera of an interior (glTF loader) --------------------------------------------
+    dict(id="M116", cls="camera", what="interior test takes any surface around the centre, front or back, as enclosing it",
+         find="if (!hit.mFront || !(hit.mDistance > aClearance)) return std::nullopt;",
+         replace="if (!(hit.mDistance > aClearance)) return std::nullopt;",
+         impl=True),
+    dict(id="M117", cls="camera", what="interior test stops at doubleSided sheets (a curtain's back hides the room)",
+         find="if (mScene.mMaterials[size_t(triangle.mMaterialId)].mTwoSided) continue;",
+         replace="if (false) continue;",
+         impl=True),
+    dict(id="M118", cls="camera", what="interior camera stays at the centre of the box (not moved back and down to eye height)",
+         find="if (Enclosed(candidate, clearance)) { position = candidate; break; }",
+         replace="if (false) { position = candidate; break; }",
+         impl=True),
+    dict(id="M119", cls="camera", what="interior camera looks along the shorter horizontal axis",
+         find="const bool alongZ = extent.z >= extent.x;",
+         replace="const bool alongZ = extent.z <= extent.x;",
+         impl=True),
+    # --- textures -----------------------------------------------------------------------------
+    dict(id="M120", cls="textures", what="an 8-bit texel's green decoded from its red byte",
+         find="return Vec3(mDecode[rgb[0]], mDecode[rgb[1]], mDecode[rgb[2]]);",
+         replace="return Vec3(mDecode[rgb[0]], mDecode[rgb[0]], mDecode[rgb[2]]);",
+         impl=True),
 ]
 for _m in MUTANTS:
     _m["class"] = _m.pop("cls")

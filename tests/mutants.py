@@ -74,13 +74,16 @@ STAGES = [
     # loader's glass rule, so only cut-out and loader mutants (and the survivors of the
     # stages above) get here.
     ("cutouts+glass", ["test_cutouts", "test_geometry", "test_gltf"], "[cutouts],[gltf][glass]", 120, []),
+    # The glTF loader's default camera of an interior and its 8-bit textures: no Cornell
+    # scene runs that code (each has a camera and no texture), so their mutants get here.
+    ("loader", ["test_gltf"], "[interior],[textures]", 120, []),
 ]
 # The rest of the suite (every other test file; built with the Makefile, with the
 # programs its tests run: build/smallvcm for the command line, build/bench, build/minimal):
 # everything except the golden images and what the stages above already ran.
 REST_TARGETS = ["build/tests/run_tests", "build/smallvcm", "build/bench", "build/minimal"]
 REST_SPEC = "~[regression]~[sampling]~[bsdf]~[camera]~[mis]~[light_units]~[lights]~[exercise]~[transport]" \
-            "~[integrators]~[photon_mapping]~[stability]~[figures]~[convergence]~[cutouts]~[glass]"
+            "~[integrators]~[photon_mapping]~[stability]~[figures]~[convergence]~[cutouts]~[glass]~[interior]~[textures]"
 REST_TIMEOUT = 900
 REST_BUILD_TIMEOUT = 5400
 

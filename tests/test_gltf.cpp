@@ -714,6 +714,123 @@ TEST_CASE("A file without a camera gets one that frames every corner of the scen
     }
 }
 
+namespace {
+
+// An axis-aligned box of aCenter +- aHalf, as 12 triangles wound outwards (or inwards).
+std::vector<float> Box(const Vec3& aCenter, const Vec3& aHalf, bool aInwards = false) {
+    std::vector<float> triangles = Cube(Vec3(0.f), aInwards);
+    for (size_t i = 0; i < triangles.size(); i++) triangles[i] = aCenter[int(i % 3)] + aHalf[int(i % 3)] * triangles[i];
+    return triangles;
+}
+
+// A closed room, x in [-4, 4], y in [0, 3], z in [-3, 3], wound inwards, with a table (a
+// top at y 0.75-0.85 and a leg) in the middle, wound outwards; without its ceiling (the
+// two triangles at y = 3) when aOpenTop, as an atrium or a courtyard.
+std::vector<float> RoomWithTable(bool aOpenTop = false) {
+    std::vector<float> room = Box(Vec3(0.f, 1.5f, 0.f), Vec3(4.f, 1.5f, 3.f), true);
+    if (aOpenTop) room.erase(room.begin() + 6 * 9, room.begin() + 8 * 9);  // Cube's fourth face is +y
+    for (const std::vector<float>& part : {Box(Vec3(0.f, 0.8f, 0.f), Vec3(0.6f, 0.05f, 0.4f)),
+                                           Box(Vec3(0.f, 0.375f, 0.f), Vec3(0.05f, 0.375f, 0.05f))})
+        room.insert(room.end(), part.begin(), part.end());
+    return room;
+}
+
+} // namespace
+
+TEST_CASE("A file without a camera whose geometry encloses its centre gets a camera inside that sees the inner faces", "[gltf][interior]") {
+    testutil::TemporaryFolder folder;
+    for (const bool openTop : {false, true}) {
+        INFO((openTop ? "open to the sky" : "closed room"));
+        const std::string path = WriteTemporary(folder, openTop ? "court.gltf" : "room.gltf", MeshGltf(RoomWithTable(openTop)));
+        GltfLoadOptions options;
+        options.mDefaultCameraAspect = 1.5f;
+        GltfLoadReport report;
+        Scene scene = LoadGltfScene(path, &report, options);
+        scene.mCamera.SetResolution(48, 32);
+        CHECK(report.mDefaultCamera);
+        REQUIRE(report.mInteriorCamera);
+        CHECK_THAT(report.mCamera, Catch::Contains("inside") && Catch::Contains("looking along -X"));
+        // Level along the longer axis (x), back from the centre towards +x and lowered
+        // to half way between the centre (y 1.5) and the table top below it (y 0.85).
+        const Camera& camera = scene.mCamera;
+        CHECK_VEC3(camera.Forward(), Vec3(-1.f, 0.f, 0.f), 1e-6f);
+        CHECK_VEC3(camera.Position(), Vec3(0.6f * 4.f, 1.5f - 0.5f * 0.65f, 0.f), 1e-5f);
+        // Every primary ray meets a surface that faces the camera (no outside of a wall),
+        // and some meet the table.
+        int tableHits = 0;
+        for (int y = 0; y < 32; y += 3)
+            for (int x = 0; x < 48; x += 3) {
+                const Ray ray = camera.GenerateRay(Vec2(float(x) + 0.5f, float(y) + 0.5f));
+                const SurfacePoint hit = scene.Intersect(ray);
+                if (openTop && !hit.IsValid()) continue;  // the sky through the open top
+                REQUIRE(hit.IsValid());
+                INFO("raster " << x << ", " << y);
+                CHECK(glm::dot(hit.GeometricNormal(), ray.mDirection) < 0.f);
+                const Vec3 point = hit.mPosition;
+                if (point.y > 1e-3f && point.y < 0.851f && std::abs(point.x) < 0.601f && std::abs(point.z) < 0.401f) tableHits++;
+            }
+        CHECK(tableHits > 0);
+        // The room has no light: the default sky and sun, and the note says they reach an
+        // interior only through its openings.
+        bool noted = false, shellNoted = false;
+        for (const std::string& note : report.mNotes) {
+            noted = noted || note.find("inside an interior") != std::string::npos;
+            // The room is a closed mesh wound inwards (only when closed): its note says why.
+            shellNoted = shellNoted || (note.find("looks inside-out") != std::string::npos &&
+                                        note.find("for the shell of an interior, facing inwards is right") != std::string::npos);
+        }
+        CHECK(noted);
+        CHECK(shellNoted != openTop);
+    }
+}
+
+TEST_CASE("The interior test passes through doubleSided sheets and keeps the outside camera for closed objects", "[gltf][interior]") {
+    testutil::TemporaryFolder folder;
+    GltfLoadReport report;
+    // A closed room with a curtain across it at x = 2, a doubleSided sheet whose front
+    // (its winding's side, +x) faces away from the centre: the room is still an interior.
+    std::vector<float> triangles = Box(Vec3(0.f, 1.5f, 0.f), Vec3(4.f, 1.5f, 3.f), true);
+    const std::vector<float> curtain = {2.f, 0.f, -3.f, 2.f, 3.f, 3.f, 2.f, 0.f, 3.f, 2.f, 0.f, -3.f, 2.f, 3.f, -3.f, 2.f, 3.f, 3.f};
+    REQUIRE(glm::cross(Vec3(0.f, 3.f, 6.f), Vec3(0.f, 0.f, 6.f)).x > 0.f);  // the first curtain triangle's normal
+    triangles.insert(triangles.end(), curtain.begin(), curtain.end());
+    const std::string bytes(reinterpret_cast<const char*>(triangles.data()), triangles.size() * sizeof(float));
+    const std::string file = R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}, {"attributes": {"POSITION": 1}, "material": 1}]}],
+  "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1]}},
+                {"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.1, 0.1, 1]}, "doubleSided": true}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 36, "type": "VEC3"},
+                {"bufferView": 0, "byteOffset": 432, "componentType": 5126, "count": 6, "type": "VEC3"}],
+  "bufferViews": [{"buffer": 0, "byteLength": )" + std::to_string(bytes.size()) + R"(}],
+  "buffers": [{"byteLength": )" + std::to_string(bytes.size()) + R"(, "uri": "data:application/octet-stream;base64,)" +
+                             Base64(bytes) + "\"}]}";
+    LoadGltfScene(WriteTemporary(folder, "curtain.gltf", file), &report);
+    CHECK(report.mInteriorCamera);
+    // A closed object (the centre inside it sees only back faces) keeps the outside camera.
+    LoadGltfScene(WriteTemporary(folder, "block.gltf", MeshGltf(Box(Vec3(0.f, 1.5f, 0.f), Vec3(4.f, 1.5f, 3.f)))), &report);
+    CHECK(report.mDefaultCamera);
+    CHECK_FALSE(report.mInteriorCamera);
+    CHECK_THAT(report.mCamera, Catch::Contains("from the front"));
+}
+
+TEST_CASE("The repository's files without a camera keep the outside default camera, to the bit", "[gltf][interior]") {
+    // Position and forward as the loader gave them before interiors were detected (8a62683),
+    // printed with 9 significant digits, which give a float back exactly.
+    const struct {
+        const char* mPath;
+        Vec3 mPosition, mForward;
+    } cases[] = {{"../scenes/textured_torus.gltf", Vec3(0.f, 1.43331516f, 5.34920502f), Vec3(0.f, -0.258819073f, -0.965925932f)},
+                 {"../scenes/avocado/Avocado.gltf", Vec3(0.f, 0.0581622794f, 0.099877581f), Vec3(0.f, -0.258819073f, -0.965925932f)}};
+    for (const auto& c : cases) {
+        INFO(c.mPath);
+        GltfLoadReport report;
+        const Scene scene = LoadGltfScene(c.mPath, &report);
+        CHECK(report.mDefaultCamera);
+        CHECK_FALSE(report.mInteriorCamera);
+        CHECK(scene.mCamera.Position() == c.mPosition);
+        CHECK(scene.mCamera.Forward() == c.mForward);
+    }
+}
+
 TEST_CASE("GltfLoadOptions::mCamera picks the N-th camera node and refuses one out of range", "[gltf]") {
     testutil::TemporaryFolder folder;
     const std::string cameras = R"(, {"camera": 0, "translation": [0, 0, 10], "children": [2]}, {"camera": 1, "translation": [0, 0, 5]})";
@@ -998,6 +1115,21 @@ TEST_CASE("A closed mesh wound inwards is noted as inside-out; outward, open and
         for (const std::string& note : report.mNotes) noted = noted || note.find("looks inside-out") != std::string::npos;
         CHECK(noted == c.mInsideOut);
     }
+}
+
+TEST_CASE("A note about a mesh is made once however many nodes place it, with the count of the others", "[gltf]") {
+    testutil::TemporaryFolder folder;
+    // Three nodes place the inside-out cube (node 0, its child node 1 and node 1's child).
+    const std::string nodes = R"(, {"mesh": 0, "translation": [5, 0, 0], "children": [2]}, {"mesh": 0, "translation": [0, 5, 0]})";
+    const std::string path = WriteTemporary(folder, "three.gltf", MeshGltf(Cube(Vec3(0.f), true), nodes));
+    GltfLoadReport report;
+    LoadGltfScene(path, &report);
+    std::vector<std::string> notes;
+    for (const std::string& note : report.mNotes)
+        if (note.find("looks inside-out") != std::string::npos) notes.push_back(note);
+    REQUIRE(notes.size() == 1);
+    CHECK_THAT(notes[0], Catch::StartsWith("node 0, mesh 0 primitive 0 looks inside-out") &&
+                             Catch::EndsWith("(and in 2 more placements of mesh 0)"));
 }
 
 TEST_CASE("An inside-out mesh reflects outside only with a doubleSided material, and the note says which", "[gltf][shading]") {
