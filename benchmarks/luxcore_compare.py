@@ -39,7 +39,9 @@ reference's noise^2 on the same pixels; efficiency = 1 / (own MSE x CPU seconds)
 Timing: CPU time of one rendering thread, since the machine may be shared. LuxCore runs
 in a worker process of this script: the process's CPU time from the session's start
 (LuxCore's preprocessing and BVH build included), and the film is read whenever it
-reaches a budget (10, 20, ... s) and the render stops at the last. Ours: one
+reaches a budget (10, 20, ... s) and the render stops at the last. LuxCore's variance alone (without its difference from
+the reference) is estimated from the MSE of each film against the run's last one, which
+contains it (`efficiency` says how). Ours: one
 build/convergence run per sampler (--clock cpu: the rendering thread's CPU time,
 renderer creation included, scene loading not), checkpoints at 1, 2, 4, ... iterations
 and where the largest budget ran out; the MSE at a budget is interpolated log-log
@@ -331,12 +333,16 @@ def efficiency(out_dir, size, budgets, reference, noise2, noise2_diffuse, mask, 
             e, ed = mse(image, reference, whole), mse(image, reference, mask)
             row = dict(renderer="luxcore", estimator=engine, sampler="sobol", budget=budget, cpu=cpu, samples=passes,
                        mse=e, mse_d=ed)
-            # LuxCore's variance alone, without its difference from our reference: the MSE
-            # against its own longest render of the same run, whose variance is budget /
-            # run_longest of this one's if the variance falls as 1 / time.
+            # LuxCore's variance alone, without its difference from our reference: from the
+            # MSE against its own longest render B of the same run. That film holds this
+            # one's b seconds of samples and B - b more: img_B = (b img_b + (B - b) rest) / B,
+            # so img_b - img_B = (B - b) / B (img_b - rest), whose mean square is
+            # ((B - b) / B)^2 var_b (1 + b / (B - b)) = var_b (B - b) / B if the variance
+            # falls as 1 / time (the common bias cancels).
             if budget < run_longest:
-                row["var"] = mse(image, last, whole) / (1.0 + budget / run_longest)
-                row["var_d"] = mse(image, last, mask) / (1.0 + budget / run_longest)
+                scale = run_longest / (run_longest - budget)
+                row["var"] = mse(image, last, whole) * scale
+                row["var_d"] = mse(image, last, mask) * scale
             rows.append(row)
             log(f"efficiency: luxcore {engine} {budget} s: {cpu:.1f} s CPU, {passes} passes, rows "
                 f"{'bottom-up' if flipped else 'top-down'}, shifted by ({dx}, {dy}) px, mean "
@@ -346,6 +352,8 @@ def efficiency(out_dir, size, budgets, reference, noise2, noise2_diffuse, mask, 
         runs = render_ours(out_dir, sampler, algorithms, size, longest, 1234, reuse)
         for algorithm, checkpoints in runs.items():
             for budget in budgets:
+                if checkpoints[-1][1] < 0.99 * budget:
+                    continue  # (a reused run shorter than this budget)
                 e, cpu = at_budget(checkpoints, budget, 2)
                 ed, _ = at_budget(checkpoints, budget, 3)
                 iterations = [c[0] for c in checkpoints if c[1] <= budget][-1]
@@ -357,14 +365,15 @@ def efficiency(out_dir, size, budgets, reference, noise2, noise2_diffuse, mask, 
                 f"({slopes[(algorithm, sampler)][0][1]} points), whole image {slopes[(algorithm, sampler)][1][0]:+.3f}")
     with open(os.path.join(out_dir, "efficiency.csv"), "w") as csv:
         csv.write("renderer,estimator,sampler,budget,cpu_seconds,samples,mse,mse_own,mse_diffuse,mse_diffuse_own,"
-                  "efficiency,efficiency_diffuse\n")
+                  "efficiency,efficiency_diffuse,variance,variance_diffuse\n")
         for r in rows:
             r["own"], r["own_d"] = max(r["mse"] - noise2, 1e-30), max(r["mse_d"] - noise2_diffuse, 1e-30)
             r["eff"], r["eff_d"] = 1.0 / (r["own"] * r["cpu"]), 1.0 / (r["own_d"] * r["cpu"])
             if "var" in r:
                 r["eff_var"], r["eff_var_d"] = 1.0 / (r["var"] * r["cpu"]), 1.0 / (r["var_d"] * r["cpu"])
             csv.write(f"{r['renderer']},{r['estimator']},{r['sampler']},{r['budget']},{r['cpu']:.3f},{r['samples']},"
-                      f"{r['mse']:.6g},{r['own']:.6g},{r['mse_d']:.6g},{r['own_d']:.6g},{r['eff']:.6g},{r['eff_d']:.6g}\n")
+                      f"{r['mse']:.6g},{r['own']:.6g},{r['mse_d']:.6g},{r['own_d']:.6g},{r['eff']:.6g},{r['eff_d']:.6g},"
+                      f"{r.get('var', float('nan')):.6g},{r.get('var_d', float('nan')):.6g}\n")
     return rows, slopes
 
 
@@ -393,7 +402,7 @@ def write_table(out_dir, rows, slopes, noise2, noise2_diffuse):
                                  f"{ratio('BIDIRVMCPU', 'eff_d', 'eff_var_d')} |")
     lines += ["", f"Reference noise^2 subtracted (own MSE): {noise2:.3g} (whole image), {noise2_diffuse:.3g} (diffuse region).",
               "Efficiency = 1 / (own MSE x CPU s).", "",
-              "LuxCore's variance alone (its MSE against its own longest render / (1 + budget / longest)), "
+              "LuxCore's variance alone (its MSE against its own longest render B x B / (B - budget)), "
               "our own MSE against it:", ""] + lines_var
     lines += ["", "| estimator | sampler | MSE slope per iteration, diffuse region (points) | whole image (points) |",
               "|---|---|---|---|"]
