@@ -258,7 +258,7 @@ check: deps
 # docs/performance/bench.md, its numbers to docs/performance/bench_bvh.csv and
 # bench_render.csv, and benchmarks/plot_bench.py draws them (matplotlib, installed if missing)
 # into docs/performance/bvh_scaling.png and speed_per_iteration.png. Then the samplers at
-# equal time (bench-samplers below) with SAMPLER_SECONDS=2 (about 3 minutes more).
+# equal time (bench-samplers below) with SAMPLER_SECONDS=2 (under a minute more).
 bench: deps $(BUILD)/bench
 	@$(ENSURE_MATPLOTLIB)
 	$(BUILD)/bench --repeat 2 --markdown docs/performance/bench.md --csv docs/performance/bench
@@ -273,7 +273,7 @@ bench: deps $(BUILD)/bench
 # and the fitted slopes, against the Sobol references in docs/performance/references_sobol
 # (made first if missing: BPT, or VCM with the sun and the point light, 4096 iterations, a
 # few minutes). The table goes to docs/performance/samplers/equal_time_<S>s.md (its runs
-# beside it); at 10 s about 4 minutes on 2 cores.
+# beside it); at 10 s about 4 minutes on 2 idle cores, at 2 s under one.
 SAMPLER_SECONDS ?= 10
 SAMPLER_STUDY := --references docs/performance/references_sobol --resolution 64x64 --algorithms pt,bpt,vcm,ppm \
                  --max-iterations 1048576 --max-seconds $(SAMPLER_SECONDS) --clock cpu -q
