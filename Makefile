@@ -257,12 +257,38 @@ check: deps
 # of two measurements, to ride out the machine's own drift; about 10 minutes on 2 cores); the report goes to
 # docs/performance/bench.md, its numbers to docs/performance/bench_bvh.csv and
 # bench_render.csv, and benchmarks/plot_bench.py draws them (matplotlib, installed if missing)
-# into docs/performance/bvh_scaling.png and speed_per_iteration.png.
+# into docs/performance/bvh_scaling.png and speed_per_iteration.png. Then the samplers at
+# equal time (bench-samplers below) with SAMPLER_SECONDS=2 (under a minute more).
 bench: deps $(BUILD)/bench
 	@$(ENSURE_MATPLOTLIB)
 	$(BUILD)/bench --repeat 2 --markdown docs/performance/bench.md --csv docs/performance/bench
 	/usr/bin/python3 benchmarks/plot_bench.py docs/performance/bench_bvh.csv docs/performance/bench_render.csv
 	$(COMPACT_PNG) docs/performance
+	$(MAKE) --no-print-directory bench-samplers SAMPLER_SECONDS=2
+
+# make bench-samplers [SAMPLER_SECONDS=10]: independent numbers against Sobol points at
+# equal CPU time on every Cornell scene (0-4), pt, bpt, vcm and ppm, 64x64, one thread,
+# SAMPLER_SECONDS of CPU time per run (the two samplers run side by side, one core each):
+# seconds per iteration, RMSE on the whole image and on the diffuse region, the MSE gain
+# and the fitted slopes, against the Sobol references in docs/performance/references_sobol
+# (made first if missing: BPT, or VCM with the sun and the point light, 4096 iterations, a
+# few minutes). The table goes to docs/performance/samplers/equal_time_<S>s.md (its runs
+# beside it); at 10 s about 4 minutes on 2 idle cores, at 2 s under one.
+SAMPLER_SECONDS ?= 10
+SAMPLER_STUDY := --references docs/performance/references_sobol --resolution 64x64 --algorithms pt,bpt,vcm,ppm \
+                 --max-iterations 1048576 --max-seconds $(SAMPLER_SECONDS) --clock cpu -q
+SAMPLER_OUT := docs/performance/samplers/equal_time_$(SAMPLER_SECONDS)s
+.PHONY: bench-samplers
+bench-samplers: deps $(BUILD)/convergence
+	mkdir -p docs/performance/samplers
+	@for s in 0 1 2 3 4; do [ -f docs/performance/references_sobol/cornell_$${s}_64x64.pfm ] || missing=1; done; \
+	if [ -n "$$missing" ]; then $(BUILD)/convergence --make-references --reference-sampler sobol \
+	    --reference-iterations 4096 --resolution 64x64 --references docs/performance/references_sobol \
+	    --algorithms pt --max-iterations 1 --out $(BUILD)/references_sobol.csv; fi
+	$(BUILD)/convergence $(SAMPLER_STUDY) --sampler independent --out $(SAMPLER_OUT)_independent.csv & \
+	  $(BUILD)/convergence $(SAMPLER_STUDY) --sampler sobol --out $(SAMPLER_OUT)_sobol.csv; status=$$?; wait $$! && [ $$status = 0 ]
+	/usr/bin/python3 benchmarks/sampler_table.py $(SAMPLER_OUT)_independent.csv $(SAMPLER_OUT)_sobol.csv > $(SAMPLER_OUT).md
+	cat $(SAMPLER_OUT).md
 
 # make bench-large ASSETS=DIR: the large benchmark scene (benchmarks/large_scene.py: a closed
 # atrium hall furnished with real models that stay outside the repository) loaded and
@@ -309,6 +335,26 @@ bench-mitsuba: deps $(BUILD)/smallvcm
 	@$(MITSUBA_VENV)/bin/python -c "import mitsuba, numpy" 2>/dev/null || \
 	  { python3 -m venv $(MITSUBA_VENV) && $(MITSUBA_VENV)/bin/pip install -q mitsuba==3.9.1 numpy; }
 	DRJIT_LIBLLVM_PATH=$(MITSUBA_LLVM) $(MITSUBA_VENV)/bin/python benchmarks/mitsuba_compare.py $(BENCH_MITSUBA_ARGS)
+
+# make bench-luxcore [BENCH_LUXCORE_ARGS="--budgets 10,20"]: smallvcm's BPT and VCM (both
+# samplers) beside LuxCore's BIDIRCPU and BIDIRVMCPU (Sobol) on scene 4 at 128x128, one
+# thread each, efficiency 1/(MSE x CPU s) at CPU budgets of 10 to 120 s, and our MSE slopes
+# on the diffuse region (benchmarks/luxcore_compare.py says how; about 15 minutes of CPU;
+# results in build/luxcore/, the current table in docs/performance.md). Benchmark-only:
+# pyluxcore and NumPy are installed with pip into build/luxcore-venv; the reference (Sobol
+# BPT, 4096 iterations) is made first if missing.
+LUXCORE_VENV := $(BUILD)/luxcore-venv
+.PHONY: bench-luxcore
+bench-luxcore: deps $(BUILD)/convergence
+	@dpkg-query -W -f='$${Status}' python3-venv 2>/dev/null | grep -q "install ok installed" || \
+	  { if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
+	    $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q python3-venv; }
+	@$(LUXCORE_VENV)/bin/python -c "import numpy, pyluxcore" >/dev/null 2>&1 || \
+	  { python3 -m venv $(LUXCORE_VENV) && $(LUXCORE_VENV)/bin/pip install -q pyluxcore==2.11.2 numpy; }
+	@[ -f docs/performance/references_sobol/cornell_4_128x128.pfm ] || $(BUILD)/convergence --make-references \
+	    --reference-sampler sobol --reference-iterations 4096 --resolution 128x128 --scenes 4 \
+	    --references docs/performance/references_sobol --algorithms pt --max-iterations 1 --out $(BUILD)/references_sobol.csv
+	$(LUXCORE_VENV)/bin/python benchmarks/luxcore_compare.py $(BENCH_LUXCORE_ARGS)
 
 # make mutants [MUTANTS=M01,M02]: mutation testing of the transport code (tests/mutants.py,
 # the list in tests/mutant_list.py): each mutant is one edited line of the header, built

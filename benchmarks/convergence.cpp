@@ -12,7 +12,7 @@
 // of two, or the iteration at which --max-seconds ran out) the film is resolved and
 // compared with the scene's reference image. One CSV row per checkpoint:
 //
-//   scene,algorithm,iterations,seconds,rmse,relmse
+//   scene,algorithm,iterations,seconds,rmse,relmse,rmse_diffuse
 //
 //   scene      Cornell scene index (0..4, as build/smallvcm -s)
 //   seconds    rendering time since the renderer was created, summed over the
@@ -22,6 +22,11 @@
 //              --threads 1), which other processes on a shared machine do not inflate.
 //   rmse       Rmse(image, reference): root mean squared error over pixels and channels
 //   relmse     RelativeMse(image, reference): mean of (x - ref)^2 / (ref^2 + 0.01)
+//   rmse_diffuse  the RMSE over the diffuse region only: the pixels whose whole footprint
+//              (rays through its four corners and its centre) first meets a purely
+//              Lambertian surface, no light, no Phong lobe, no mirror or glass. There the
+//              pixel integral is the smoothest, so it is where a low-discrepancy sampler
+//              can gain the most (edges, caustics and what mirrors show gain less).
 //
 // Next to the CSV, FILE.txt (FILE.csv -> FILE.txt) records the settings, the command
 // line and, per scene, the reference used and its estimated noise.
@@ -43,8 +48,14 @@
 //     bias vanishes as the radius shrinks (consistent). Scenes 0 (sun) and 2 (point).
 //   The rule is applied to the loaded scene (a delta light and a specular material ->
 //   VCM), not to the scene index.
+// --reference-sampler sobol renders the reference with Owen-scrambled Sobol points (its
+// noise falls faster); its halves then have their own seeds (the reference seed and that
+// seed + 1), each running iterations 0, 1, ... M/2 - 1: the even and odd iterations of
+// ONE scrambled sequence are not independent, and their difference would overstate the
+// noise of their mean.
 // A reference's noise is estimated from two independent halves A and B (even and odd
-// iterations): reference = (A + B) / 2, so its noise RMSE is about Rmse(A, B) / 2. The
+// iterations): reference = (A + B) / 2, so its noise RMSE is about Rmse(A, B) / 2 (on the
+// whole image, and on the diffuse region: noise_rmse_diffuse). The
 // measured error of an estimator is sqrt(its own MSE + that noise^2): a curve flattens
 // when it approaches the reference's noise floor.
 //
@@ -70,6 +81,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -115,6 +127,7 @@ void PrintHelp() {
         "  --make-references         render the references first (BPT, or VCM where BPT cannot converge)\n"
         "  --reference-iterations M  iterations of a reference (default 4096; --quick: 1024)\n"
         "  --reference-seed N        base seed of the references (default 20240917)\n"
+        "  --reference-sampler S     the references' sampler: independent (default) or sobol\n"
         "  --photons N               pm, pmfg: photons per iteration (default: the library's; --quick: 1024)\n"
         "  --radius-factor F         ppm, bpm, vcm: merging radius / scene radius (default: the library's;\n"
         "                            --quick: 0.1)\n"
@@ -172,6 +185,7 @@ struct CommandLine {
     uint64_t mSeed = 1234;
     smallvcm::SamplerType mSampler = smallvcm::SamplerType::kIndependent;
     uint64_t mReferenceSeed = 20240917;
+    smallvcm::SamplerType mReferenceSampler = smallvcm::SamplerType::kIndependent;
     std::string mOut = "convergence.csv";
     bool mMakeReferences = false;
     bool mQuick = false;
@@ -219,6 +233,11 @@ CommandLine Parse(int argc, char** argv) {
         else if (arg == "--references") cl.mReferences = value(i);
         else if (arg == "--make-references") cl.mMakeReferences = true;
         else if (arg == "--reference-iterations") cl.mReferenceIterations = ParseNumber<int>(arg, value(i), 2, 1 << 24, "an integer in [2, 16777216]");
+        else if (arg == "--reference-sampler") {
+            const std::optional<smallvcm::SamplerType> sampler = smallvcm::ParseSampler(value(i));
+            if (!sampler) throw smallvcm::Error("--reference-sampler: independent or sobol");
+            cl.mReferenceSampler = *sampler;
+        }
         else if (arg == "--reference-seed") cl.mReferenceSeed = ParseNumber<uint64_t>(arg, value(i), 0, UINT64_MAX, "a non-negative integer");
         else if (arg == "--photons") cl.mPhotons = ParseNumber<int>(arg, value(i), 1, 100000000, "an integer in [1, 1e8]");
         else if (arg == "--radius-factor") cl.mRadiusFactor = ParseNumber<float>(arg, value(i), 1e-7f, 10.f, "a number in [1e-7, 10]");
@@ -242,8 +261,9 @@ CommandLine Parse(int argc, char** argv) {
         cl.mAlgorithms.push_back(algorithm);
     }
     if (cl.mCpuClock && cl.mThreads != 1) throw Error("--clock: cpu needs --threads 1 (a thread's CPU time)");
-    if (cl.mSeed == cl.mReferenceSeed)
-        throw Error("--seed: must differ from --reference-seed (the reference would share the estimators' random numbers)");
+    if (cl.mSeed == cl.mReferenceSeed || cl.mSeed == cl.mReferenceSeed + 1)
+        throw Error("--seed: must differ from --reference-seed and --reference-seed + 1 (the reference would share the "
+                    "estimators' random numbers)");
     // --quick's defaults, then the library's and the study's; explicit options win.
     if (!cl.mWidth) { cl.mWidth = cl.mQuick ? 16 : 128; cl.mHeight = cl.mWidth; }
     if (!cl.mMaxIterations) cl.mMaxIterations = cl.mQuick ? 128 : 256;
@@ -306,7 +326,47 @@ struct Reference {
     std::string mPath, mAlgorithm;
     double mNoiseRmse = -1.0;    // estimated from the two halves; < 0: unknown
     double mNoiseRelMse = -1.0;
+    double mNoiseRmseDiffuse = -1.0;
 };
+
+// ------------------------------------------------------------------------------------
+// The diffuse region (see rmse_diffuse at the top)
+// ------------------------------------------------------------------------------------
+using Mask = std::vector<char>;
+
+Mask DiffuseRegion(const smallvcm::Scene& aScene) {
+    const smallvcm::Camera& camera = aScene.mCamera;
+    Mask mask(size_t(camera.PixelCount()), 0);
+    for (int y = 0; y < camera.Height(); y++)
+        for (int x = 0; x < camera.Width(); x++) {
+            bool diffuse = true;
+            for (const smallvcm::Vec2 offset : {smallvcm::Vec2(0.f, 0.f), smallvcm::Vec2(1.f, 0.f), smallvcm::Vec2(0.f, 1.f),
+                                                smallvcm::Vec2(1.f, 1.f), smallvcm::Vec2(0.5f, 0.5f)}) {
+                const smallvcm::SurfacePoint hit = aScene.Intersect(camera.GenerateRay(smallvcm::Vec2(float(x), float(y)) + offset));
+                if (!hit.IsValid() || hit.mLightId >= 0) { diffuse = false; break; }
+                const smallvcm::Material& material = aScene.GetMaterial(hit.mMaterialId);
+                diffuse = diffuse && !material.HasSpecular() && smallvcm::IsBlack(material.mPhongReflectance) &&
+                          !smallvcm::IsBlack(material.mDiffuseReflectance);
+            }
+            mask[size_t(y * camera.Width() + x)] = diffuse;
+        }
+    return mask;
+}
+
+// The RMSE over the masked pixels and their channels (Rmse() on the mask); NaN for an empty mask.
+double MaskedRmse(const smallvcm::Image& aImage, const smallvcm::Image& aReference, const Mask& aMask) {
+    double sum = 0.0;
+    long count = 0;
+    for (size_t i = 0; i < aImage.mPixels.size(); i++)
+        if (aMask[i]) {
+            for (int c = 0; c < 3; c++) {
+                const double d = double(aImage.mPixels[i][c]) - double(aReference.mPixels[i][c]);
+                sum += d * d;
+            }
+            count += 3;
+        }
+    return count > 0 ? std::sqrt(sum / double(count)) : NAN;
+}
 
 std::string ReferenceStem(const CommandLine& aCl, int aScene) {
     return (fs::path(*aCl.mReferences) / ("cornell_" + std::to_string(aScene) + "_" + std::to_string(*aCl.mWidth) + "x" +
@@ -335,19 +395,30 @@ Reference MakeReference(const CommandLine& aCl, int aScene, const smallvcm::Scen
     options.mAlgorithm = BptCanConverge(aSceneData, &reason) ? Algorithm::kBidirectionalPathTracing
                                                               : Algorithm::kVertexConnectionMerging;
     options.mSeed = aCl.mReferenceSeed;
+    options.mSampler = aCl.mReferenceSampler;
     options.mProgress = false;
     if (aCl.mRadiusFactor) options.mRadiusFactor = *aCl.mRadiusFactor;
     const int iterations = *aCl.mReferenceIterations;
     // An even number of workers, at least two: worker w runs iterations w, w + W, ...;
-    // the even workers' films make half A, the odd workers' half B.
+    // the even workers' films make half A, the odd workers' half B. With Sobol points
+    // (see the top) the halves have seeds of their own: worker w runs iterations w / 2,
+    // w / 2 + W / 2, ... < M / 2 of the seed + w mod 2.
     int workers = int(std::max(2u, std::thread::hardware_concurrency()));
     workers += workers % 2;
+    const bool sobol = options.mSampler == smallvcm::SamplerType::kSobol;
     const double start = WallSeconds();
     std::vector<std::unique_ptr<smallvcm::AbstractRenderer>> renderers;
     for (int w = 0; w < workers; w++) renderers.push_back(smallvcm::CreateRenderer(aSceneData, options));
     std::vector<std::thread> threads;
     for (int w = 0; w < workers; w++)
         threads.emplace_back([&, w] {
+            if (sobol) {
+                for (int i = w / 2; i < iterations / 2; i += workers / 2) {
+                    smallvcm::Sampler sampler = smallvcm::IterationSampler(options.mSampler, options.mSeed + uint64_t(w % 2), i);
+                    renderers[size_t(w)]->RunIteration(i, sampler);
+                }
+                return;
+            }
             for (int i = w; i < iterations; i += workers) {
                 smallvcm::Sampler sampler = smallvcm::IterationSampler(options.mSampler, options.mSeed, i);
                 renderers[size_t(w)]->RunIteration(i, sampler);
@@ -359,22 +430,30 @@ Reference MakeReference(const CommandLine& aCl, int aScene, const smallvcm::Scen
     smallvcm::Film halves[2] = {renderers[0]->GetFilm(), renderers[1]->GetFilm()};
     for (int w = 2; w < workers; w++) halves[w % 2].Accumulate(renderers[size_t(w)]->GetFilm());
     int counts[2] = {0, 0};
-    for (int i = 0; i < iterations; i++) counts[(i % workers) % 2]++;
+    if (sobol) counts[0] = counts[1] = iterations / 2;
+    else
+        for (int i = 0; i < iterations; i++) counts[(i % workers) % 2]++;
     smallvcm::Film total = halves[0];
     total.Accumulate(halves[1]);
     Reference reference;
-    reference.mImage = total.Resolve(1.0 / iterations);
+    reference.mImage = total.Resolve(1.0 / (counts[0] + counts[1]));
     const smallvcm::Image a = halves[0].Resolve(1.0 / counts[0]);
     const smallvcm::Image b = halves[1].Resolve(1.0 / counts[1]);
     // Var(ref) = Var(A) / 2 and E|A - B|^2 = 2 Var(A): Var(ref) = E|A - B|^2 / 4.
     reference.mNoiseRmse = smallvcm::Rmse(a, b) / 2.0;
     reference.mNoiseRelMse = smallvcm::RelativeMse(a, reference.mImage);  // E|A - ref|^2 = E|A - B|^2 / 4
+    const Mask diffuse = DiffuseRegion(aSceneData);
+    reference.mNoiseRmseDiffuse = MaskedRmse(a, b, diffuse) / 2.0;
     reference.mAlgorithm = smallvcm::AlgorithmShortName(options.mAlgorithm);
     const std::string stem = ReferenceStem(aCl, aScene);
     reference.mPath = stem + ".pfm";
     std::error_code ignored;
     fs::create_directories(*aCl.mReferences, ignored);
     smallvcm::WriteImage(reference.mPath, reference.mImage);
+    // The diffuse region beside it (1 inside, 0 outside), for scripts that measure there.
+    smallvcm::Image maskImage(aSceneData.mCamera.Width(), aSceneData.mCamera.Height());
+    for (size_t p = 0; p < diffuse.size(); p++) maskImage.mPixels[p] = smallvcm::Vec3(diffuse[p] ? 1.f : 0.f);
+    smallvcm::WriteImage(stem + "_diffuse.pfm", maskImage);
 
     std::ostringstream text;
     text << "reference image " << fs::path(reference.mPath).filename().string() << " (PFM, linear radiance)\n"
@@ -382,8 +461,11 @@ Reference MakeReference(const CommandLine& aCl, int aScene, const smallvcm::Scen
          << "resolution = " << *aCl.mWidth << "x" << *aCl.mHeight << "\n"
          << "algorithm = " << reference.mAlgorithm << "\n"
          << "why = " << reason << "\n"
-         << "iterations = " << iterations << "\n"
-         << "seed = " << options.mSeed << " (IterationRng(seed, i) for iteration i)\n"
+         << "iterations = " << counts[0] + counts[1] << "\n"
+         << "sampler = " << smallvcm::SamplerName(options.mSampler) << "\n"
+         << "seed = " << options.mSeed
+         << (sobol ? " (half A: seed, half B: seed + 1, iterations 0 .. iterations / 2 - 1 each)\n"
+                   : " (IterationRng(seed, i) for iteration i)\n")
          << "max_path_length = " << options.mMaxPathLength << "\n"
          << "min_path_length = " << options.mMinPathLength << "\n"
          << "mis = balance\n";
@@ -393,7 +475,10 @@ Reference MakeReference(const CommandLine& aCl, int aScene, const smallvcm::Scen
          << "seconds = " << Format("%.2f", seconds) << " (wall clock)\n"
          << "mean = " << Format("%.6g", smallvcm::MeanValue(reference.mImage)) << "\n"
          << "noise_rmse = " << Format("%.6g", reference.mNoiseRmse)
-         << " (estimated: Rmse(half A, half B) / 2, halves = even and odd workers' iterations)\n"
+         << " (estimated: Rmse(half A, half B) / 2, halves = even and odd workers' iterations"
+         << (sobol ? ", each with its own seed" : "") << ")\n"
+         << "noise_rmse_diffuse = " << Format("%.6g", reference.mNoiseRmseDiffuse)
+         << " (the same on the diffuse region, see build/convergence's rmse_diffuse)\n"
          << "noise_relmse = " << Format("%.6g", reference.mNoiseRelMse) << " (estimated: RelativeMse(half A, reference))\n"
          << "made_by = " << aCl.mCommand << "\n"
          << "date = " << Now() << "\n";
@@ -437,6 +522,8 @@ Reference LoadReference(const CommandLine& aCl, int aScene) {
                     ", the study's seed: choose another --seed (or remake the reference)");
     const std::string noise = SettingsValue(settings, "noise_rmse");
     const std::string noiseRel = SettingsValue(settings, "noise_relmse");
+    const std::string noiseDiffuse = SettingsValue(settings, "noise_rmse_diffuse");
+    if (!noiseDiffuse.empty()) reference.mNoiseRmseDiffuse = std::atof(noiseDiffuse.c_str());
     if (!noise.empty()) reference.mNoiseRmse = std::atof(noise.c_str());
     if (!noiseRel.empty()) reference.mNoiseRelMse = std::atof(noiseRel.c_str());
     return reference;
@@ -457,12 +544,12 @@ std::vector<int> Checkpoints(int aMaxIterations) {
 
 struct Row {
     int mIterations;
-    double mSeconds, mRmse, mRelMse;
+    double mSeconds, mRmse, mRelMse, mRmseDiffuse;
 };
 
 // Runs one estimator progressively on one scene and returns its checkpoints.
 std::vector<Row> Study(const CommandLine& aCl, const smallvcm::Scene& aScene, Algorithm aAlgorithm,
-                       const smallvcm::Image& aReference) {
+                       const smallvcm::Image& aReference, const Mask& aDiffuse) {
     smallvcm::RenderOptions options;
     options.mAlgorithm = aAlgorithm;
     options.mSeed = aCl.mSeed;
@@ -517,7 +604,8 @@ std::vector<Row> Study(const CommandLine& aCl, const smallvcm::Scene& aScene, Al
         smallvcm::Film film = renderers[0]->GetFilm();
         for (int t = 1; t < threadCount; t++) film.Accumulate(renderers[size_t(t)]->GetFilm());
         const smallvcm::Image image = film.Resolve(1.0 / done);
-        rows.push_back({done, rendering, smallvcm::Rmse(image, aReference), smallvcm::RelativeMse(image, aReference)});
+        rows.push_back({done, rendering, smallvcm::Rmse(image, aReference), smallvcm::RelativeMse(image, aReference),
+                        MaskedRmse(image, aReference, aDiffuse)});
         if (outOfTime) break;
         start = clock();
     }
@@ -535,7 +623,7 @@ int RunStudy(const CommandLine& aCl) {
     const std::string partial = aCl.mOut + ".partial";
     std::ofstream csv(partial, std::ios::binary);
     if (!csv) throw Error(aCl.mOut + ": cannot write here (" + std::strerror(errno) + ")");
-    csv << "scene,algorithm,iterations,seconds,rmse,relmse\n";
+    csv << "scene,algorithm,iterations,seconds,rmse,relmse,rmse_diffuse\n";
 
     std::ostringstream settings;
     settings << "convergence study " << fs::path(aCl.mOut).filename().string() << "\n"
@@ -568,13 +656,18 @@ int RunStudy(const CommandLine& aCl) {
         settings << key << ".file = " << reference.mPath << "\n"
                  << key << ".algorithm = " << (reference.mAlgorithm.empty() ? "unknown" : reference.mAlgorithm) << "\n"
                  << key << ".noise_rmse = " << Format("%.6g", reference.mNoiseRmse) << "\n"
-                 << key << ".noise_relmse = " << Format("%.6g", reference.mNoiseRelMse) << "\n";
+                 << key << ".noise_relmse = " << Format("%.6g", reference.mNoiseRelMse) << "\n"
+                 << key << ".noise_rmse_diffuse = " << Format("%.6g", reference.mNoiseRmseDiffuse) << "\n";
+        const Mask diffuse = DiffuseRegion(scene);
+        settings << "diffuse_region." << sceneIndex << ".pixels = " << std::count(diffuse.begin(), diffuse.end(), char(1)) << " of "
+                 << diffuse.size() << "\n";
         for (Algorithm algorithm : aCl.mAlgorithms) {
-            const std::vector<Row> rows = Study(aCl, scene, algorithm, reference.mImage);
+            const std::vector<Row> rows = Study(aCl, scene, algorithm, reference.mImage, diffuse);
             for (const Row& row : rows) {
                 char line[256];
-                std::snprintf(line, sizeof(line), "%d,%s,%d,%.6f,%.9g,%.9g\n", sceneIndex, smallvcm::AlgorithmShortName(algorithm),
-                              row.mIterations, row.mSeconds, row.mRmse, row.mRelMse);
+                std::snprintf(line, sizeof(line), "%d,%s,%d,%.6f,%.9g,%.9g,%.9g\n", sceneIndex,
+                              smallvcm::AlgorithmShortName(algorithm), row.mIterations, row.mSeconds, row.mRmse, row.mRelMse,
+                              row.mRmseDiffuse);
                 csv << line;
             }
             csv.flush();

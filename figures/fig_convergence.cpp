@@ -1,14 +1,17 @@
 // fig_convergence — the convergence-rate figure of the VCM course talk (seed 000):
 //   F18  RMSE against iterations and against seconds, log-log, for BPT, PPM and VCM (and
 //        PT and BPM), with the fitted slopes; the slide reads BPT O(N^-0.5),
-//        PPM O(N^-0.33), VCM O(N^-0.5)
+//        PPM O(N^-0.33), VCM O(N^-0.5). The sampler is a second dimension: PT, BPT, PPM
+//        and VCM run with independent numbers and with Owen-scrambled Sobol points
+//        (--sampler sobol; curves "pt-sobol", ... on the chart, see "THE SAMPLER")
 // Scene: scenes/cornell_4_default.gltf (SmallVCM's default Cornell box), 64x64 (a
 // reference of 8192 iterations stays well ahead of runs of up to 2048).
 //
 //   build/fig_convergence [--quick] [--out DIR] [--threads N]
 //   python3 figures/plot_figures.py DIR        # the chart F18_convergence.png from F18.csv
-// writes F18.csv (algorithm,iterations,seconds,rmse,rmse_own,fitted), F18_<alg>.png (each
-// estimator's image at its last checkpoint) and F18.json (see figures/figure_kit.hpp).
+// writes F18.csv (algorithm,iterations,seconds,rmse,rmse_own,fitted; algorithm is the
+// estimator's short name, with "-sobol" for Sobol points), F18_<alg>.png (each estimator's
+// image at its last checkpoint) and F18.json (see figures/figure_kit.hpp).
 //
 // HOW. As benchmarks/convergence.cpp does: for each estimator ONE progressive run, its
 // renderers (one per thread, made by smallvcm::CreateRenderer) running iterations
@@ -50,6 +53,17 @@
 // seed each BPT's single slope was -0.42 and VCM's -0.55: that scatter is why the claim
 // is fitted to the mean of 4 runs, whose standard error is half a single run's).
 //
+// THE SAMPLER. The claim is the slide's, with independent numbers. With Sobol points a
+// pixel's camera sub-paths are stratified across iterations, a light sub-path only
+// among the light sub-paths of its own iteration (iterations draw independent
+// scrambles; smallvcm.hpp's Sampler): what the camera sub-path alone finds (PT, BPT's
+// camera-side techniques) can converge faster than N^-0.5, what comes from light
+// sub-paths (light tracing, connections to light vertices, merging) keeps N^-0.5 with a
+// smaller constant, and PPM's rate stays the one its radius shrinkage sets. The record
+// gives each sampler's slope and the ratio of their MSE at the last common checkpoint
+// (numbers.sobol_vs_independent); tests/test_figures.cpp's F18 case checks these
+// claims where they are cheap to check (diffuse_box, 16x16).
+//
 // THE RADIUS. A merging estimate's error has two parts: the photon part (which photons
 // fell into the disk), whose rate is the one above, and a part the radius does not change
 // (where the camera's samples land in a pixel: edges, the light seen directly, what the
@@ -67,6 +81,7 @@
 #include <thread>
 
 using namespace figures;
+using smallvcm::SamplerType;
 
 namespace {
 
@@ -84,6 +99,7 @@ struct Estimator {
     double mTheorySlope;  // of RMSE against iterations, asymptotically
     float mAlpha;         // radius reduction (merging estimators)
     bool mInClaim;        // the slide names it
+    SamplerType mSampler = SamplerType::kIndependent;
 };
 
 // BPM is not on the slide; its merged part has PPM's rate, but MIS gives much of its light
@@ -95,7 +111,18 @@ const Estimator kEstimators[] = {
     {Algorithm::kProgressivePhotonMapping, -1.0 / 3.0, kPpmAlpha, true},
     {Algorithm::kBidirectionalPhotonMapping, -1.0 / 3.0, kPpmAlpha, false},
     {Algorithm::kVertexConnectionMerging, -0.5, 0.75f, true},
+    // The sampler dimension (see "THE SAMPLER"); theory slopes are those of independent numbers.
+    {Algorithm::kPathTracing, -0.5, 0.75f, false, SamplerType::kSobol},
+    {Algorithm::kBidirectionalPathTracing, -0.5, 0.75f, false, SamplerType::kSobol},
+    {Algorithm::kProgressivePhotonMapping, -1.0 / 3.0, kPpmAlpha, false, SamplerType::kSobol},
+    {Algorithm::kVertexConnectionMerging, -0.5, 0.75f, false, SamplerType::kSobol},
 };
+
+// "bpt" with independent numbers, "bpt-sobol" with Sobol points.
+std::string EstimatorName(const Estimator& aEstimator) {
+    return std::string(smallvcm::AlgorithmShortName(aEstimator.mAlgorithm)) +
+           (aEstimator.mSampler == SamplerType::kSobol ? "-sobol" : "");
+}
 
 struct Checkpoint {
     int mIterations = 0;
@@ -206,6 +233,7 @@ RenderOptions EstimatorOptions(const Kit& aKit, const Estimator& aEstimator, uin
     options.mSeed = aSeed;
     options.mRadiusFactor = kRadiusFactor;
     options.mRadiusAlpha = aEstimator.mAlpha;
+    options.mSampler = aEstimator.mSampler;
     return options;
 }
 
@@ -241,7 +269,7 @@ Run AverageRuns(const std::vector<Run>& aRuns, double aNoise2) {
 Json TechniqueShares(const Kit& aKit, const Scene& aScene) {
     Json shares;
     for (const Estimator& estimator : kEstimators) {
-        if (estimator.mAlgorithm == Algorithm::kPathTracing) continue;
+        if (estimator.mAlgorithm == Algorithm::kPathTracing || estimator.mSampler != SamplerType::kIndependent) continue;
         RenderOptions options = EstimatorOptions(aKit, estimator, 1899);
         options.mTechniqueLayers = true;
         const RenderResult result = RenderIterations(aScene, options, aKit.Pick(16, 8));
@@ -299,7 +327,9 @@ void FigureConvergence(const Kit& aKit) {
         {"runs_per_estimator", runsPerEstimator},
         {"clock", "wall-clock rendering time (renderer creation + iterations), resolving and measuring excluded"},
         {"threads", aKit.mThreads > 0 ? aKit.mThreads : int(std::max(1u, std::thread::hardware_concurrency()))},
-        {"seeds", "1810 + 10 x the estimator's index in pt, bpt, ppm, bpm, vcm + the run's index"},
+        {"seeds", "1810 + 10 x the estimator's index in pt, bpt, ppm, bpm, vcm, pt-sobol, bpt-sobol, ppm-sobol, "
+                  "vcm-sobol + the run's index"},
+        {"samplers", "independent numbers; '-sobol': Owen-scrambled Sobol points (RenderOptions::mSampler)"},
         {"checkpoints", "1, 2, 4, 8, ... iterations and the last one when the budget ran out"},
         {"radius_factor", kRadiusFactor},
         {"radius_factor_why", "SmallVCM's default: at this size few photons fall in a disk, so the merged "
@@ -313,7 +343,7 @@ void FigureConvergence(const Kit& aKit) {
     std::vector<std::pair<std::string, Run>> runs;
     double largestStd = 0.0;
     for (const Estimator& estimator : kEstimators) {
-        const std::string name = smallvcm::AlgorithmShortName(estimator.mAlgorithm);
+        const std::string name = EstimatorName(estimator);
         std::vector<Run> single;
         std::vector<double> slopes;
         for (int k = 0; k < runsPerEstimator; k++) {
@@ -329,7 +359,7 @@ void FigureConvergence(const Kit& aKit) {
         if (std::isfinite(deviation) && estimator.mInClaim) largestStd = std::max(largestStd, deviation);
         Run run = AverageRuns(single, reference.mNoiseRmse * reference.mNoiseRmse);
         const Checkpoint& last = run.mCheckpoints.back();
-        std::printf("  %-4s %6d iterations %6.1f s  RMSE %.4g (own %.4g)  slope of the mean %+.3f vs iterations, "
+        std::printf("  %-9s %6d iterations %6.1f s  RMSE %.4g (own %.4g)  slope of the mean %+.3f vs iterations, "
                     "%+.3f vs seconds (%d points); single runs %s\n", name.c_str(), last.mIterations, last.mSeconds,
                     last.mRmse, last.mOwnRmse, run.mSlopeIterations, run.mSlopeSeconds, run.mFittedPoints,
                     Json(slopes).dump().c_str());
@@ -343,7 +373,8 @@ void FigureConvergence(const Kit& aKit) {
             name, single.front().mLast,
             name + " after " + std::to_string(firstRunLast.mIterations) + " iterations (" +
                 Num(firstRunLast.mSeconds) + " s, one run)" +
-                (merging ? ", merging radius 0.003 x scene radius, alpha " + Num(estimator.mAlpha) : ""));
+                (merging ? ", merging radius 0.003 x scene radius, alpha " + Num(estimator.mAlpha) : "") +
+                (estimator.mSampler == SamplerType::kSobol ? ", Sobol points" : ""));
         numbers["iterations"] = firstRunLast.mIterations;
         numbers["seconds"] = firstRunLast.mSeconds;
         numbers["rmse"] = firstRunLast.mRmse;
@@ -363,10 +394,42 @@ void FigureConvergence(const Kit& aKit) {
     const Json shares = TechniqueShares(aKit, scene);
     figure.Numbers()["technique_shares"] = shares;
 
+    // Each sampler's slope, and the ratio of their mean MSE at the last checkpoint both
+    // reached (the same iteration count).
+    std::string samplers;
+    for (const Estimator& estimator : kEstimators) {
+        if (estimator.mSampler != SamplerType::kSobol) continue;
+        const std::string name = smallvcm::AlgorithmShortName(estimator.mAlgorithm), sobolName = EstimatorName(estimator);
+        const Run* independent = nullptr;
+        const Run* sobol = nullptr;
+        for (const auto& [runName, run] : runs) {
+            if (runName == name) independent = &run;
+            if (runName == sobolName) sobol = &run;
+        }
+        if (!independent || !sobol) continue;
+        double ratio = NAN;
+        int at = 0;
+        for (const Checkpoint& a : independent->mCheckpoints)
+            for (const Checkpoint& b : sobol->mCheckpoints)
+                if (a.mIterations == b.mIterations && b.mRmse > 0.0) {
+                    ratio = (a.mRmse * a.mRmse) / (b.mRmse * b.mRmse);
+                    at = a.mIterations;
+                }
+        Json& entry = figure.Numbers()["sobol_vs_independent"][name];
+        entry["slope_independent"] = OrNull(independent->mSlopeIterations);
+        entry["slope_sobol"] = OrNull(sobol->mSlopeIterations);
+        entry["mse_ratio_independent_over_sobol"] = OrNull(ratio);
+        entry["at_iterations"] = at;
+        samplers += (samplers.empty() ? "" : ", ") + name + " " + Num(independent->mSlopeIterations, "%+.3f") + " -> " +
+                    Num(sobol->mSlopeIterations, "%+.3f") + " (MSE / " + Num(ratio, "%.2f") + " at " +
+                    std::to_string(at) + " it.)";
+    }
+
     bool holds = true;
     std::string claimed, others;
     for (const Estimator& estimator : kEstimators) {
-        const std::string name = smallvcm::AlgorithmShortName(estimator.mAlgorithm);
+        if (estimator.mSampler != SamplerType::kIndependent) continue;
+        const std::string name = EstimatorName(estimator);
         const Json slope = figure.Numbers()["slope_vs_iterations"][name];
         const bool near = slope.is_number() && std::abs(slope.get<double>() - estimator.mTheorySlope) <= kSlopeMargin;
         std::string text = name + " " + (slope.is_number() ? Num(slope.get<double>(), "%+.3f") : "n/a") + " (" +
@@ -384,7 +447,8 @@ void FigureConvergence(const Kit& aKit) {
     figure.Verdict(holds, "slopes of own RMSE vs iterations (theory): " + claimed + ", margin +-" +
                               Num(kSlopeMargin) + "; not claimed: " + others + "; fitted to the mean MSE of " +
                               std::to_string(runsPerEstimator) + " runs each, whose single-run slopes spread by "
-                              "std <= " + Num(largestStd, "%.3f") + " (BPT, PPM, VCM)");
+                              "std <= " + Num(largestStd, "%.3f") + " (BPT, PPM, VCM); independent -> Sobol "
+                              "slopes: " + samplers);
     figure.AddChart("F18_convergence.png");
     figure.Write();
     std::printf("  chart: python3 figures/plot_figures.py %s\n", aKit.mOut.c_str());

@@ -7,7 +7,9 @@ reads, in that folder,
 
     F18.csv  (build/fig_convergence: algorithm,iterations,seconds,rmse[,rmse_own,fitted])
              -> F18_convergence.png: RMSE against iterations and against seconds, log-log,
-                one line per estimator, the fitted slope in the legend
+                one line per estimator, the fitted slope in the legend; an estimator
+                with Sobol points ("bpt-sobol") in its estimator's colour, dash-dotted
+                with square markers
     F12.csv  (build/fig_photon_mapping: method,photons,seconds,rmse)
              -> F12_convergence.png: RMSE against photons and against seconds, log-log,
                 with the fitted rate of each method
@@ -53,12 +55,19 @@ ORDER = ["pt", "lt", "bpt", "ppm", "bpm", "vcm", "pm", "pmfg"]
 EXTRA_COLORS = ["#bcbd22", "#e377c2", "#393b79", "#637939", "#8c6d31"]
 
 
+SOBOL_SUFFIX = "-sobol"  # F18: the same estimator with Sobol points
+
+
+def base_name(name):
+    return name[:-len(SOBOL_SUFFIX)] if name.endswith(SOBOL_SUFFIX) else name
+
+
 def color_of(name, index):
-    return COLORS.get(name, EXTRA_COLORS[index % len(EXTRA_COLORS)])
+    return COLORS.get(base_name(name), EXTRA_COLORS[index % len(EXTRA_COLORS)])
 
 
 def ordered(names):
-    return sorted(names, key=lambda n: (ORDER.index(n) if n in ORDER else len(ORDER), n))
+    return sorted(names, key=lambda n: (ORDER.index(base_name(n)) if base_name(n) in ORDER else len(ORDER), n))
 
 
 def fit_slope(xs, ys):
@@ -147,20 +156,22 @@ def chart_f18(folder):
             fitted = [p for p in points if p["fitted"]]
             slope, intercept = fit_slope([p[axis] for p in fitted], [p["own"] for p in fitted])
             label = "%s: slope %s" % (name, "n/a" if slope is None else "%+.2f" % slope)
-            if axis == "iterations" and isinstance(theory.get(name), (int, float)):
+            sobol = name.endswith(SOBOL_SUFFIX)
+            if axis == "iterations" and not sobol and isinstance(theory.get(name), (int, float)):
                 label += " (theory %+.2f)" % theory[name]
+            line, marker = ("-.", "s") if sobol else ("-", "o")
             ax.plot(xs, [p["rmse"] for p in points], ":", color=color, linewidth=0.9, alpha=0.45)
             # Hollow markers: checkpoints left out of the fit; filled: fitted.
-            ax.plot(xs, [max(p["own"], 1e-12) for p in points], "-", marker="o", markersize=3.5,
+            ax.plot(xs, [max(p["own"], 1e-12) for p in points], line, marker=marker, markersize=3.5,
                     markerfacecolor="white", linewidth=1.5, color=color, label=label)
-            ax.plot([p[axis] for p in fitted], [max(p["own"], 1e-12) for p in fitted], "o", markersize=3.5,
+            ax.plot([p[axis] for p in fitted], [max(p["own"], 1e-12) for p in fitted], marker, markersize=3.5,
                     color=color)
             if slope is not None:
                 x0, x1 = fitted[0][axis], fitted[-1][axis]
                 ax.plot([x0, x1], [math.exp(intercept) * x0 ** slope, math.exp(intercept) * x1 ** slope],
                         "--", color=color, linewidth=1.0, alpha=0.9)
         draw_noise(ax, noise)
-        finish(ax, xlabel, "own RMSE vs %s (log-log; dotted: as measured)" % axis)
+        finish(ax, xlabel, "own RMSE vs %s (log-log; dotted: as measured; squares: Sobol)" % axis)
     alphas = settings.get("radius_alpha", {})
     subtitle = "F18 convergence rate: %s, %sx%s, mean MSE of %s runs per estimator (at most %s s or %s iterations each)" % (
         os.path.basename(str(settings.get("scene", "?"))), settings.get("resolution", "?"),

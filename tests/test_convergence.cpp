@@ -120,13 +120,13 @@ TEST_CASE("convergence --quick: one row per checkpoint, errors that fall, unbias
     std::ifstream csv(csvPath);
     std::string line;
     REQUIRE(std::getline(csv, line));
-    CHECK(line == "scene,algorithm,iterations,seconds,rmse,relmse");
+    CHECK(line == "scene,algorithm,iterations,seconds,rmse,relmse,rmse_diffuse");
     std::map<std::pair<int, std::string>, std::vector<Row>> runs;
     int rowCount = 0;
     while (std::getline(csv, line)) {
         const std::vector<std::string> fields = SplitCsvLine(line);
         INFO("row: " << line);
-        REQUIRE(fields.size() == 6);
+        REQUIRE(fields.size() == 7);
         Row row;
         row.mScene = std::stoi(fields[0]);
         row.mAlgorithm = fields[1];
@@ -134,12 +134,16 @@ TEST_CASE("convergence --quick: one row per checkpoint, errors that fall, unbias
         row.mSeconds = std::stod(fields[3]);
         row.mRmse = std::stod(fields[4]);
         row.mRelMse = std::stod(fields[5]);
+        const double rmseDiffuse = std::stod(fields[6]);
         CHECK(std::isfinite(row.mSeconds));
         CHECK(row.mSeconds >= 0.0);
         CHECK(std::isfinite(row.mRmse));
         CHECK(row.mRmse > 0.0);
         CHECK(std::isfinite(row.mRelMse));
         CHECK(row.mRelMse > 0.0);
+        // Every Cornell scene shows Lambert walls: the diffuse region is never empty.
+        CHECK(std::isfinite(rmseDiffuse));
+        CHECK(rmseDiffuse > 0.0);
         runs[{row.mScene, row.mAlgorithm}].push_back(row);
         rowCount++;
     }
