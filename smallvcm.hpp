@@ -3097,7 +3097,7 @@ struct RenderOptions {
     double mSeconds = 0.0;        // time budget in seconds (0: none)
     int mThreads = 0;             // 0: every hardware thread
     uint64_t mSeed = 1234;        // base seed: iteration i uses stream i of it
-    SamplerType mSampler = SamplerType::kIndependent;  // where the random numbers come from
+    SamplerType mSampler = SamplerType::kIndependent;  // where the random numbers come from (the smallvcm command: sobol)
     int mMinPathLength = 0;       // in segments, as SmallVCM counts them
     int mMaxPathLength = 10;
     float mRadiusFactor = 0.003f; // merging radius = factor * scene radius (SmallVCM's default)

@@ -251,11 +251,12 @@ TEST_CASE("A tiny good run writes a PFM of the requested size", "[cli]") {
     CHECK(smallvcm::MeanValue(image) > 0.0);
 }
 
-TEST_CASE("--sampler sobol renders the same seed differently, reproducibly, and the sidecar records it", "[cli][sidecar]") {
+TEST_CASE("The sampler is sobol by default; --sampler independent renders the same seed differently, each reproducibly, and the sidecar records it", "[cli][sidecar]") {
     TemporaryFolder folder;
-    const std::string independent = folder / "independent.pfm", sobol = folder / "sobol.pfm", again = folder / "again.pfm";
-    for (const auto& [arguments, output] : {std::pair<std::string, std::string>{"", independent},
-                                            {"--sampler sobol", sobol}, {"--sampler sobol", again}}) {
+    const std::string independent = folder / "independent.pfm", sobol = folder / "sobol.pfm", again = folder / "again.pfm",
+                      byDefault = folder / "default.pfm";
+    for (const auto& [arguments, output] : {std::pair<std::string, std::string>{"--sampler independent", independent},
+                                            {"--sampler sobol", sobol}, {"--sampler sobol", again}, {"", byDefault}}) {
         const Run run = RunProgram("-s 4 -a pt -i 2 -r 32x32 -j 2 " + arguments + " -o " + Quote(output));
         INFO(run);
         REQUIRE(run.mExitCode == 0);
@@ -263,8 +264,9 @@ TEST_CASE("--sampler sobol renders the same seed differently, reproducibly, and 
     const smallvcm::Image a = smallvcm::ReadPfm(independent), b = smallvcm::ReadPfm(sobol), c = smallvcm::ReadPfm(again);
     CHECK(a.mPixels != b.mPixels);
     CHECK(b.mPixels == c.mPixels);
-    const nlohmann::json sidecar = nlohmann::json::parse(ReadText(sobol + ".json"));
-    CHECK(sidecar["run"]["sampler"] == "sobol");
+    CHECK(smallvcm::ReadPfm(byDefault).mPixels == b.mPixels);
+    CHECK(nlohmann::json::parse(ReadText(sobol + ".json"))["run"]["sampler"] == "sobol");
+    CHECK(nlohmann::json::parse(ReadText(independent + ".json"))["run"]["sampler"] == "independent");
 }
 
 TEST_CASE("--help lists every built-in and the linked-in integrators with their descriptions", "[cli][integrator_api]") {
@@ -622,7 +624,7 @@ TEST_CASE("Every image gets a sidecar saying how it was made, fingerprinting the
     CHECK(s["run"]["seconds_budget"].is_null());
     CHECK(s["run"]["threads"] == 2);
     CHECK(s["run"]["stopped_early"] == false);
-    CHECK(s["run"]["sampler"] == "independent");
+    CHECK(s["run"]["sampler"] == "sobol");  // the command line's default
     CHECK(s["mean"].get<double>() == Approx(smallvcm::MeanValue(smallvcm::ReadPfm(output))).epsilon(1e-12));
     CHECK((s["smallvcm_commit"].is_null() || s["smallvcm_commit"].is_string()));
 }
@@ -905,7 +907,8 @@ TEST_CASE("A merge of runs of 4, 12, 24 and 88 iterations agrees with one run of
     // 0.03 for the noise of s^2 itself (1000 samples: E[1/s^2] exceeds 1/sigma^2 by about
     // 2/1000 for normal values, more for heavier tails; measured T is printed). An
     // unweighted average of the four runs has variance s^2 (1/4 + 1/12 + 1/24 + 1/88) / 16
-    // instead of s^2 / 128: E[T] = 2.05, which must fail the same bound.
+    // instead of s^2 / 128: E[T] = 2.05, which must fail the same bound. The runs use
+    // --sampler independent: with Sobol points N iterations do not have variance s^2 / N.
     TemporaryFolder folder;
     const int width = 32, height = 32;
     const std::vector<int> iterations = {4, 12, 24, 88};
@@ -913,14 +916,14 @@ TEST_CASE("A merge of runs of 4, 12, 24 and 88 iterations agrees with one run of
     std::vector<std::string> runs;
     for (size_t k = 0; k < iterations.size(); k++) {
         const std::string path = folder / ("run" + std::to_string(k) + ".pfm");
-        const Run run = RunProgram("-s " + scenePath + " -a pt -r 32x32 -q -i " + std::to_string(iterations[k]) + " --seed " + std::to_string(100 + k) +
-                                   " -o " + Quote(path));
+        const Run run = RunProgram("-s " + scenePath + " -a pt -r 32x32 -q --sampler independent -i " + std::to_string(iterations[k]) +
+                                   " --seed " + std::to_string(100 + k) + " -o " + Quote(path));
         REQUIRE(run.mExitCode == 0);
         runs.push_back(path);
     }
     const std::string merged = folder / "merged.pfm", single = folder / "single.pfm";
     REQUIRE(RunProgram(MergeCommand(merged, runs)).mExitCode == 0);
-    REQUIRE(RunProgram("-s " + scenePath + " -a pt -r 32x32 -q -i 128 --seed 200 -o " + Quote(single)).mExitCode == 0);
+    REQUIRE(RunProgram("-s " + scenePath + " -a pt -r 32x32 -q --sampler independent -i 128 --seed 200 -o " + Quote(single)).mExitCode == 0);
 
     smallvcm::Scene scene = smallvcm::LoadGltfScene(scenePath);
     scene.mCamera.SetResolution(width, height);
