@@ -298,6 +298,7 @@ TEST_CASE("-a mypt renders the student's path tracer, the same image as Render i
     options.mIterations = 2;
     options.mThreads = 1;
     options.mProgress = false;
+    options.mSampler = smallvcm::SamplerType::kSobol;  // the command line's default
     const smallvcm::Image expected = smallvcm::Render(scene, options, MyPathTracerIntegrator()).mImage;
     const smallvcm::Image image = smallvcm::ReadPfm(output);
     REQUIRE(image.mPixels.size() == expected.mPixels.size());
