@@ -147,15 +147,10 @@ def convert(out_dir):
                 write_ply_with_normals(ply, positions, normals, faces)
             lines += [f'scene.shapes.{name}.type = "mesh"', f'scene.shapes.{name}.ply = "{ply}"',
                       f'scene.objects.{name}.shape = "{name}"', f'scene.objects.{name}.material = "m{material}"']
-    node, world = camera
-    perspective = gltf["cameras"][node["camera"]]["perspective"]
-    aspect = perspective.get("aspectRatio", 1.0) or 1.0
-    fov_x = 2 * math.atan(math.tan(perspective["yfov"] / 2) * aspect)
-    position = world[:3, 3]
-    forward = -world[:3, 2] / np.linalg.norm(world[:3, 2])
+    fov_x, position, forward, up = mc.camera_pose(gltf, camera)
     vec = lambda a: " ".join(f"{x:.9g}" for x in a)  # noqa: E731
     lines += ['scene.camera.type = "perspective"', f"scene.camera.lookat.orig = {vec(position)}",
-              f"scene.camera.lookat.target = {vec(position + forward)}", f"scene.camera.up = {vec(world[:3, 1])}",
+              f"scene.camera.lookat.target = {vec(position + forward)}", f"scene.camera.up = {vec(up)}",
               f"scene.camera.fieldofview = {math.degrees(fov_x):.9g}"]
     return "\n".join(lines) + "\n"
 

@@ -182,6 +182,18 @@ def mitsuba_material(material, where):
     return bsdf, emitter
 
 
+def camera_pose(gltf, camera):
+    """The glTF camera (node, world matrix) as (horizontal field of view in radians,
+    position, unit forward direction, up vector)."""
+    node, world = camera
+    perspective = gltf["cameras"][node["camera"]]["perspective"]
+    aspect = perspective.get("aspectRatio", 1.0) or 1.0
+    fov_x = 2 * math.atan(math.tan(perspective["yfov"] / 2) * aspect)
+    position = world[:3, 3]
+    forward = -world[:3, 2] / np.linalg.norm(world[:3, 2])
+    return fov_x, position, forward, world[:3, 1]
+
+
 def write_ply(path, positions, faces):
     with open(path, "wb") as f:
         f.write((f"ply\nformat binary_little_endian 1.0\nelement vertex {len(positions)}\n"
@@ -239,15 +251,10 @@ def convert(gltf_path, out_dir, width, height):
         raise ConversionError(f"{gltf_path}: no light (the default sky and sun are not converted)")
     if camera is None:
         raise ConversionError(f"{gltf_path}: no camera (the made-up default camera is not converted)")
-    node, world = camera
-    perspective = gltf["cameras"][node["camera"]]["perspective"]
-    aspect = perspective.get("aspectRatio", 1.0) or 1.0
-    fov_x = 2 * math.atan(math.tan(perspective["yfov"] / 2) * aspect)
-    position = world[:3, 3]
-    forward = -world[:3, 2] / np.linalg.norm(world[:3, 2])
+    fov_x, position, forward, up = camera_pose(gltf, camera)
     scene["sensor"] = {
         "type": "perspective", "fov_axis": "x", "fov": math.degrees(fov_x), "near_clip": 1e-3,
-        "to_world": ("look_at", position.tolist(), (position + forward).tolist(), world[:3, 1].tolist()),
+        "to_world": ("look_at", position.tolist(), (position + forward).tolist(), up.tolist()),
         "sampler": {"type": "independent", "sample_count": 1},
         "film": {"type": "hdrfilm", "width": width, "height": height, "pixel_format": "rgb",
                  "sample_border": False, "rfilter": {"type": "box"}}}
