@@ -8177,17 +8177,19 @@ private:
                     if (source.extensions.count("KHR_materials_volume"))
                         Approximated("KHR_materials_volume (no absorption in the volume: the tint applies at each crossing)");
                 }
-                // The opaque rest, as without transmission when t = 0.
-                const Vec3 specular = dielectric * Vec3(0.04f) + metallic * baseColor;
+                // The opaque rest, as without transmission when t = 0. With ior 0 (F = 1) the
+                // glass share reflects all it receives, untinted: it joins that specular.
+                const bool refracts = glass > 0.f && ior > 0.f;
+                const float untinted = 0.04f * dielectric + (refracts ? 0.f : glass);
+                const Vec3 specular = Vec3(untinted) + metallic * baseColor;
                 material.mDiffuseReflectance = dielectric * 0.96f * baseColor;
                 if (pbr.baseColorTexture.index >= 0) {
                     const TextureUse use = UseTexture(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
                                                       pbr.baseColorTexture.extensions, true, "baseColorTexture", what, cutOut);
                     material.mBaseColorTexture = use.mTexture;
                     texCoordSets.push_back({"baseColorTexture", use.mTexCoord});
-                    material.mSpecularUntinted = Vec3(0.04f * dielectric);
+                    material.mSpecularUntinted = Vec3(untinted);
                 }
-                const bool refracts = glass > 0.f && ior > 0.f;  // ior 0: F = 1, glass is a mirror
                 if (roughness > 0.f) {
                     material.mPhongReflectance = specular;
                     material.mPhongExponent = std::min(10000.f, std::max(0.f, 2.f / std::pow(roughness, 4.f) - 2.f));
@@ -8200,8 +8202,6 @@ private:
                     material.mIor = ior;
                     material.mMirrorReflectance = Vec3(glass);
                     material.mTransmittance = glass * baseColor;
-                } else if (glass > 0.f) {
-                    material.mMirrorReflectance += Vec3(glass);
                 }
             }
             CheckColor(material.mDiffuseReflectance, what + ": the diffuse reflectance", true);
@@ -8921,8 +8921,8 @@ private:
              (lights == 0 ? "add lights to the file" : "lights that emit"));
     }
 
-    // A camera for a file without one. An interior (InteriorView: the geometry encloses the
-    // centre of its bounding box) gets a camera inside it (AddInteriorCamera). Any other
+    // A camera for a file without one. An interior (the geometry encloses the centre of its
+    // bounding box: Enclosed) gets a camera inside it (AddInteriorCamera). Any other
     // scene gets one that looks at the centre of the bounding box of all geometry from the
     // front (+Z, glTF's front) and 15 degrees above, with a 40-degree vertical field of
     // view, just far enough (plus 5%) that all eight corners of the box lie inside the
@@ -8962,18 +8962,20 @@ private:
 
     // The first surface each ray (aOrigin, aDirections[i]) meets: its distance (infinity
     // when none) and whether it shows its front (the glTF winding's side; a sphere's
-    // outside) to the ray. Triangles of a doubleSided material are passed through: they
-    // have no inside (a curtain, a leaf, a sheet of paper) to tell. Every other triangle
-    // and sphere is tested (the BVH is built later, by Scene::Finalize): a handful of rays
-    // costs about what a pass over the geometry does.
+    // outside) to the ray. Triangles of a doubleSided material do not count as that
+    // surface: they have no inside (a curtain, a leaf, a sheet of paper) to tell. But they
+    // are in the way of a camera: mNearest is the distance to the first surface of any
+    // kind. Every triangle and sphere is tested (the BVH is built later, by
+    // Scene::Finalize): a handful of rays costs about what a pass over the geometry does.
     struct EnclosureHit {
         float mDistance = std::numeric_limits<float>::infinity();
         bool mFront = false;
+        float mNearest = std::numeric_limits<float>::infinity();
     };
     std::vector<EnclosureHit> FirstHits(const Vec3& aOrigin, const std::vector<Vec3>& aDirections) const {
         std::vector<EnclosureHit> hits(aDirections.size());
         for (const Triangle& triangle : mScene.mTriangles) {
-            if (mScene.mMaterials[size_t(triangle.mMaterialId)].mTwoSided) continue;
+            const bool sheet = mScene.mMaterials[size_t(triangle.mMaterialId)].mTwoSided;
             const Vec3 e1 = triangle.mP1 - triangle.mP0, e2 = triangle.mP2 - triangle.mP0, s = aOrigin - triangle.mP0;
             const Vec3 q = glm::cross(s, e1);
             for (size_t r = 0; r < aDirections.size(); r++) {
@@ -8986,7 +8988,9 @@ private:
                 const float v = glm::dot(aDirections[r], q) * inverse;
                 if (v < 0.f || u + v > 1.f) continue;
                 const float t = glm::dot(e2, q) * inverse;
-                if (t > 0.f && t < hits[r].mDistance) hits[r] = {t, det > 0.f};
+                if (!(t > 0.f)) continue;
+                hits[r].mNearest = std::min(hits[r].mNearest, t);
+                if (!sheet && t < hits[r].mDistance) { hits[r].mDistance = t; hits[r].mFront = det > 0.f; }
             }
         }
         for (const Sphere& sphere : mScene.mSpheres) {
@@ -8997,7 +9001,9 @@ private:
                 if (discriminant < 0.f) continue;
                 const float root = std::sqrt(discriminant);
                 const float t = c > 0.f ? -b - root : -b + root;  // outside: the near side; inside: the far one
-                if (t > 0.f && t < hits[r].mDistance) hits[r] = {t, c > 0.f};
+                if (!(t > 0.f)) continue;
+                hits[r].mNearest = std::min(hits[r].mNearest, t);
+                if (t < hits[r].mDistance) { hits[r].mDistance = t; hits[r].mFront = c > 0.f; }
             }
         }
         return hits;
@@ -9020,7 +9026,7 @@ private:
     std::optional<std::vector<EnclosureHit>> Enclosed(const Vec3& aPoint, float aClearance) const {
         std::vector<EnclosureHit> hits = FirstHits(aPoint, EnclosureDirections());
         for (const EnclosureHit& hit : hits)
-            if (!hit.mFront || !(hit.mDistance > aClearance)) return std::nullopt;
+            if (!hit.mFront || !(hit.mNearest > aClearance)) return std::nullopt;
         return hits;
     }
 
@@ -9040,8 +9046,8 @@ private:
         const Vec3 extent = aBox.mMax - aBox.mMin;
         const bool alongZ = extent.z >= extent.x;
         const Vec3 forward = alongZ ? Vec3(0.f, 0.f, -1.f) : Vec3(-1.f, 0.f, 0.f);
-        const float behind = (*around)[alongZ ? 2 : 0].mDistance;  // EnclosureDirections: +Z is 2, +X is 0
-        const float below = (*around)[8].mDistance;
+        const float behind = (*around)[alongZ ? 2 : 0].mNearest;  // EnclosureDirections: +Z is 2, +X is 0
+        const float below = (*around)[8].mNearest;
         Vec3 position = center;
         for (const Vec3& candidate : {center - 0.6f * behind * forward - Vec3(0.f, 0.5f * below, 0.f),
                                       center - Vec3(0.f, 0.5f * below, 0.f)})

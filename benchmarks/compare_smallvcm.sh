@@ -22,6 +22,7 @@ OUT=${1:?usage: SMALLVCM=... SMALLVCM_256=... benchmarks/compare_smallvcm.sh OUT
 : "${SMALLVCM_256:?set SMALLVCM_256 to a SmallVCM binary built for 256x256}"
 R=${R:-2}
 OURS=$(pwd)/build/smallvcm
+SAMPLER=${SAMPLER:-independent}  # SmallVCM draws independent numbers: ours too, unless SAMPLER=sobol
 [ -x "$OURS" ] || { echo "compare_smallvcm: $OURS is missing (make build/smallvcm)" >&2; exit 1; }
 mkdir -p "$OUT"
 OUT=$(cd "$OUT" && pwd)
@@ -35,7 +36,7 @@ measure() {  # resolution scene algorithm threads iterations
   [ "$res" = 256 ] && theirs=$SMALLVCM_256
   for _ in $(seq "$R"); do
     echo "smallvcm_original,$res,$scene,$alg,$threads,$iterations,$(seconds $pin "$theirs" -s "$scene" -a "$alg" -i "$iterations" -o theirs.bmp)" >> times.csv
-    echo "smallvcm,$res,$scene,$alg,$threads,$iterations,$(seconds $pin "$OURS" -q -s "$scene" -a "$alg" -i "$iterations" -j "$threads" -r "${res}x${res}" -o ours.pfm)" >> times.csv
+    echo "smallvcm,$res,$scene,$alg,$threads,$iterations,$(seconds $pin "$OURS" -q --sampler "$SAMPLER" -s "$scene" -a "$alg" -i "$iterations" -j "$threads" -r "${res}x${res}" -o ours.pfm)" >> times.csv
   done
 }
 echo "program,resolution,scene,algorithm,threads,iterations,wall_seconds" > times.csv
@@ -51,10 +52,10 @@ echo "end $(date -u) load $(cut -d' ' -f1-3 /proc/loadavg)" >> log.txt
 [ "${EQUAL_ERROR:-1}" = 0 ] && exit 0
 : > equal_error.txt
 for scene in 0 1; do
-  "$OURS" -q -s "$scene" -a vcm -i 256 -j 2 -r 512x512 --seed 777 -o "reference_s$scene.pfm"
+  "$OURS" -q --sampler "$SAMPLER" -s "$scene" -a vcm -i 256 -j 2 -r 512x512 --seed 777 -o "reference_s$scene.pfm"
   for alg in pt vcm; do
     "$SMALLVCM" -s "$scene" -a "$alg" -i 16 -o "theirs_${alg}_s$scene.hdr" > /dev/null
-    "$OURS" -q -s "$scene" -a "$alg" -i 16 -j 2 -r 512x512 -o "ours_${alg}_s$scene.pfm"
+    "$OURS" -q --sampler "$SAMPLER" -s "$scene" -a "$alg" -i 16 -j 2 -r 512x512 -o "ours_${alg}_s$scene.pfm"
     echo "scene $scene, $alg, 16 iterations: $(/usr/bin/python3 "$SCRIPT_DIR/smallvcm_equal_error.py" \
       "reference_s$scene.pfm" "ours_${alg}_s$scene.pfm" "theirs_${alg}_s$scene.hdr")" >> equal_error.txt
   done

@@ -355,7 +355,8 @@ def render_smallvcm(gltf, width, height, iterations, seed, out_dir):
     sidecar (wall time of the one thread; at least its CPU time): what Mitsuba's time
     counts, which leaves out its scene loading."""
     path = os.path.join(out_dir, "smallvcm_run.pfm")
-    command = [SMALLVCM, "-q", "-s", gltf, "-a", "pt", "-j", "1", "-r", f"{width}x{height}",
+    # Independent numbers, as Mitsuba's "independent" sampler: like against like.
+    command = [SMALLVCM, "-q", "-s", gltf, "-a", "pt", "--sampler", "independent", "-j", "1", "-r", f"{width}x{height}",
                "-i", str(iterations), "--seed", str(seed), "--max-path-length", str(MAX_PATH_LENGTH), "-o", path]
     cpu, wall = children_cpu(), time.perf_counter()
     subprocess.run(command, check=True)

@@ -154,7 +154,7 @@ def main():
     ours = []
     for b in range(args.batches):
         path = os.path.join(args.out, "envmap_smallvcm.pfm")
-        subprocess.run([common.SMALLVCM, "-q", "-s", gltf, "-a", "pt", "-j", "1", "-r", f"{width}x{height}",
+        subprocess.run([common.SMALLVCM, "-q", "-s", gltf, "-a", "pt", "--sampler", "independent", "-j", "1", "-r", f"{width}x{height}",
                         "-i", str(args.spp), "--seed", str(1 + b), "--max-path-length", str(MAX_PATH_LENGTH),
                         "--envmap", map_pfm, "--envmap-rotate", str(args.rotate), "-o", path], check=True)
         ours.append(common.read_pfm(path))

@@ -233,7 +233,7 @@ void ParseBackground(const std::string& aText, smallvcm::GltfLoadOptions& oLoad)
 CommandLine Parse(int argc, char** argv) {
     CommandLine cl;
     cl.mOptions.mIterations = 1;
-    // Sobol points win at equal time for every unbiased estimator on SmallVCM's scenes
+    // Sobol points lower pt's, bpt's and vcm's error at equal time on SmallVCM's scenes
     // (docs/performance.md, "Samplers"); the library's RenderOptions keep independent
     // numbers, which the course's derivations and the tests' error bars assume.
     cl.mOptions.mSampler = smallvcm::SamplerType::kSobol;

@@ -382,12 +382,12 @@ MUTANTS = [
          impl=True),
     # --- default camera of an interior (glTF loader) --------------------------------------------
     dict(id="M116", cls="camera", what="interior test takes any surface around the centre, front or back, as enclosing it",
-         find="if (!hit.mFront || !(hit.mDistance > aClearance)) return std::nullopt;",
-         replace="if (!(hit.mDistance > aClearance)) return std::nullopt;",
+         find="if (!hit.mFront || !(hit.mNearest > aClearance)) return std::nullopt;",
+         replace="if (!(hit.mNearest > aClearance)) return std::nullopt;",
          impl=True),
     dict(id="M117", cls="camera", what="interior test stops at doubleSided sheets (a curtain's back hides the room)",
-         find="if (mScene.mMaterials[size_t(triangle.mMaterialId)].mTwoSided) continue;",
-         replace="if (false) continue;",
+         find="const bool sheet = mScene.mMaterials[size_t(triangle.mMaterialId)].mTwoSided;",
+         replace="const bool sheet = false;",
          impl=True),
     dict(id="M118", cls="camera", what="interior camera stays at the centre of the box (not moved back and down to eye height)",
          find="if (Enclosed(candidate, clearance)) { position = candidate; break; }",
@@ -401,6 +401,10 @@ MUTANTS = [
     dict(id="M120", cls="textures", what="an 8-bit texel's green decoded from its red byte",
          find="return Vec3(mDecode[rgb[0]], mDecode[rgb[1]], mDecode[rgb[2]]);",
          replace="return Vec3(mDecode[rgb[0]], mDecode[rgb[0]], mDecode[rgb[2]]);",
+         impl=True),
+    dict(id="M121", cls="camera", what="interior camera steps back to the enclosing wall, through a doubleSided sheet in the way",
+         find="const float behind = (*around)[alongZ ? 2 : 0].mNearest;",
+         replace="const float behind = (*around)[alongZ ? 2 : 0].mDistance;",
          impl=True),
 ]
 for _m in MUTANTS:

@@ -803,8 +803,12 @@ TEST_CASE("The interior test passes through doubleSided sheets and keeps the out
   "bufferViews": [{"buffer": 0, "byteLength": )" + std::to_string(bytes.size()) + R"(}],
   "buffers": [{"byteLength": )" + std::to_string(bytes.size()) + R"(, "uri": "data:application/octet-stream;base64,)" +
                              Base64(bytes) + "\"}]}";
-    LoadGltfScene(WriteTemporary(folder, "curtain.gltf", file), &report);
+    const Scene room = LoadGltfScene(WriteTemporary(folder, "curtain.gltf", file), &report);
     CHECK(report.mInteriorCamera);
+    // The camera looks along -X (the longer axis) and steps back towards +X: not past the
+    // curtain, which would fill its view with the sheet's back.
+    CHECK(room.mCamera.Forward().x < -0.99f);
+    CHECK(room.mCamera.Position().x < 2.f);
     // A closed object (the centre inside it sees only back faces) keeps the outside camera.
     LoadGltfScene(WriteTemporary(folder, "block.gltf", MeshGltf(Box(Vec3(0.f, 1.5f, 0.f), Vec3(4.f, 1.5f, 3.f)))), &report);
     CHECK(report.mDefaultCamera);
@@ -1873,7 +1877,7 @@ std::string ApproximatedNote(const GltfLoadReport& aReport) {
 } // namespace
 
 TEST_CASE("KHR_materials_transmission: g = (1 - m) t of the surface is glass tinted by b, the rest the opaque mapping, number by number", "[gltf][glass]") {
-    // docs/scene_format.md 4.2: g = (1 - m) t; glass: mirror g (times F), transmittance
+    // docs/scene_format.md 4.3: g = (1 - m) t; glass: mirror g (times F), transmittance
     // g b, ior; the rest: diffuse (1 - m)(1 - t) 0.96 b, specular ks = (1 - m)(1 - t) 0.04
     // + m b, a mirror F does not weight (r = 0) or Phong (r > 0).
     const std::string tint = "0.8, 0.5, 0.2";
@@ -1915,6 +1919,12 @@ TEST_CASE("KHR_materials_transmission: g = (1 - m) t of the surface is glass tin
         const Material m = GlassFloor(PbrGlass(tint, 0.f, 0.f,
                                                R"("KHR_materials_transmission": {"transmissionFactor": 0.5}, "KHR_materials_ior": {"ior": 0})"));
         CheckMaterial(m, 0.48f * b, Vec3(0.f), 1.f, Vec3(0.52f), -1.f, false);
+        // Rough, the whole specular (the glass share's g = 0.5 with it) is the Phong lobe; a
+        // base-colour texture tints neither (untinted share 0.02 + 0.5 = 0.52).
+        const Material rough = GlassFloor(PbrGlass(tint, 0.f, 0.5f,
+                                                   R"("KHR_materials_transmission": {"transmissionFactor": 0.5}, "KHR_materials_ior": {"ior": 0})"));
+        CHECK_VEC3(rough.mPhongReflectance, Vec3(0.52f), 1e-7f);
+        CHECK(IsBlack(rough.mMirrorReflectance));
     }
     SECTION("doubleSided on partly transmissive glass: one-sided (glass tells inside from outside)") {
         std::string json = PbrGlass(tint, 0.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": 0.5})");
@@ -1976,7 +1986,20 @@ TEST_CASE("A base-colour texture on glass tints the refraction and the opaque sh
     const Material& m = scene.mMaterials.at(0);
     CHECK(m.mBaseColorTexture >= 0);
     CHECK(m.mIor == 1.5f);
+    // Tolerances: the rule's few float products (a relative error of a few 1e-8).
     CHECK_VEC3(m.mSpecularUntinted, Vec3(0.02f), 1e-8f);
     CHECK_VEC3(m.mTransmittance, Vec3(0.25f, 0.5f, 0.5f), 1e-7f);
+    // The Fresnel reflection is glass's mirror g = 0.5, which Bsdf::SetupWith never tints
+    // on glass (it tints the opaque mirror, zero here: r = 0 puts 0.02 there).
+    CHECK_VEC3(m.mMirrorReflectance, Vec3(0.5f), 1e-7f);
+    CHECK_VEC3(m.mOpaqueMirror, Vec3(0.02f), 1e-8f);
     CHECK(ApproximatedNote(report).empty());
+    // ior 0: the glass share is a mirror and joins the specular; its untinted share keeps
+    // the texture off it (0.02 + 0.5 untinted of 0.52: a texel tints nothing).
+    std::ofstream(folder / "mirror.gltf") << Replaced(text, R"("transmissionFactor": 0.5}})",
+                                                      R"("transmissionFactor": 0.5}, "KHR_materials_ior": {"ior": 0}})");
+    const Material& mirror = LoadGltfScene(folder / "mirror.gltf").mMaterials.at(0);
+    CHECK(mirror.mIor < 0.f);
+    CHECK_VEC3(mirror.mMirrorReflectance, Vec3(0.52f), 1e-7f);
+    CHECK_VEC3(mirror.mSpecularUntinted, Vec3(0.52f), 1e-7f);
 }

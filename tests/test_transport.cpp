@@ -807,7 +807,7 @@ TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree wi
 }
 
 // --- glass as glTF files write it: tinted, partly transmissive -----------------------------
-// (docs/scene_format.md 4.2; the BSDF's own checks are in test_bsdf.cpp [glass].)
+// (docs/scene_format.md 4.3; the BSDF's own checks are in test_bsdf.cpp [glass].)
 namespace {
 
 // The camera at the centre of a closed geodesic sphere (radius 1, 1280 triangles facing
