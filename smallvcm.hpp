@@ -446,6 +446,20 @@ inline constexpr std::array<std::array<uint32_t, 32>, kSobolDimensions> kReverse
 
 // The top 24 digits as a float in [0, 1), as Rng::GetFloat.
 inline float DigitsToFloat(uint32_t aDigits) { return float(aDigits >> 8) * (1.f / 16777216.f); }
+
+// The same from reversed digits (the first digit in bit 0): the low 24 bits mirrored,
+// a byte at a time through a table of the 256 bytes mirrored.
+constexpr std::array<uint8_t, 256> MakeReversedBytes() {
+    std::array<uint8_t, 256> bytes{};
+    for (uint32_t b = 0; b < 256; b++) bytes[b] = uint8_t(ReverseBits32(b) >> 24);
+    return bytes;
+}
+inline constexpr std::array<uint8_t, 256> kReversedBytes = MakeReversedBytes();
+inline float ReversedDigitsToFloat(uint32_t aReversed) {
+    const uint32_t digits24 = uint32_t(kReversedBytes[aReversed & 0xffu]) << 16 |
+                              uint32_t(kReversedBytes[(aReversed >> 8) & 0xffu]) << 8 | kReversedBytes[(aReversed >> 16) & 0xffu];
+    return float(digits24) * (1.f / 16777216.f);
+}
 }  // namespace detail
 
 // Coordinate aDimension (< detail::kSobolDimensions) of point aIndex of the Sobol
@@ -561,7 +575,7 @@ private:
         // low bits, and a camera sub-path's index (the iteration) not at all.
         mDigits[d] ^= detail::XorOfColumns(detail::kReversedSobolMatrices[d], mDigitsIndex[d] ^ mIndex);
         mDigitsIndex[d] = mIndex;
-        return detail::DigitsToFloat(detail::ReverseBits32(detail::OwenScrambleReversed(mDigits[d], seed)));
+        return detail::ReversedDigitsToFloat(detail::OwenScrambleReversed(mDigits[d], seed));
     }
 
     SamplerType mType = SamplerType::kIndependent;

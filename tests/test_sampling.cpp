@@ -451,6 +451,14 @@ TEST_CASE("The van der Corput dimension mirrors the index's bits and the second 
     CHECK(detail::SobolDigits(3, 1) == (0x80000000u ^ 0xc0000000u));
     CHECK(detail::ReverseBits32(0x00000001u) == 0x80000000u);
     CHECK(detail::ReverseBits32(0x12345678u) == 0x1e6a2c48u);
+    // The Sampler's float from reversed digits (a byte table) is DigitsToFloat of the digits.
+    Rng rng(91);
+    for (uint32_t digits : {0u, 0xffffffffu, 0x80000000u, 0x00000100u, 0x000000ffu, 0x12345678u})
+        CHECK(detail::ReversedDigitsToFloat(detail::ReverseBits32(digits)) == detail::DigitsToFloat(digits));
+    for (int i = 0; i < 100000; i++) {
+        const uint32_t digits = rng.NextUint();
+        REQUIRE(detail::ReversedDigitsToFloat(detail::ReverseBits32(digits)) == detail::DigitsToFloat(digits));
+    }
 }
 
 TEST_CASE("Every Sobol dimension's first 2^k points, scrambled or not, put one point in each cell of width 2^-k", "[sampling]") {
