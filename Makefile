@@ -338,8 +338,9 @@ bench-mitsuba: deps $(BUILD)/smallvcm
 
 # make bench-luxcore [BENCH_LUXCORE_ARGS="--budgets 10,20"]: smallvcm's BPT and VCM (both
 # samplers) beside LuxCore's BIDIRCPU and BIDIRVMCPU (Sobol) on scene 4 at 128x128, one
-# thread each, efficiency 1/(MSE x CPU s) at CPU budgets of 10 to 120 s, and our MSE slopes
-# on the diffuse region (benchmarks/luxcore_compare.py says how; about 15 minutes of CPU;
+# thread each, efficiency 1/(MSE x CPU s) at CPU budgets of 10 to 120 s (LuxCore renders on
+# to 240 s for its variance), and our MSE slopes on the diffuse region
+# (benchmarks/luxcore_compare.py says how; about 18 minutes of CPU;
 # results in build/luxcore/, the current table in docs/performance.md). Benchmark-only:
 # pyluxcore and NumPy are installed with pip into build/luxcore-venv; the reference (Sobol
 # BPT, 4096 iterations) is made first if missing.

@@ -3,7 +3,7 @@
 scene, one thread each, at equal CPU time: efficiency = 1 / (MSE x CPU seconds).
 
     build/luxcore-venv/bin/python benchmarks/luxcore_compare.py [--budgets 10,20,40,80,120]
-        [--resolution 128] [--out DIR]
+        [--luxcore-extra-seconds S] [--resolution 128] [--out DIR] [--reuse]
 
 (`make bench-luxcore` makes that virtual environment, with pyluxcore and NumPy from pip,
 and runs this; LuxCore is a benchmark-only dependency, never needed by make test.)
@@ -39,9 +39,20 @@ reference's noise^2 on the same pixels; efficiency = 1 / (own MSE x CPU seconds)
 Timing: CPU time of one rendering thread, since the machine may be shared. LuxCore runs
 in a worker process of this script: the process's CPU time from the session's start
 (LuxCore's preprocessing and BVH build included), and the film is read whenever it
-reaches a budget (10, 20, ... s) and the render stops at the last. LuxCore's variance alone (without its difference from
-the reference) is estimated from the MSE of each film against the run's last one, which
-contains it (`efficiency` says how). Ours: one
+reaches a budget (10, 20, ... s) and once more at T = the largest budget + S
+(--luxcore-extra-seconds; S defaults to the largest budget, so T = 240 s for the default
+budgets), where the render stops. That later film is reported at no budget: LuxCore's
+variance alone (without its difference from the reference) at each budget b is estimated
+from the MSE of the budget's film against it, which contains the budget's samples and
+T - b seconds more: var_b = MSE x T / (T - b) if the variance falls as 1/time
+(`efficiency` says why). The estimate is best when T is well past b: the MSE is
+var_b + var_T - 2 cov(film_b, film_T), so whatever var_T and the covariance depart from
+b/T var_b each (a variance that does not fall exactly as 1/time, passes not in
+proportion to CPU time, Sobol passes that are not independent) counts T / (T - b) times.
+With S = 0 the largest budget has no estimate at all; the default makes that factor 2 at
+the largest budget (the later film has half its variance) and at most 1.5 from two
+thirds of it down (80 of 120 s), for S CPU seconds more per engine (ours stop at
+the largest budget). Ours: one
 build/convergence run per sampler (--clock cpu: the rendering thread's CPU time,
 renderer creation included, scene loading not), checkpoints at 1, 2, 4, ... iterations
 and where the largest budget ran out; the MSE at a budget is interpolated log-log
@@ -177,8 +188,9 @@ def properties_from(pyluxcore, text):
 
 def lux_worker(scene_file, engine, size, budgets, seed, out):
     """Runs in its own process: renders with one thread until the process has spent the
-    largest budget of CPU time since the session started, and at each budget writes the
-    RGB film (out_<budget>.npy) and its passes and CPU seconds (out.json)."""
+    largest of `budgets` (the later film's T included) of CPU time since the session
+    started, and at each writes the RGB film (out_<budget>.npy) and its passes and CPU
+    seconds (out.json)."""
     import pyluxcore
     pyluxcore.Init()  # its log goes to stdout, which the parent discards
     with open(scene_file) as f:
@@ -206,9 +218,12 @@ def lux_worker(scene_file, engine, size, budgets, seed, out):
 
 
 def render_lux(out_dir, engine, size, budgets, seed, reuse):
-    """{budget: (image, CPU seconds, passes)} of one LuxCore run (with reuse, of the one
-    already in out_dir if there is one)."""
+    """{budget: (image, CPU seconds, passes)} of one LuxCore run to max(budgets) (with reuse,
+    of the one already in out_dir if it went that far)."""
     out = os.path.join(out_dir, f"lux_{engine}")
+    if reuse and os.path.exists(out + ".json"):
+        with open(out + ".json") as f:
+            reuse = max(r["budget"] for r in json.load(f)) >= max(budgets)
     if not (reuse and os.path.exists(out + ".json")):
         subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", os.path.join(out_dir, "scene.scn"), engine,
                         str(size), ",".join(map(str, budgets)), str(seed), out], check=True, stdout=subprocess.DEVNULL)
@@ -311,29 +326,33 @@ def align(image, reference, mask):
     return best[1], best[2]
 
 
-def efficiency(out_dir, size, budgets, reference, noise2, noise2_diffuse, mask, log, reuse):
+def efficiency(out_dir, size, budgets, luxcore_later, reference, noise2, noise2_diffuse, mask, log, reuse):
     rows = []
     whole = interior(size)
     mask = mask & whole
     longest = max(budgets)
     for k, engine in enumerate(["BIDIRCPU", "BIDIRVMCPU"]):
-        renders = render_lux(out_dir, engine, size, budgets, 100 + k, reuse)
-        # (a reused run may have rendered longer than the longest budget asked for now)
+        renders = render_lux(out_dir, engine, size, sorted(set(budgets) | {luxcore_later}), 100 + k, reuse)
+        # the later film: at luxcore_later, or later still in a reused run
         run_longest = max(renders)
         last, _ = align(renders[run_longest][0], reference, whole)
+        log(f"efficiency: luxcore {engine} later film (variance only) {run_longest} s: {renders[run_longest][1]:.1f} s "
+            f"CPU, {renders[run_longest][2]} passes")
         for budget, (image, cpu, passes) in sorted(renders.items()):
             if budget not in budgets:
                 continue
             image, (flipped, dy, dx) = align(image, reference, whole)
             e, ed = mse(image, reference, whole), mse(image, reference, mask)
             row = dict(renderer="luxcore", estimator=engine, sampler="sobol", budget=budget, cpu=cpu, samples=passes,
-                       mse=e, mse_d=ed)
+                       mse=e, mse_d=ed, later=run_longest)
             # LuxCore's variance alone, without its difference from our reference: from the
-            # MSE against its own longest render B of the same run. That film holds this
+            # MSE against its own later film B (at T) of the same run. That film holds this
             # one's b seconds of samples and B - b more: img_B = (b img_b + (B - b) rest) / B,
             # so img_b - img_B = (B - b) / B (img_b - rest), whose mean square is
             # ((B - b) / B)^2 var_b (1 + b / (B - b)) = var_b (B - b) / B if the variance
-            # falls as 1 / time (the common bias cancels).
+            # falls as 1 / time (the common bias cancels). In general it is var_b + var_B -
+            # 2 cov(img_b, img_B), so a var_B or covariance off b / B var_b counts B / (B - b)
+            # times in the estimate: B well past b.
             if budget < run_longest:
                 scale = run_longest / (run_longest - budget)
                 row["var"] = mse(image, last, whole) * scale
@@ -395,10 +414,11 @@ def write_table(out_dir, rows, slopes, noise2, noise2_diffuse):
                 lines_var.append(f"| {budget} | {r['estimator']} | {r['sampler']} | {ratio('BIDIRCPU', 'eff', 'eff_var')} | "
                                  f"{ratio('BIDIRVMCPU', 'eff', 'eff_var')} | {ratio('BIDIRCPU', 'eff_d', 'eff_var_d')} | "
                                  f"{ratio('BIDIRVMCPU', 'eff_d', 'eff_var_d')} |")
+    later = " and ".join(sorted({f"{r['later']}" for r in rows if "later" in r}, key=int))
     lines += ["", f"Reference noise^2 subtracted (own MSE): {noise2:.3g} (whole image), {noise2_diffuse:.3g} (diffuse region).",
               "Efficiency = 1 / (own MSE x CPU s).", "",
-              "LuxCore's variance alone (its MSE against its own longest render B x B / (B - budget)), "
-              "our own MSE against it:", ""] + lines_var
+              "LuxCore's variance alone (its MSE against its own later film B x B / (B - budget), "
+              f"B = {later} s), our own MSE against it:", ""] + lines_var
     lines += ["", "| estimator | sampler | MSE slope per iteration, diffuse region (points) | whole image (points) |",
               "|---|---|---|---|"]
     for (algorithm, sampler), ((slope_d, n_d), (slope, n)) in sorted(slopes.items()):
@@ -417,11 +437,15 @@ def main():
     parser.add_argument("--out", default=os.path.join(ROOT, "build", "luxcore"))
     parser.add_argument("--resolution", type=int, default=128)
     parser.add_argument("--budgets", default="10,20,40,80,120")
+    parser.add_argument("--luxcore-extra-seconds", type=int, default=None,
+                        help="LuxCore renders this many CPU seconds past the largest budget, to the film that "
+                             "its variance is estimated against (default: the largest budget, i.e. to twice it)")
     parser.add_argument("--reuse", action="store_true",
                         help="use the renders already in --out (same budgets), render only what is missing")
     args = parser.parse_args()
     os.makedirs(args.out, exist_ok=True)
     budgets = [int(b) for b in args.budgets.split(",")]
+    later = max(budgets) + (max(budgets) if args.luxcore_extra_seconds is None else args.luxcore_extra_seconds)
     log_file = open(os.path.join(args.out, "log.txt"), "a")
 
     def log(line):
@@ -433,9 +457,10 @@ def main():
         f.write(convert(args.out))
     reference, noise, noise_diffuse, mask = load_reference(args.resolution)
     log(f"luxcore_compare {time.strftime('%Y-%m-%d %H:%M:%S')}: {args.resolution}x{args.resolution}, budgets {budgets}, "
+        f"LuxCore's later film at {later} s, "
         f"reference noise RMSE {noise:.4g} (diffuse {noise_diffuse:.4g}, {int(mask.sum())} pixels)")
-    rows, slopes = efficiency(args.out, args.resolution, budgets, reference, noise ** 2, noise_diffuse ** 2, mask, log,
-                              args.reuse)
+    rows, slopes = efficiency(args.out, args.resolution, budgets, later, reference, noise ** 2, noise_diffuse ** 2, mask,
+                              log, args.reuse)
     write_table(args.out, rows, slopes, noise ** 2, noise_diffuse ** 2)
 
 
