@@ -151,6 +151,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <numeric>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -472,8 +473,10 @@ inline float ScrambledSobol(uint32_t aIndex, int aDimension, uint32_t aSeed) {
 // --- Samplers: where an estimator's random numbers come from --------------------------
 // An estimator asks its Sampler for one dimension (Get1D), two (Get2D) or three (Get3D:
 // a BSDF sample's direction and its component pick), and says before each path which
-// sample it starts: StartPixelSample(pixel) for a camera sub-path, StartLightPath(p) for
-// the p-th light sub-path (photon) of the iteration. One Sampler serves one iteration.
+// sample it starts: StartPixelSample(pixel) for a camera sub-path, StartLightPath(p, N) for
+// the p-th of the iteration's N light sub-paths (photons). An estimator that connects a
+// camera sub-path to a light sub-path connects pixel q's to light sub-path
+// LightPathOfPixel(q, N). One Sampler serves one iteration.
 // Two kinds:
 //  * independent: every number the next one of the iteration's Rng, in the order asked
 //    (Start does nothing): plain Monte Carlo, whose variance falls as 1/N.
@@ -481,14 +484,25 @@ inline float ScrambledSobol(uint32_t aIndex, int aDimension, uint32_t aSeed) {
 //    point of an Owen-scrambled Sobol sequence, in the order asked: its first request
 //    reads dimension 0 (and 1, if 2D), the next ones the following dimensions. Which
 //    point, of which randomisation:
-//      camera sub-path:  index = the iteration number,    seeds from (its pixel, dimension);
-//      light sub-path:   index = p, its number in the iteration, seeds from (iteration, dimension).
+//      camera sub-path:  index = the iteration number i,  seeds from (its pixel, dimension);
+//      light sub-path p: index = i N + p (its number in the run), seeds from the dimension.
 //    A pixel's first 2^k iterations thus put one sample in each 2^-k cell of every
-//    dimension, and dimensions 0 and 1 (the pixel position) form a (0,k,2)-net; the light
-//    sub-paths of one iteration are stratified among themselves in the same way, while
-//    the iteration number enters them only through the seeds, so light sub-paths of
-//    different iterations are independent, as with Rng (and runs with different seeds
-//    are independent in every part).
+//    dimension, and dimensions 0 and 1 (the pixel position) form a (0,k,2)-net. The light
+//    sub-paths of iterations 0 .. I-1 are the first I N points of one scrambled sequence,
+//    stratified together in the same way: the splats of light tracing and the merges,
+//    which sum over all light sub-paths, see one stratified set, not I independent ones.
+//    (An index is 32 bits: past 2^32 light sub-paths the index's high part, i N + p
+//    divided by 2^32, joins the seeds, so each block of 2^32 is another scramble.)
+//    Pairing. Indices i N + p and (i+1) N + p differ only in the high bits when N is a
+//    power of two, and the coarse digits come from the low bits: light sub-paths p of
+//    every iteration share a cell of width 1/N in dimension 0. A pixel that always
+//    connected to light sub-path p would see only light sub-paths of that cell. So
+//    LightPathOfPixel(q, N) is a permutation of 0 .. N-1 drawn anew each iteration,
+//    (a q + b) mod N with a coprime to N, a and b hashed from the seed and iteration:
+//    over the iterations a pixel's light sub-paths come from all over the set.
+//    Iterations of one run are not independent (a pixel's camera sub-paths, and all the
+//    light sub-paths, are parts of one scrambled sequence); runs with different seeds are
+//    independent in every part, so their images may be averaged as independent ones.
 //    The dimensions come from one Sobol sequence rather than from independent 2D
 //    sequences of the same index: the scrambled van der Corput digits of one index in two
 //    such sequences are nested permutations of each other, so the first coordinates of
@@ -530,14 +544,29 @@ public:
         Sampler sampler{Rng()};
         sampler.mType = SamplerType::kSobol;
         sampler.mIteration = uint32_t(aIteration);
-        for (uint64_t domain = 0; domain < 3; domain++) sampler.mDomainSeeds[domain] = SplitMix64(aSeed ^ SplitMix64(domain + 1));
+        for (uint64_t domain = 0; domain < 4; domain++) sampler.mDomainSeeds[domain] = SplitMix64(aSeed ^ SplitMix64(domain + 1));
         sampler.Start(kUnstarted, sampler.mIteration, 0);
         return sampler;
     }
     SamplerType Type() const { return mType; }
 
     void StartPixelSample(int aPixel) { Start(kCameraPaths, uint32_t(aPixel), mIteration); }
-    void StartLightPath(int aPath) { Start(kLightPaths, mIteration, uint32_t(aPath)); }
+    // Light sub-path aPath of the aPathCount of this iteration: point i N + p of the run's
+    // sequence, whose 32-bit block (the index's high part) selects the scramble.
+    void StartLightPath(int aPath, int aPathCount) {
+        const uint64_t index = uint64_t(mIteration) * uint64_t(aPathCount) + uint64_t(aPath);
+        Start(kLightPaths, uint32_t(index >> 32), uint32_t(index));
+    }
+    // The light sub-path (of aPathCount) that pixel aPixel's camera sub-path connects to:
+    // the pixel's own with independent numbers; with Sobol points (a aPixel + b) mod N,
+    // a permutation because gcd(a, N) = 1, with a and b hashed from the seed and iteration.
+    int LightPathOfPixel(int aPixel, int aPathCount) const {
+        if (mType == SamplerType::kIndependent) return aPixel;
+        const uint64_t hash = SplitMix64(mDomainSeeds[kPairing] ^ mIteration), n = uint64_t(aPathCount);
+        uint64_t a = (hash >> 32) % n;
+        while (std::gcd(a, n) != 1) a = (a + 1) % n;
+        return int((a * uint64_t(aPixel) + (hash & 0xffffffffu)) % n);
+    }
 
     float Get1D() {
         if (mType == SamplerType::kIndependent) return mRng.GetFloat();
@@ -556,11 +585,11 @@ public:
     }
 
 private:
-    enum Domain { kUnstarted = 0, kCameraPaths = 1, kLightPaths = 2 };
+    enum Domain { kUnstarted = 0, kCameraPaths = 1, kLightPaths = 2, kPairing = 3 };
 
     // A path's scramble seeds, one per dimension in the order asked, come from an Rng seeded
-    // by its domain and stream only: every point of the stream (a pixel's iterations, an
-    // iteration's light paths) is scrambled alike, as a scrambled net must be.
+    // by its domain and stream only: every point of the stream (a pixel's iterations, a
+    // block of 2^32 light sub-paths) is scrambled alike, as a scrambled net must be.
     void Start(Domain aDomain, uint32_t aStream, uint32_t aIndex) {
         mSeeds = Rng(SplitMix64(mDomainSeeds[aDomain] ^ aStream));
         mIndex = aIndex;
@@ -581,7 +610,7 @@ private:
     SamplerType mType = SamplerType::kIndependent;
     Rng mRng;
     uint32_t mIteration = 0;
-    uint64_t mDomainSeeds[3] = {};
+    uint64_t mDomainSeeds[4] = {};
     Rng mSeeds;
     uint32_t mIndex = 0;
     size_t mDimension = 0;
@@ -3053,7 +3082,8 @@ private:
 //    and draws every random number from sampler (see Sampler): made from the base seed
 //    and i alone, the same whichever thread runs it, so one seed and thread count give
 //    one image, bit for bit. Before each camera sub-path it calls
-//    sampler.StartPixelSample(pixel), before each light sub-path StartLightPath(p).
+//    sampler.StartPixelSample(pixel), before the p-th of its N light sub-paths
+//    StartLightPath(p, N).
 //  * After the last iteration Render() sums the films in thread order and divides by the
 //    number of iterations run: a film holds sums of per-iteration estimates.
 //  * Iteration and time budgets, threads, progress, cancellation (checked between
@@ -3498,7 +3528,7 @@ struct PhotonMaps {
 inline PhotonMaps TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPathLength, Sampler& aSampler) {
     std::vector<Photon> global, caustic;
     for (int p = 0; p < aPhotonCount; p++) {
-        aSampler.StartLightPath(p);
+        aSampler.StartLightPath(p, aPhotonCount);
         const LightPick pick = aScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
         const float lightPickProb = pick.mProb;
@@ -3974,8 +4004,10 @@ public:
             mLightVertexSearch.Build(mLightVertices.size(), radius, [&](size_t i) { return mLightVertices[i].mHitPoint; },
                                      [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[i]); });
 
-        // 3. Camera sub-paths, one per pixel.
-        for (int pixel = 0; pixel < pathCount; pixel++) TraceCameraSubpath(aSampler, pixel);
+        // 3. Camera sub-paths, one per pixel, each connecting to the light sub-path the
+        //    sampler pairs it with (the pixel's own, or a permutation: see Sampler).
+        for (int pixel = 0; pixel < pathCount; pixel++)
+            TraceCameraSubpath(aSampler, pixel, aSampler.LightPathOfPixel(pixel, pathCount));
     }
 
     // --- what tests and tools may inspect ----------------------------------------------
@@ -4064,7 +4096,7 @@ private:
         mPathEnds.assign(size_t(aPathCount), 0);
         if (mPathRecords) mLightHistories.clear();
         for (int path = 0; path < aPathCount; path++) {
-            aSampler.StartLightPath(path);
+            aSampler.StartLightPath(path, aPathCount);
             TraceLightSubpath(aSampler);
             mPathEnds[size_t(path)] = mLightVertices.size();
         }
@@ -4118,14 +4150,18 @@ private:
     // One camera sub-path through aPixel; at each vertex the techniques that complete a
     // path there, each adding its contribution: a light it hits (s = 0), and at a
     // non-specular vertex next-event estimation (s = 1), connections to the vertices of
-    // this pixel's light sub-path (VC) and merging with the light vertices within r (VM).
-    void TraceCameraSubpath(Sampler& aSampler, int aPixel) {
+    // light sub-path aLightPath, the one paired with this pixel (VC), and merging with the
+    // light vertices within r (VM).
+    void TraceCameraSubpath(Sampler& aSampler, int aPixel, int aLightPath) {
         const Camera& camera = mScene.mCamera;
         aSampler.StartPixelSample(aPixel);
         const Vec2 raster = Vec2(float(aPixel % camera.Width()), float(aPixel / camera.Width())) + aSampler.Get2D();
         SubpathState cam = GenerateCameraSample(raster);
-        if (mPathRecords) mCameraHistory.assign(1, PathVertex{cam.mOrigin});
-        if (mUseVC) ForgetPixelLightBsdfs(aPixel);
+        if (mPathRecords) {
+            mCameraHistory.assign(1, PathVertex{cam.mOrigin});
+            mCameraLightPath = aLightPath;
+        }
+        if (mUseVC) ForgetPixelLightBsdfs(aLightPath);
         Ray ray{cam.mOrigin, cam.mDirection};
         Bsdf bsdf;
         for (;;) {
@@ -4150,7 +4186,7 @@ private:
             if (!bsdf.IsDelta()) {
                 if (mUseVC) {
                     if (cam.mPathLength + 1 >= mOptions.mMinPathLength) AddToFilm(aPixel, ConnectToLight(aSampler, cam, hit.mPosition, bsdf));
-                    const size_t begin = LightSubpathBegin(aPixel), end = LightSubpathEnd(aPixel);
+                    const size_t begin = LightSubpathBegin(aLightPath), end = LightSubpathEnd(aLightPath);
                     for (size_t i = begin; i < end; i++) {
                         const LightVertex& vertex = mLightVertices[i];
                         const int pathLength = vertex.mPathLength + cam.mPathLength + 1;
@@ -4409,13 +4445,13 @@ private:
         // END EXERCISE ppm_merging/merge
     }
 
-    // The stored light vertices of the light sub-path traced for aPixel: [begin, end).
-    size_t LightSubpathBegin(int aPixel) const { return aPixel == 0 ? 0 : mPathEnds[size_t(aPixel) - 1]; }
-    size_t LightSubpathEnd(int aPixel) const { return mPathEnds[size_t(aPixel)]; }
+    // The stored light vertices of light sub-path aPath: [begin, end).
+    size_t LightSubpathBegin(int aPath) const { return aPath == 0 ? 0 : mPathEnds[size_t(aPath) - 1]; }
+    size_t LightSubpathEnd(int aPath) const { return mPathEnds[size_t(aPath)]; }
 
-    // The BSDF of the aSlot-th light vertex of this pixel's light sub-path, built at its
-    // first connection and kept for the pixel's later camera vertices, which connect to it
-    // again (building a BSDF costs more than evaluating one).
+    // The BSDF of the aSlot-th light vertex of the light sub-path paired with this camera
+    // sub-path, built at its first connection and kept for the camera sub-path's later
+    // vertices, which connect to it again (building a BSDF costs more than evaluating one).
     const Bsdf& PixelLightBsdf(size_t aSlot, const LightVertex& aVertex) {
         if (mPixelLightBsdfPath[aSlot] != mCameraPathNumber) {
             SurfacePoint surface;
@@ -4427,10 +4463,11 @@ private:
         }
         return mPixelLightBsdfs[aSlot];
     }
-    // A new camera sub-path (of aPixel): none of its light vertices' BSDFs is built yet.
-    // Each entry holds the number of the camera sub-path it was built for.
-    void ForgetPixelLightBsdfs(int aPixel) {
-        const size_t count = LightSubpathEnd(aPixel) - LightSubpathBegin(aPixel);
+    // A new camera sub-path, paired with light sub-path aLightPath: none of its light
+    // vertices' BSDFs is built yet. Each entry holds the number of the camera sub-path it
+    // was built for.
+    void ForgetPixelLightBsdfs(int aLightPath) {
+        const size_t count = LightSubpathEnd(aLightPath) - LightSubpathBegin(aLightPath);
         if (mPixelLightBsdfs.size() < count) {
             mPixelLightBsdfs.resize(count);
             mPixelLightBsdfPath.resize(count, 0);
@@ -4468,7 +4505,7 @@ private:
         const Technique technique = aContribution.mTechnique;
         const int s = aContribution.mLightVertices, length = aContribution.mPathLength;
         const Vec3 weighted = aContribution.mUnweighted * aContribution.mWeight;
-        if (mPathRecords && s >= 0) RecordPath(technique, aPixel, s, aContribution.mWeight);
+        if (mPathRecords && s >= 0) RecordPath(technique, s, aContribution.mWeight);
         if (!mOptions.mTechniqueLayers) return;
         mFilm.AddToLayer(mTechniqueLayers[technique], aPixel, weighted);
         if (mLongerPathsLayer < 0 || s < 0) return;
@@ -4481,9 +4518,10 @@ private:
     }
 
     // The test hook (SetPathRecords): x_0 .. x_s of a contribution with s light vertices
-    // (from the light sub-path of this pixel, or of the one being traced for light
-    // tracing; x_0 alone for next-event estimation), then the camera sub-path backwards.
-    void RecordPath(Technique aTechnique, int aPixel, int aLightVertices, float aWeight) {
+    // (from the light sub-path paired with this camera sub-path, or of the one being traced
+    // for light tracing; x_0 alone for next-event estimation), then the camera sub-path
+    // backwards.
+    void RecordPath(Technique aTechnique, int aLightVertices, float aWeight) {
         PathRecord record;
         record.mTechnique = aTechnique;
         record.mLightVertexCount = aLightVertices;
@@ -4492,7 +4530,7 @@ private:
         if (aTechnique == kNextEvent) path.push_back(mNextEventVertex);
         else if (aLightVertices > 0) {
             const std::vector<PathVertex>& light = aTechnique == kLightTracing ? mLightHistories.back()
-                                                                                : mLightHistories[size_t(aPixel)];
+                                                                                : mLightHistories[size_t(mCameraLightPath)];
             path.assign(light.begin(), light.begin() + aLightVertices);
         }
         if (aTechnique == kLightTracing) path.push_back(PathVertex{mScene.mCamera.Position()});
@@ -4518,6 +4556,7 @@ private:
     std::vector<PathRecord>* mPathRecords = nullptr;
     std::vector<std::vector<PathVertex>> mLightHistories;  // per light sub-path, x_0 first
     std::vector<PathVertex> mCameraHistory;                // the camera first
+    int mCameraLightPath = -1;                             // the light sub-path it connects to
     PathVertex mNextEventVertex;
 
     bool mUseVC = false, mUseVM = false, mPpm = false, mLightTraceOnly = false;

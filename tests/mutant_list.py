@@ -406,6 +406,19 @@ MUTANTS = [
          find="const float behind = (*around)[alongZ ? 2 : 0].mNearest;",
          replace="const float behind = (*around)[alongZ ? 2 : 0].mDistance;",
          impl=True),
+    # --- the sobol sampler's light sub-paths across iterations ------------------------------
+    dict(id="M122", cls="sampler", what="light sub-path p of every iteration is point p again (one scramble for all iterations)",
+         find="const uint64_t index = uint64_t(mIteration) * uint64_t(aPathCount) + uint64_t(aPath);",
+         replace="const uint64_t index = uint64_t(aPath);"),
+    dict(id="M123", cls="sampler", what="past 2^32 light sub-paths the index wraps to block 0's points (the block not in the seeds)",
+         find="Start(kLightPaths, uint32_t(index >> 32), uint32_t(index));",
+         replace="Start(kLightPaths, 0u, uint32_t(index));"),
+    dict(id="M124", cls="sampler", what="sobol pairs pixel q with light sub-path q, whose points share a cell in every iteration",
+         find="if (mType == SamplerType::kIndependent) return aPixel;",
+         replace="if (true) return aPixel;"),
+    dict(id="M125", cls="sampler", what="the pairing's multiplier a not made coprime to N (not a permutation)",
+         find="while (std::gcd(a, n) != 1) a = (a + 1) % n;",
+         replace="while (std::gcd(a, n) == 0) a = (a + 1) % n;"),
 ]
 for _m in MUTANTS:
     _m["class"] = _m.pop("cls")

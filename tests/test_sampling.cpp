@@ -544,15 +544,16 @@ TEST_CASE("A scrambled Sobol point is uniform over seeds: chi-square of point 5 
     REQUIRE(chi.statistic < chi.threshold);
 }
 
-TEST_CASE("The independent Sampler draws the Rng's numbers in order; Start does nothing", "[sampling]") {
+TEST_CASE("The independent Sampler draws the Rng's numbers in order; Start does nothing; pixel q connects to light sub-path q", "[sampling]") {
     Rng rng(5, 9);
     Sampler sampler(rng);
     for (int i = 0; i < 100; i++) {
         sampler.StartPixelSample(i);
         REQUIRE(sampler.Get1D() == rng.GetFloat());
         REQUIRE(sampler.Get2D() == rng.GetVec2());
-        sampler.StartLightPath(i);
+        sampler.StartLightPath(i, 100);
         REQUIRE(sampler.Get3D() == rng.GetVec3());
+        REQUIRE(sampler.LightPathOfPixel(i, 100) == i);  // each pixel with its own light sub-path
     }
 }
 
@@ -587,15 +588,15 @@ TEST_CASE("The sobol Sampler stratifies each dimension of a pixel over its itera
         Sampler sampler = IterationSampler(SamplerType::kSobol, 99, iteration);
         std::vector<int> second(n, 0);
         for (int path = 0; path < n; path++) {
-            sampler.StartLightPath(path);
+            sampler.StartLightPath(path, n);
             sampler.Get1D();
             second[size_t(sampler.Get1D() * n)]++;
         }
         REQUIRE(std::count(second.begin(), second.end(), 1) == n);
     }
     Sampler a = IterationSampler(SamplerType::kSobol, 99, 0), b = IterationSampler(SamplerType::kSobol, 99, 1);
-    a.StartLightPath(3);
-    b.StartLightPath(3);
+    a.StartLightPath(3, n);
+    b.StartLightPath(3, n);
     CHECK(a.Get2D() != b.Get2D());
     // Another seed: another scramble of the same pixel's sample.
     Sampler c = IterationSampler(SamplerType::kSobol, 100, 0);
@@ -603,6 +604,93 @@ TEST_CASE("The sobol Sampler stratifies each dimension of a pixel over its itera
     c.StartPixelSample(pixel);
     d.StartPixelSample(pixel);
     CHECK(c.Get2D() != d.Get2D());
+}
+
+TEST_CASE("The sobol Sampler's light sub-paths of iterations 0 .. I-1 are the first I N points of one sequence: stratified together", "[sampling]") {
+    // N = 64 light sub-paths per iteration, I = 16 iterations: in every dimension the 1024
+    // light sub-paths put one point in each cell of width 1/1024 (with a scramble per
+    // iteration, the 16 iterations' points would be 16 independent sets of 64).
+    const int pathCount = 64, iterations = 16, n = pathCount * iterations;
+    std::vector<std::vector<int>> cells(size_t(Sampler::kSobolDimensions), std::vector<int>(n, 0));
+    for (int iteration = 0; iteration < iterations; iteration++) {
+        Sampler sampler = IterationSampler(SamplerType::kSobol, 7, iteration);
+        for (int path = 0; path < pathCount; path++) {
+            sampler.StartLightPath(path, pathCount);
+            for (int d = 0; d < Sampler::kSobolDimensions; d++) cells[size_t(d)][size_t(sampler.Get1D() * n)]++;
+        }
+    }
+    for (int d = 0; d < Sampler::kSobolDimensions; d++) {
+        INFO("dimension " << d);
+        REQUIRE(std::count(cells[size_t(d)].begin(), cells[size_t(d)].end(), 1) == n);
+    }
+    // Another seed: another scramble.
+    Sampler a = IterationSampler(SamplerType::kSobol, 7, 3), b = IterationSampler(SamplerType::kSobol, 8, 3);
+    a.StartLightPath(5, pathCount);
+    b.StartLightPath(5, pathCount);
+    CHECK(a.Get2D() != b.Get2D());
+}
+
+TEST_CASE("The sobol Sampler pairs pixels with light sub-paths by a permutation drawn anew each iteration", "[sampling]") {
+    // A permutation of 0 .. N-1 for every N (powers of two, primes, products), at several
+    // iterations and seeds.
+    for (int pathCount = 1; pathCount <= 300; pathCount++)
+        for (int iteration : {0, 1, 17, 1000000}) {
+            const Sampler sampler = IterationSampler(SamplerType::kSobol, uint64_t(pathCount), iteration);
+            std::vector<int> hits(size_t(pathCount), 0);
+            for (int pixel = 0; pixel < pathCount; pixel++) {
+                const int path = sampler.LightPathOfPixel(pixel, pathCount);
+                REQUIRE((path >= 0 && path < pathCount));
+                hits[size_t(path)]++;
+            }
+            INFO("N = " << pathCount << ", iteration " << iteration);
+            REQUIRE(std::count(hits.begin(), hits.end(), 1) == pathCount);
+        }
+    // Light sub-paths i N + p share their first log2 N digits of dimension 0 (the light
+    // pick) for every i. Over 64 iterations, the ones a pixel connects to spread over
+    // the cells of width 1/16 of dimension 0 (with the pixel's own index every time, all
+    // 64 would lie in one cell of width 1/4096).
+    const int pathCount = 4096, pixel = 1234;
+    std::vector<int> cells(16, 0);
+    std::vector<int> paths;
+    for (int iteration = 0; iteration < 64; iteration++) {
+        Sampler sampler = IterationSampler(SamplerType::kSobol, 5, iteration);
+        const int path = sampler.LightPathOfPixel(pixel, pathCount);
+        paths.push_back(path);
+        sampler.StartLightPath(path, pathCount);
+        cells[size_t(sampler.Get1D() * 16.f)]++;
+    }
+    CHECK(std::count(cells.begin(), cells.end(), 0) <= 4);
+    std::sort(paths.begin(), paths.end());
+    CHECK(std::unique(paths.begin(), paths.end()) - paths.begin() >= 60);
+}
+
+TEST_CASE("Past 2^32 light sub-paths the sobol Sampler scrambles the next block of 2^32 anew, stratified again", "[sampling]") {
+    // N = 2^20 light sub-paths per iteration: iteration 4096 starts at index 2^32, the
+    // first of block 1. Its first point is not block 0's first point again, and its first
+    // 1024 light sub-paths are stratified in every dimension.
+    const int pathCount = 1 << 20, n = 1024;
+    Sampler first = IterationSampler(SamplerType::kSobol, 3, 0), wrapped = IterationSampler(SamplerType::kSobol, 3, 4096);
+    first.StartLightPath(0, pathCount);
+    wrapped.StartLightPath(0, pathCount);
+    CHECK(first.Get3D() != wrapped.Get3D());
+    std::vector<std::vector<int>> cells(size_t(Sampler::kSobolDimensions), std::vector<int>(n, 0));
+    for (int path = 0; path < n; path++) {
+        wrapped.StartLightPath(path, pathCount);
+        for (int d = 0; d < Sampler::kSobolDimensions; d++) {
+            const float u = wrapped.Get1D();
+            REQUIRE((u >= 0.f && u < 1.f));
+            cells[size_t(d)][size_t(u * n)]++;
+        }
+    }
+    for (int d = 0; d < Sampler::kSobolDimensions; d++) {
+        INFO("dimension " << d);
+        REQUIRE(std::count(cells[size_t(d)].begin(), cells[size_t(d)].end(), 1) == n);
+    }
+    // The largest run: iteration 2^31 - 1 with 2^31 - 1 light sub-paths (index < 2^62).
+    Sampler last = IterationSampler(SamplerType::kSobol, 3, std::numeric_limits<int>::max());
+    last.StartLightPath(std::numeric_limits<int>::max() - 1, std::numeric_limits<int>::max());
+    const Vec3 u = last.Get3D();
+    CHECK((u.x >= 0.f && u.x < 1.f && u.y >= 0.f && u.y < 1.f && u.z >= 0.f && u.z < 1.f));
 }
 
 TEST_CASE("Past its Sobol dimensions, or without Start, the sobol Sampler gives uniform numbers in [0, 1)", "[sampling]") {

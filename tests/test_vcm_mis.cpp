@@ -145,7 +145,8 @@ Scene RecordingScene(int aSceneIndex, int aSize) {
     return scene;
 }
 
-RecordedComparison CompareRecordedWeights(int aSceneIndex, const MisCase& aCase, int aSize, uint64_t aSeed) {
+RecordedComparison CompareRecordedWeights(int aSceneIndex, const MisCase& aCase, int aSize, uint64_t aSeed,
+                                          SamplerType aSampler = SamplerType::kIndependent) {
     const Scene scene = RecordingScene(aSceneIndex, aSize);
     RenderOptions options;
     options.mAlgorithm = aCase.useVC && aCase.useVM ? Algorithm::kVertexConnectionMerging
@@ -155,6 +156,7 @@ RecordedComparison CompareRecordedWeights(int aSceneIndex, const MisCase& aCase,
     options.mRadiusFactor = aCase.radiusFactor;
     options.mMaxPathLength = kMaxSegments;
     options.mProgress = false;
+    options.mSampler = aSampler;
     VertexCM renderer(scene, options);
     std::vector<VertexCM::PathRecord> records;
     renderer.SetPathRecords(&records);
@@ -255,6 +257,21 @@ TEST_CASE("The weights VertexCM gives its own paths equal a brute-force sum over
     // Length 1 (the camera sees a light) has one technique, weight 1: a few suffice.
     CHECK(byLength[1] >= 10);
     for (int k = 2; k <= 6; k++) CHECK(byLength[k] >= 1000);
+}
+
+TEST_CASE("With Sobol points, each pixel connecting to the light sub-path the sampler pairs it with, the recorded weights equal the brute force", "[mis]") {
+    // Under the sobol sampler pixel q connects to light sub-path LightPathOfPixel(q, N),
+    // not q: the connections, the BSDF cache of the light vertices and the path records
+    // must all follow the same light sub-path.
+    for (int s : {1, 4})
+        for (const MisCase& misCase : {kMisCases[0], kMisCases[4]}) {
+            const RecordedComparison c = CompareRecordedWeights(s, misCase, 24, 31u + uint64_t(s), SamplerType::kSobol);
+            INFO("scene " << kRecordingSceneNames[s] << ", " << misCase.name << ": " << c.compared << " recorded paths, "
+                          << c.failures << " disagree; largest relative error: " << c.worst);
+            CHECK(c.failures == 0);
+            CHECK(c.unusable <= c.records / 100);
+            CHECK(c.byTechnique[int(Kind::kConnection)] >= 100);
+        }
 }
 
 TEST_CASE("Degenerate paths and pdfs give finite weights in [0, 1], never NaN", "[mis]") {
