@@ -559,13 +559,20 @@ public:
     }
     // The light sub-path (of aPathCount) that pixel aPixel's camera sub-path connects to:
     // the pixel's own with independent numbers; with Sobol points (a aPixel + b) mod N,
-    // a permutation because gcd(a, N) = 1, with a and b hashed from the seed and iteration.
-    int LightPathOfPixel(int aPixel, int aPathCount) const {
+    // a permutation because gcd(a, N) = 1, with a and b hashed from the seed and iteration
+    // (found once per iteration and N, then kept).
+    int LightPathOfPixel(int aPixel, int aPathCount) {
         if (mType == SamplerType::kIndependent) return aPixel;
-        const uint64_t hash = SplitMix64(mDomainSeeds[kPairing] ^ mIteration), n = uint64_t(aPathCount);
-        uint64_t a = (hash >> 32) % n;
-        while (std::gcd(a, n) != 1) a = (a + 1) % n;
-        return int((a * uint64_t(aPixel) + (hash & 0xffffffffu)) % n);
+        const uint64_t n = uint64_t(aPathCount);
+        if (n != mPairingCount) {
+            const uint64_t hash = SplitMix64(mDomainSeeds[kPairing] ^ mIteration);
+            uint64_t a = (hash >> 32) % n;
+            while (std::gcd(a, n) != 1) a = (a + 1) % n;
+            mPairingCount = n;
+            mPairingA = a;
+            mPairingB = hash & 0xffffffffu;
+        }
+        return int((mPairingA * uint64_t(aPixel) + mPairingB) % n);
     }
 
     float Get1D() {
@@ -611,6 +618,7 @@ private:
     Rng mRng;
     uint32_t mIteration = 0;
     uint64_t mDomainSeeds[4] = {};
+    uint64_t mPairingCount = 0, mPairingA = 0, mPairingB = 0;  // LightPathOfPixel's (a q + b) mod N
     Rng mSeeds;
     uint32_t mIndex = 0;
     size_t mDimension = 0;

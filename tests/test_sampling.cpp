@@ -635,7 +635,7 @@ TEST_CASE("The sobol Sampler pairs pixels with light sub-paths by a permutation 
     // iterations and seeds.
     for (int pathCount = 1; pathCount <= 300; pathCount++)
         for (int iteration : {0, 1, 17, 1000000}) {
-            const Sampler sampler = IterationSampler(SamplerType::kSobol, uint64_t(pathCount), iteration);
+            Sampler sampler = IterationSampler(SamplerType::kSobol, uint64_t(pathCount), iteration);
             std::vector<int> hits(size_t(pathCount), 0);
             for (int pixel = 0; pixel < pathCount; pixel++) {
                 const int path = sampler.LightPathOfPixel(pixel, pathCount);
