@@ -748,7 +748,7 @@ TEST_CASE("F16: VCM's error is within a factor 2 of the better of BPT and PPM on
 // ======================================================================================
 
 
-TEST_CASE("F18: fitted convergence slopes are near -1/2 for PT, BPT and VCM and near -1/3 for PPM; Sobol points make PT converge faster and lower BPT's and VCM's error", "[figures][F18]") {
+TEST_CASE("F18: fitted convergence slopes are near -1/2 for PT, BPT and VCM and near -1/3 for PPM; Sobol points make PT, BPT and VCM converge faster", "[figures][F18]") {
     // RMSE against a reference (BPT, 4096 iterations, other seeds) at 1, 2, 4, ..., 256
     // iterations, on scenes/diffuse_box.gltf at 16x16 (no specular surface, so no caustic
     // fireflies: on cornell_4 single-run slopes scatter with SD 0.16); pixels that see the
@@ -771,27 +771,24 @@ TEST_CASE("F18: fitted convergence slopes are near -1/2 for PT, BPT and VCM and 
     // the sampler dimension, for the same reasons: PT with independent numbers is plain
     // Monte Carlo like BPT (measured -0.494 +- 0.004), and PPM with Sobol points keeps its
     // radius's rate, -1/3 with the same finite-range offset as with independent numbers
-    // (measured -0.344 +- 0.004; docs/performance.md, "Samplers").
+    // (measured -0.351 +- 0.006; docs/performance.md, "Samplers").
     //
     // THE SAMPLER. The same methods with Owen-scrambled Sobol points (--sampler sobol, the
-    // same seeds). Sobol points stratify a pixel's camera sub-paths across iterations, but
-    // the light sub-paths only within one iteration (iterations draw independent
-    // scrambles, see the header's Sampler): what a camera sub-path alone finds (PT, and
-    // BPT's camera-side techniques) can converge faster than N^-1/2, what uses light
-    // sub-paths (light tracing, connections to light vertices, merging) keeps the rate
-    // N^-1/2 with a smaller constant. So the claims are, per method:
-    //   * PT: its slope is steeper than with independent numbers, by more than 4 SE of the
-    //     difference (the SE from the run-to-run spread of the K slopes of each);
-    //   * BPT, VCM: at the last checkpoint its MSE is lower than with independent numbers,
-    //     by more than 4 SE, and its slope is not flatter (at most 4 SE above). Their
-    //     slopes come out steeper, but by about the run-to-run spread of K = 6 renders,
-    //     too little to claim at this cost;
+    // same seeds). Sobol points stratify a pixel's camera sub-paths across iterations, and
+    // the light sub-paths of all iterations together (one sequence, see the header's
+    // Sampler), while a pixel connects to one light sub-path per iteration paired at
+    // random: what a camera sub-path alone finds (PT, and BPT's camera-side techniques)
+    // converges faster than N^-1/2, and light tracing and merging, which sum over all
+    // light sub-paths, a little faster too. So the claims are, per method:
+    //   * PT, BPT, VCM: the slope is steeper than with independent numbers, by more than
+    //     4 SE of the difference (the SE from the run-to-run spread of the K slopes of
+    //     each), and BPT's and VCM's MSE at the last checkpoint is lower, by more than 4 SE;
     //   * PPM: its rate is set by the radius shrinkage, so it stays near -1/3 within the
     //     same margin as above, and its error is not claimed lower.
     // The numbers measured are in docs/performance.md ("Samplers"). These comparisons fit
     // the estimator's own error: the reference's noise on the measured pixels (from its
     // two halves) is subtracted from each MSE before the fit, for both samplers alike;
-    // with Sobol points it is a tenth of the error at the last checkpoint.
+    // with Sobol points it is at most an eighth of the error at the last checkpoint.
     const int scale = FigureTestScale();
     const int size = 16 * scale, renders = 6, referenceIterations = 4096 * scale;
     int lastCheckpoint = 1;
@@ -880,10 +877,9 @@ TEST_CASE("F18: fitted convergence slopes are near -1/2 for PT, BPT and VCM and 
              << independentSlope.mStandardError << "; own MSE at " << lastCheckpoint << " iterations sobol " << sobolMse.mMean
              << " +- " << sobolMse.mStandardError << ", independent " << independentMse.mMean << " +- "
              << independentMse.mStandardError << " (reference noise^2 " << referenceNoise2 << ")");
-        if (algorithm == kPt) CHECK(independentSlope.mMean - sobolSlope.mMean > 4.0 * slopeError);
-        if (algorithm == kBpt || algorithm == kVcm) {
-            CHECK(sobolSlope.mMean - independentSlope.mMean <= 4.0 * slopeError);
+        if (algorithm == kPpm) continue;
+        CHECK(independentSlope.mMean - sobolSlope.mMean > 4.0 * slopeError);
+        if (algorithm == kBpt || algorithm == kVcm)
             CHECK(independentMse.mMean - sobolMse.mMean > 4.0 * CombinedError(independentMse, sobolMse));
-        }
     }
 }
