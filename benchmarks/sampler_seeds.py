@@ -20,8 +20,12 @@ sub-paths across iterations" with it.
 
 import csv
 import math
+import os
 import sys
 from collections import defaultdict
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from sampler_table import read_settings  # noqa: E402
 
 ORDER = ["pt", "lt", "bpt", "ppm", "bpm", "vcm", "pm", "pmfg"]
 REGIONS = [("whole", "rmse", "noise_rmse"), ("diffuse", "rmse_diffuse", "noise_rmse_diffuse")]
@@ -32,13 +36,7 @@ def read_run(path):
     with open(path, newline="") as f:
         for row in csv.DictReader(f):
             runs[(int(row["scene"]), row["algorithm"])][int(row["iterations"])] = row
-    settings = {}
-    with open(path[:-4] + ".txt" if path.endswith(".csv") else path + ".txt") as f:
-        for line in f:
-            if " = " in line:
-                key, value = line.rstrip("\n").split(" = ", 1)
-                settings[key] = value
-    return runs, settings
+    return runs, read_settings(path)
 
 
 def fit(points):

@@ -41,13 +41,18 @@ def read_study(path):
         for row in csv.DictReader(f):
             runs[(int(row["scene"]), row["algorithm"])].append(
                 (int(row["iterations"]), float(row["seconds"]), float(row["rmse"]) ** 2, float(row["rmse_diffuse"]) ** 2))
+    return runs, read_settings(path)
+
+
+def read_settings(path):
+    """The "key = value" lines of a build/convergence run's settings file (FILE.txt beside FILE.csv)."""
     settings = {}
     with open(path[:-4] + ".txt" if path.endswith(".csv") else path + ".txt") as f:
         for line in f:
             if " = " in line:
                 key, value = line.rstrip("\n").split(" = ", 1)
                 settings[key] = value
-    return runs, settings
+    return settings
 
 
 def noise2(settings, scene, key):
