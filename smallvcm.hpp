@@ -598,6 +598,7 @@ private:
     // by its domain and stream only: every point of the stream (a pixel's iterations, a
     // block of 2^32 light sub-paths) is scrambled alike, as a scrambled net must be.
     void Start(Domain aDomain, uint32_t aStream, uint32_t aIndex) {
+        if (mType == SamplerType::kIndependent) return;
         mSeeds = Rng(SplitMix64(mDomainSeeds[aDomain] ^ aStream));
         mIndex = aIndex;
         mDimension = 0;
