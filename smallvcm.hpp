@@ -1116,6 +1116,25 @@ private:
     }
 };
 
+// A homogeneous participating medium ([SECTION] Participating media has its maths):
+// per RGB channel an absorption and a scattering coefficient, in 1 / scene unit, and the
+// Henyey-Greenstein asymmetry g of its phase function (|g| < 1; 0 is isotropic, > 0
+// scatters forwards). The extinction sigma_t = sigma_a + sigma_s; the single-scattering
+// albedo sigma_s / sigma_t is what one scattering event keeps of the light.
+// A medium fills the inside of a closed mesh or sphere whose Material::mMedium names it,
+// or, as Scene::mSceneMedium, all space outside every closed mesh.
+struct Medium {
+    std::string mName;
+    Vec3 mSigmaA{0.f};
+    Vec3 mSigmaS{0.f};
+    float mG = 0.f;
+    Vec3 SigmaT() const { return mSigmaA + mSigmaS; }
+    // Whether light is attenuated in it at all (a medium with sigma_t = 0 only marks a
+    // region: rays cross it unchanged).
+    bool Attenuates() const { return MaxComponent(SigmaT()) > 0.f; }
+    bool Scatters() const { return MaxComponent(mSigmaS) > 0.f; }
+};
+
 // How a material's alpha cuts its surface (glTF material.alphaMode; Material below).
 enum class AlphaMode { kOpaque, kMask, kBlend };
 
@@ -1134,6 +1153,12 @@ struct Material {
     Vec3 mTransmittance{1.f};
     Vec3 mOpaqueMirror{0.f};
     bool mTwoSided = false;   // diffuse and Phong reflect on both sides (glTF doubleSided)
+    // The medium inside the closed mesh (or sphere) this material covers (index into
+    // Scene::mMedia; -1: none, empty space). Its surface is then the boundary of the
+    // medium: glass (mIor > 0) refracts into it; a material with no component at all is an
+    // index-matched boundary that rays cross unchanged (IsIndexMatchedBoundary). In a scene
+    // with media every glass is such a boundary too (empty inside unless mMedium says).
+    int mMedium = -1;
     // Base-colour texture (index into Scene::mTextures, -1 for none). Its texel multiplies
     // the diffuse reflectance and the transmittance, and tints the Phong and mirror parts
     // above mSpecularUntinted, the share no base colour reaches (glTF: specular = 0.04
@@ -1167,6 +1192,8 @@ struct Material {
     float AlphaCutoff() const { return mAlphaMode == AlphaMode::kBlend ? 0.5f : mAlphaCutoff; }
 
     bool HasNonSpecular() const { return !IsBlack(mDiffuseReflectance) || !IsBlack(mPhongReflectance); }
+    // A medium's boundary that does not scatter: no component, only the medium behind it.
+    bool IsIndexMatchedBoundary() const { return mMedium >= 0 && !HasNonSpecular() && !HasSpecular(); }
     bool HasSpecular() const { return !IsBlack(mMirrorReflectance) || !IsBlack(mOpaqueMirror) || mIor > 0.f; }
 
     // Russian roulette continuation probability: an upper bound of the material's
@@ -1853,10 +1880,13 @@ public:
     std::vector<Sphere> mSpheres;
     std::vector<Light> mLights;
     std::vector<Texture> mTextures;
+    std::vector<Medium> mMedia;  // referred to by Material::mMedium and mSceneMedium
+    int mSceneMedium = -1;       // the medium outside every closed mesh (-1: empty space)
     Camera mCamera;
 
     // --- building ----------------------------------------------------------------
     int AddMaterial(const Material& aMaterial) { mMaterials.push_back(aMaterial); return int(mMaterials.size()) - 1; }
+    int AddMedium(const Medium& aMedium) { mMedia.push_back(aMedium); return int(mMedia.size()) - 1; }
     int AddTriangle(const Vec3& aP0, const Vec3& aP1, const Vec3& aP2, int aMaterialId) {
         Triangle triangle;
         triangle.mP0 = aP0; triangle.mP1 = aP1; triangle.mP2 = aP2; triangle.mMaterialId = aMaterialId;
