@@ -212,6 +212,9 @@ inline constexpr float kEpsPhong = 1e-3f;
 // radius. 4.51e-4 * 2.2170596 = 1e-3, SmallVCM's absolute EPS_RAY in its Cornell box;
 // making it relative keeps scenes of any scale working.
 inline constexpr float kRayEpsilonPerSceneRadius = 1e-3f / 2.2170596f;
+// The index-matched boundaries a ray may cross before it is taken as lost (a bound on
+// every walk through media: hostile geometry cannot make one endless).
+inline constexpr int kMaxMediumCrossings = 256;
 // A triangle whose edges make an angle with sine below this is a line or a point: its
 // normal would be rounding noise. Edges and cross product are computed in double from
 // float vertices (exact differences, products rounded at 1e-16), so anything above this
@@ -1975,6 +1978,7 @@ public:
         FinalizeGeometry(where);
         FinalizeLights(where);
         BuildAcceleration();
+        FinalizeMedia(where);
         mFinalized = true;
     }
 
@@ -2019,6 +2023,32 @@ public:
         return size_t(aId) < mMaterialConstants.size() ? &mMaterialConstants[size_t(aId)] : nullptr;
     }
     const Bvh& GetBvh() const { return mBvh; }
+
+    // --- media (Finalize resolves them; [SECTION] Participating media uses them) -------
+    // Whether the scene holds any medium; without one every medium query answers -1 and
+    // the estimators trace exactly as in empty space.
+    bool HasMedia() const { return mHasMedia; }
+    const Medium& GetMedium(int aId) const { return mMedia[size_t(aId)]; }
+    // The medium the camera sits in, and the one a light emits into (-1: empty space).
+    int CameraMedium() const { return mCameraMedium; }
+    int LightMedium(int aLightId) const { return mHasMedia ? mLightMedia[size_t(aLightId)] : -1; }
+    // A surface the estimators step through without a vertex: an index-matched boundary
+    // (not an emitter), where only the medium changes.
+    bool IsIndexMatchedBoundary(const SurfacePoint& aHit) const {
+        return mHasMedia && aHit.mLightId < 0 && mMaterials[size_t(aHit.mMaterialId)].IsIndexMatchedBoundary();
+    }
+    // The medium a ray leaving surface point aHit along aDirection travels in, for a path
+    // that arrived in medium aCurrent. A medium boundary (a material with a medium, or any
+    // glass in a scene with media) separates its inside (the material's medium) from its
+    // outside (the medium around its closed mesh, found by Finalize); every other surface
+    // has the same medium on both sides, the one the path is in. The geometric normal
+    // tells the sides: it points outwards (Finalize checks the winding).
+    int MediumAfter(const SurfacePoint& aHit, const Vec3& aDirection, int aCurrent) const {
+        if (!mHasMedia) return aCurrent;
+        const int outside = mBoundaryOutside[size_t(aHit.mPrimitiveId)];
+        if (outside == kNotBoundary) return aCurrent;
+        return glm::dot(aDirection, aHit.GeometricNormal()) < 0.f ? mMaterials[size_t(aHit.mMaterialId)].mMedium : outside;
+    }
 
     // Nearest surface point along aRay (origin already offset off any surface by the
     // caller); an invalid SurfacePoint when the ray leaves the scene.
@@ -2335,6 +2365,150 @@ private:
     }
 
 
+    // Media: the coefficients checked; which primitives bound a medium, their closed
+    // components and the medium outside each; the media of the camera and the lights.
+    void FinalizeMedia(const std::string& aWhere) {
+        ValidateMedia(aWhere);
+        mHasMedia = mSceneMedium >= 0;
+        for (const Material& material : mMaterials) mHasMedia = mHasMedia || material.mMedium >= 0;
+        mBoundaryOutside.clear();
+        mLightMedia.clear();
+        mCameraMedium = -1;
+        if (!mHasMedia) return;
+        int componentCount = 0;
+        const std::vector<int> component = BoundaryComponents(aWhere, componentCount);
+        // The medium outside a component is what a point just outside it finds, looking
+        // past the component itself: nested components need one round per level.
+        std::vector<int> outside(size_t(componentCount), mSceneMedium);
+        for (int round = 0; round <= componentCount; round++) {
+            bool changed = false;
+            for (int c = 0; c < componentCount; c++) {
+                const int medium = MediumAt(PointOutsideComponent(component, c), c, component, outside);
+                changed = changed || medium != outside[size_t(c)];
+                outside[size_t(c)] = medium;
+            }
+            if (!changed) break;
+        }
+        mBoundaryOutside.assign(component.size(), kNotBoundary);
+        for (size_t p = 0; p < component.size(); p++)
+            if (component[p] >= 0) mBoundaryOutside[p] = outside[size_t(component[p])];
+        mCameraMedium = MediumAt(mCamera.Position(), -1, component, outside);
+        for (size_t id = 0; id < mLights.size(); id++) {
+            const std::optional<Vec3> point = LightPoint(int(id));
+            mLightMedia.push_back(point ? MediumAt(*point, -1, component, outside) : mSceneMedium);
+        }
+    }
+    void ValidateMedia(const std::string& aWhere) const {
+        for (size_t m = 0; m < mMedia.size(); m++) {
+            const Medium& medium = mMedia[m];
+            const std::string which = aWhere + ": medium " + std::to_string(m) + (medium.mName.empty() ? "" : " '" + medium.mName + "'");
+            for (const Vec3& sigma : {medium.mSigmaA, medium.mSigmaS})
+                if (!IsFinite(sigma) || sigma.x < 0.f || sigma.y < 0.f || sigma.z < 0.f)
+                    throw Error(which + " has an absorption or scattering coefficient that is negative or not finite");
+            if (!(std::abs(medium.mG) < 1.f))
+                throw Error(which + " has a Henyey-Greenstein g outside (-1, 1)");
+        }
+        if (mSceneMedium < -1 || mSceneMedium >= int(mMedia.size()))
+            throw Error(aWhere + ": the scene medium " + std::to_string(mSceneMedium) + " does not exist");
+        for (size_t m = 0; m < mMaterials.size(); m++) {
+            const Material& material = mMaterials[m];
+            if (material.mMedium < -1 || material.mMedium >= int(mMedia.size()))
+                throw Error(aWhere + ": material " + std::to_string(m) + " refers to medium " + std::to_string(material.mMedium) + ", which does not exist");
+            if (material.mMedium >= 0 && !(material.mIor > 0.f) && !material.IsIndexMatchedBoundary())
+                throw Error(aWhere + ": material " + std::to_string(m) + " '" + material.mName +
+                            "' holds a medium but neither refracts (glass) nor is an index-matched boundary (no component): light could not enter it");
+        }
+    }
+
+    // Per primitive (triangles, then spheres) the closed component of medium boundaries it
+    // belongs to, or -1. A boundary is a material with a medium, or glass (in a scene with
+    // media glass has an inside). Its triangles must form closed surfaces wound outwards:
+    // every edge (by exact vertex positions) shared by two of its triangles in opposite
+    // directions, and a positive enclosed volume. A sphere is a closed surface by itself.
+    std::vector<int> BoundaryComponents(const std::string& aWhere, int& oCount) const {
+        const auto isBoundary = [&](int aMaterial) {
+            return mMaterials[size_t(aMaterial)].mMedium >= 0 || mMaterials[size_t(aMaterial)].mIor > 0.f;
+        };
+        const auto named = [&](int aMaterial) {
+            return aWhere + ": material " + std::to_string(aMaterial) + " '" + mMaterials[size_t(aMaterial)].mName + "'";
+        };
+        std::vector<int> root(mTriangles.size());
+        std::iota(root.begin(), root.end(), 0);
+        const auto find = [&](int aT) { while (root[size_t(aT)] != aT) aT = root[size_t(aT)] = root[size_t(root[size_t(aT)])]; return aT; };
+        std::map<std::array<float, 3>, int> vertexIds;
+        std::map<std::pair<int, int>, int> edges;  // directed edge -> its triangle
+        for (size_t t = 0; t < mTriangles.size(); t++) {
+            const Triangle& triangle = mTriangles[t];
+            if (!isBoundary(triangle.mMaterialId)) continue;
+            int ids[3];
+            const Vec3* corners[3] = {&triangle.mP0, &triangle.mP1, &triangle.mP2};
+            for (int k = 0; k < 3; k++)
+                ids[k] = vertexIds.emplace(std::array<float, 3>{corners[k]->x, corners[k]->y, corners[k]->z}, int(vertexIds.size())).first->second;
+            for (int k = 0; k < 3; k++)
+                if (!edges.emplace(std::make_pair(ids[k], ids[(k + 1) % 3]), int(t)).second)
+                    throw Error(named(triangle.mMaterialId) + " bounds a medium, but its mesh is not a consistently wound closed surface (an edge is used twice in one direction)");
+        }
+        for (const auto& [edge, t] : edges) {
+            const auto twin = edges.find(std::make_pair(edge.second, edge.first));
+            const int material = mTriangles[size_t(t)].mMaterialId;
+            if (twin == edges.end() || mTriangles[size_t(twin->second)].mMaterialId != material)
+                throw Error(named(material) + " bounds a medium (or is glass in a scene with media), but its mesh is not closed: an edge belongs to one of its triangles only");
+            root[size_t(find(t))] = find(twin->second);
+        }
+        std::vector<int> component(mTriangles.size() + mSpheres.size(), -1);
+        std::map<int, int> componentOfRoot;
+        std::vector<double> volume;
+        for (size_t t = 0; t < mTriangles.size(); t++) {
+            if (!isBoundary(mTriangles[t].mMaterialId)) continue;
+            const int c = componentOfRoot.emplace(find(int(t)), int(componentOfRoot.size())).first->second;
+            component[t] = c;
+            volume.resize(componentOfRoot.size(), 0.0);
+            const Triangle& tr = mTriangles[t];
+            volume[size_t(c)] += glm::dot(glm::dvec3(tr.mP0), glm::cross(glm::dvec3(tr.mP1), glm::dvec3(tr.mP2)));
+        }
+        for (size_t t = 0; t < mTriangles.size(); t++)
+            if (component[t] >= 0 && !(volume[size_t(component[t])] > 0.0))
+                throw Error(named(mTriangles[t].mMaterialId) + " bounds a medium, but its closed mesh is wound inwards (its normals point in)");
+        oCount = int(componentOfRoot.size());
+        for (size_t sp = 0; sp < mSpheres.size(); sp++)
+            if (isBoundary(mSpheres[sp].mMaterialId)) component[mTriangles.size() + sp] = oCount++;
+        return component;
+    }
+    // A point just outside component aComponent, off its first primitive's front.
+    Vec3 PointOutsideComponent(const std::vector<int>& aComponent, int aComponentId) const {
+        const size_t p = size_t(std::find(aComponent.begin(), aComponent.end(), aComponentId) - aComponent.begin());
+        if (p < mTriangles.size()) {
+            const Triangle& t = mTriangles[p];
+            return (t.mP0 + t.mP1 + t.mP2) / 3.f + t.mNormal * (4.f * mRayEpsilon);
+        }
+        const Sphere& sphere = mSpheres[p - mTriangles.size()];
+        return sphere.mCenter + Vec3(0.f, sphere.mRadius + 4.f * mRayEpsilon, 0.f);
+    }
+    // The medium at aPoint: the first boundary a ray from it meets (component aSkip
+    // aside) says, by the side it meets: its inside from behind, its outside from the front.
+    int MediumAt(const Vec3& aPoint, int aSkip, const std::vector<int>& aComponent, const std::vector<int>& aOutside) const {
+        const Vec3 direction = glm::normalize(Vec3(0.5381f, 0.6241f, 0.5663f));  // no axis, no diagonal
+        Ray ray{aPoint, direction};
+        for (size_t step = 0; step <= aComponent.size(); step++) {
+            const SurfacePoint hit = Intersect(ray);
+            if (!hit.IsValid()) return mSceneMedium;
+            const int c = aComponent[size_t(hit.mPrimitiveId)];
+            if (c >= 0 && c != aSkip)
+                return glm::dot(direction, hit.GeometricNormal()) > 0.f ? mMaterials[size_t(hit.mMaterialId)].mMedium
+                                                                       : aOutside[size_t(c)];
+            ray = SpawnRay(hit.mPosition, direction);
+        }
+        return mSceneMedium;
+    }
+    // A point a light emits from, to find its medium: nothing for lights at infinity.
+    std::optional<Vec3> LightPoint(int aLightId) const {
+        const Light& light = mLights[size_t(aLightId)];
+        if (light.mType == LightType::kPoint || light.mType == LightType::kSpot) return light.mPosition;
+        if (light.mType == LightType::kSphere) return light.mSphereCenter + Vec3(0.f, light.mSphereRadius + 4.f * mRayEpsilon, 0.f);
+        if (light.mType != LightType::kArea || light.mTriangleP0.empty()) return std::nullopt;
+        return light.mTriangleP0[0] + (light.mTriangleE1[0] + light.mTriangleE2[0]) / 3.f + light.mTriangleNormal[0] * (4.f * mRayEpsilon);
+    }
+
     // What FillSurfacePoint needs of a hit triangle, by Finalize: its normal and kind in 16
     // bytes, instead of the whole Triangle (which on a large mesh is a cache miss per hit);
     // the few kinds stay in the cache.
@@ -2443,6 +2617,13 @@ private:
     SceneSphere mSceneSphere;
     float mRayEpsilon = 1e-3f;
     int mBackgroundLightId = -1;
+    // Media, by FinalizeMedia: per primitive the medium outside it when it is a medium
+    // boundary (kNotBoundary otherwise), per light the medium it emits into.
+    static constexpr int kNotBoundary = -2;
+    bool mHasMedia = false;
+    int mCameraMedium = -1;
+    std::vector<int> mBoundaryOutside;
+    std::vector<int> mLightMedia;
     Bvh mBvh;
     std::vector<MaterialConstants> mMaterialConstants;  // one per material, by Finalize
     std::vector<TriangleKind> mTriangleKinds;             // by Finalize (BuildTriangleHitRecords)
@@ -2450,6 +2631,210 @@ private:
     bool mFinalized = false;
 };
 
+
+// =====================================================================================
+// [SECTION] Participating media
+// =====================================================================================
+// Provides: what light does between surfaces in a homogeneous Medium (Scene section):
+// transmittance, free-flight distance sampling, the Henyey-Greenstein phase function,
+// and the two walks the estimators take through media: TraceSegment (a sub-path's next
+// vertex: a surface, or a scattering point in a medium) and TraceConnection (what a
+// connection, a shadow ray or a merge's neighbour sees between two points). Relies on:
+// Scene (its media, MediumAfter, Intersect). A scene without media takes the same
+// steps as empty space: every factor below is exactly 1 there.
+//
+// The maths (e.g. Pharr, Jakob and Humphreys, pbrt 4th ed., ch. 11 and 14):
+//  * Transmittance over a distance d: T(d) = exp(-sigma_t d) per channel (Beer-Lambert).
+//  * Radiance along a ray picks up in-scattering: L(x, w) = T(d) L(surface) +
+//    int_0^d T(t) sigma_s(x_t) int p(w', w) L(x_t, w') dw' dt, so a medium vertex x_t
+//    carries f = sigma_s p (the "BSDF" of a point in a medium: Bsdf::SetupInMedium) and
+//    no cosine, and its pdf is a volume pdf p_W(w) p(t) / t^2.
+//  * Free-flight sampling of a chromatic medium: pick a channel c uniformly, sample
+//    t ~ sigma_t,c exp(-sigma_t,c t); the pdf of t is the average of the channels' pdfs
+//    (one-sample MIS over the channels, balance heuristic), so it stays unbiased where
+//    one channel is clear: p(t) = 1/3 sum_c sigma_t,c T_c(t) for a scattering point
+//    before the surface at distance d, P(d) = 1/3 sum_c T_c(d) for reaching the surface.
+//    The throughput takes T(t) / p(t) or T(d) / P(d) per channel.
+//  * A segment that crosses index-matched boundaries is one straight segment through
+//    several media: its transmittance and pdfs are the products over the pieces.
+//  * MIS needs the pdf of a segment's end from its start (forward) and of its start from
+//    its end (reverse). In a homogeneous piece they differ only at the ends: a point in a
+//    medium is reached with density sigma_t T, a surface with probability T.
+
+// Beer-Lambert per channel. A clear channel (sigma_t = 0) is 1 even at infinity.
+inline Vec3 MediumTransmittance(const Medium& aMedium, float aDistance) {
+    const Vec3 sigmaT = aMedium.SigmaT();
+    Vec3 t;
+    for (int c = 0; c < 3; c++) t[c] = sigmaT[c] > 0.f ? std::exp(-sigmaT[c] * aDistance) : 1.f;
+    return t;
+}
+// The free-flight pdfs averaged over the channels: of scattering at distance aT, and of
+// flying past aDistance.
+inline float FreeFlightDensity(const Medium& aMedium, float aT) {
+    const Vec3 t = MediumTransmittance(aMedium, aT);
+    const Vec3 sigmaT = aMedium.SigmaT();
+    return (sigmaT.x * t.x + sigmaT.y * t.y + sigmaT.z * t.z) / 3.f;
+}
+inline float FreeFlightProbability(const Medium& aMedium, float aDistance) {
+    const Vec3 t = MediumTransmittance(aMedium, aDistance);
+    return (t.x + t.y + t.z) / 3.f;
+}
+// A free-flight distance: aRnd picks the channel (its third) and the exponential
+// distance in it; infinity for a clear channel.
+inline float SampleFreeFlight(const Medium& aMedium, float aRnd) {
+    const int channel = std::min(int(aRnd * 3.f), 2);
+    const float u = aRnd * 3.f - float(channel);
+    const float sigmaT = aMedium.SigmaT()[channel];
+    if (!(sigmaT > 0.f)) return std::numeric_limits<float>::infinity();
+    return -std::log1p(-std::min(u, 0.99999994f)) / sigmaT;
+}
+
+// Henyey-Greenstein (1941): p(cos) = (1 - g^2) / (4 pi (1 + g^2 - 2 g cos)^(3/2)), cos
+// between the direction light travelled before and after scattering. With fix and gen
+// both pointing away from the vertex (Bsdf's convention) cos = -fix . gen; p depends on
+// it alone, so sampling gen given fix and fix given gen have one pdf.
+inline float HenyeyGreensteinPdf(float aCosTheta, float aG) {
+    const float denominator = 1.f + aG * aG - 2.f * aG * aCosTheta;
+    return (1.f - aG * aG) / (4.f * kPi * denominator * std::sqrt(denominator));
+}
+// The direction light travels after scattering, given aTravel before it: cos theta by
+// inverting HG's cdf (pbrt 4th ed., eq. 11.13), phi uniform.
+inline Vec3 SampleHenyeyGreenstein(const Vec3& aTravel, float aG, const Vec2& aRnd) {
+    float cosTheta;
+    if (std::abs(aG) < 1e-3f) cosTheta = 1.f - 2.f * aRnd.x;
+    else {
+        const float s = (1.f - aG * aG) / (1.f - aG + 2.f * aG * aRnd.x);
+        cosTheta = (1.f + aG * aG - s * s) / (2.f * aG);
+    }
+    cosTheta = std::min(1.f, std::max(-1.f, cosTheta));
+    const float sinTheta = std::sqrt(std::max(0.f, 1.f - cosTheta * cosTheta));
+    const float phi = 2.f * kPi * aRnd.y;
+    return Frame(aTravel).ToWorld(Vec3(std::cos(phi) * sinTheta, std::sin(phi) * sinTheta, cosTheta));
+}
+
+// The MIS pdfs of a segment's distance sampling, from its pieces: every inner piece is
+// flown through (probability P), the end pieces are reached with density or probability.
+struct SegmentPdfs {
+    float mForward = 1.f;  // of reaching the end from the start
+    float mReverse = 1.f;  // of reaching the start from the end
+};
+
+// Where a sub-path's next segment ends (TraceSegment): at a surface, at a scattering
+// point in a medium, or out of the scene.
+struct PathSegment {
+    SurfacePoint mHit;        // the surface it ends on (invalid: a medium point, or out)
+    Vec3 mPosition{0.f};      // its end: the surface point or the medium point
+    bool mInMedium = false;   // it ends at a scattering point of medium mMedium
+    int mMedium = -1;         // the medium it ends in (the last piece's)
+    Vec3 mWeight{1.f};        // T / (its distance pdf), per channel
+    float mDistance = 0.f;    // from the origin, across index-matched boundaries
+    SegmentPdfs mPdfs;
+    bool Escaped() const { return !mInMedium && !mHit.IsValid(); }
+};
+
+// The next vertex from aRay's origin, a vertex in medium aMedium (aFromMedium: a medium
+// point rather than a surface, which decides the reverse pdf). Steps through
+// index-matched boundaries, and samples a free flight in each attenuating medium.
+inline PathSegment TraceSegment(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler) {
+    PathSegment segment;
+    segment.mMedium = aMedium;
+    for (int piece = 0;; piece++) {
+        segment.mHit = aScene.Intersect(aRay);
+        const float toSurface = segment.mHit.mDist;
+        if (aMedium >= 0 && aScene.GetMedium(aMedium).Attenuates()) {
+            const Medium& medium = aScene.GetMedium(aMedium);
+            const float t = SampleFreeFlight(medium, aSampler.Get1D());
+            const bool scatters = t < toSurface;
+            const float d = scatters ? t : toSurface;
+            const float forward = scatters ? FreeFlightDensity(medium, d) : FreeFlightProbability(medium, d);
+            segment.mWeight *= MediumTransmittance(medium, d) / forward;
+            segment.mPdfs.mForward *= forward;
+            segment.mPdfs.mReverse *= piece == 0 && aFromMedium ? FreeFlightDensity(medium, d) : FreeFlightProbability(medium, d);
+            segment.mDistance += d;
+            if (scatters) {
+                segment.mInMedium = true;
+                segment.mHit = SurfacePoint{};
+                segment.mPosition = aRay.mOrigin + t * aRay.mDirection;
+                return segment;
+            }
+        } else {
+            segment.mDistance += toSurface;
+        }
+        if (!segment.mHit.IsValid() || !aScene.IsIndexMatchedBoundary(segment.mHit) || piece >= kMaxMediumCrossings) break;
+        aMedium = segment.mMedium = aScene.MediumAfter(segment.mHit, aRay.mDirection, aMedium);
+        aRay = aScene.SpawnRay(segment.mHit.mPosition, aRay.mDirection);
+        segment.mDistance += aScene.RayEpsilon();
+    }
+    segment.mPosition = segment.mHit.mPosition;
+    return segment;
+}
+
+// The medium a connection from the vertex a segment ended at starts in, towards aDirection.
+inline int MediumTowards(const Scene& aScene, const PathSegment& aVertex, const Vec3& aDirection) {
+    return aVertex.mInMedium ? aVertex.mMedium : aScene.MediumAfter(aVertex.mHit, aDirection, aVertex.mMedium);
+}
+
+// What lies between two points (TraceConnection): whether a surface blocks the way, and
+// otherwise the transmittance and the distance pdfs of the media between them.
+struct SegmentMedia {
+    bool mOccluded = false;
+    Vec3 mTransmittance{1.f};
+    // The pieces' pdfs: the first and the last piece reached with density (the end is a
+    // medium point) or flown through, and the product of the pieces between them.
+    float mFirstDensity = 1.f, mFirstProbability = 1.f, mLastDensity = 1.f, mLastProbability = 1.f, mMiddle = 1.f;
+    int mPieces = 0;
+    // The segment's forward and reverse pdfs, for ends that are medium points or surfaces.
+    SegmentPdfs Pdfs(bool aStartInMedium, bool aEndInMedium) const {
+        if (mPieces <= 1)
+            return {aEndInMedium ? mLastDensity : mLastProbability, aStartInMedium ? mFirstDensity : mFirstProbability};
+        return {mFirstProbability * mMiddle * (aEndInMedium ? mLastDensity : mLastProbability),
+                (aStartInMedium ? mFirstDensity : mFirstProbability) * mMiddle * mLastProbability};
+    }
+};
+
+// The way from aPoint along aDirection over aDistance, starting in medium aMedium: a
+// shadow ray in empty space, or a walk through index-matched boundaries otherwise. Both
+// ends are pulled in by the ray epsilon (Scene::Occluded).
+inline SegmentMedia TraceConnection(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, float aDistance,
+                                    int aMedium) {
+    SegmentMedia media;
+    if (!aScene.HasMedia()) {
+        media.mOccluded = aScene.Occluded(aPoint, aDirection, aDistance);
+        return media;
+    }
+    Vec3 origin = aPoint;
+    float remaining = aDistance;
+    for (;; media.mPieces++) {
+        const Ray ray = aScene.SpawnRay(origin, aDirection);
+        const SurfacePoint hit = aScene.Intersect(ray);
+        const bool ends = !(hit.mDist < remaining - 2.f * aScene.RayEpsilon());
+        const float length = ends ? remaining : hit.mDist + aScene.RayEpsilon();
+        if (!ends && (!aScene.IsIndexMatchedBoundary(hit) || media.mPieces >= kMaxMediumCrossings)) {
+            media.mOccluded = true;
+            return media;
+        }
+        if (media.mPieces >= 2) media.mMiddle *= media.mLastProbability;  // the piece before is an inner one
+        float density = 1.f, probability = 1.f;
+        if (aMedium >= 0) {
+            const Medium& medium = aScene.GetMedium(aMedium);
+            media.mTransmittance *= MediumTransmittance(medium, length);
+            density = FreeFlightDensity(medium, length);
+            probability = FreeFlightProbability(medium, length);
+        }
+        if (media.mPieces == 0) {
+            media.mFirstDensity = density;
+            media.mFirstProbability = probability;
+        }
+        media.mLastDensity = density;
+        media.mLastProbability = probability;
+        if (ends) break;
+        aMedium = aScene.MediumAfter(hit, aDirection, aMedium);
+        origin = hit.mPosition;
+        remaining -= length;
+    }
+    media.mPieces++;
+    return media;
+}
 
 // =====================================================================================
 // [SECTION] BSDF
@@ -2502,6 +2887,7 @@ enum BsdfEvent : uint32_t {
     kEventReflect = 4,
     kEventRefract = 8,
     kEventSpecular = kEventReflect | kEventRefract,
+    kEventMedium = 16,  // scattering at a point in a medium (Bsdf::SetupInMedium)
 };
 
 // Unpolarised Fresnel reflectance of a dielectric (Fresnel equations, averaged over the
@@ -2606,6 +2992,7 @@ public:
                    const Material& aMaterial, const MaterialConstants* aConstants, Transport aTransport,
                    const Vec3* aBaseColorTexel) {
         mMaterial = &aMaterial;
+        mMedium = nullptr;
         mTransport = aTransport;
         if (aConstants)
             mReflectance = aConstants->mReflectance;
@@ -2685,6 +3072,30 @@ public:
         return constants;
     }
 
+    // A point in a medium instead of a surface (SmallUPBP's approach): the same interface
+    // evaluates and samples f = sigma_s p(fix, gen), the Henyey-Greenstein phase function
+    // times the scattering coefficient ([SECTION] Participating media), with pdfs p in both
+    // directions and cosines of 1, since a medium point has no surface to project onto.
+    // Russian roulette continues with the medium's largest albedo sigma_s / sigma_t.
+    void SetupInMedium(const Vec3& aWorldDirFix, const Medium& aMedium, Transport aTransport) {
+        mMedium = &aMedium;
+        mMaterial = nullptr;
+        mTransport = aTransport;
+        mShaded = false;
+        mFrame.SetFromZ(aWorldDirFix);
+        mLocalDirFix = Vec3(0.f, 0.f, 1.f);
+        mCosFixGeometric = 1.f;
+        mProbabilities = {};
+        mFresnel = 1.f;
+        mIsDelta = false;
+        mValid = aMedium.Scatters();
+        const Vec3 sigmaT = aMedium.SigmaT();
+        mContinuationProb = 0.f;
+        for (int c = 0; c < 3; c++)
+            if (sigmaT[c] > 0.f) mContinuationProb = std::max(mContinuationProb, std::min(1.f, aMedium.mSigmaS[c] / sigmaT[c]));
+    }
+    bool IsInMedium() const { return mMedium != nullptr; }
+
     bool IsValid() const { return mValid; }
     bool IsDelta() const { return mIsDelta; }
     float ContinuationProb() const { return mContinuationProb; }
@@ -2711,6 +3122,7 @@ public:
     // Inlined, with EvaluateNonSpecular, into every connection and merge, which call it
     // more often than anything else.
     SMALLVCM_ALWAYS_INLINE BsdfEval Evaluate(const Vec3& aWorldDirGen) const {
+        if (mMedium) return EvaluatePhase(aWorldDirGen);
         const Vec3 localDirGen = mFrame.ToLocal(aWorldDirGen);
         BsdfEval eval = EvaluateNonSpecular(localDirGen);
         eval.mCosThetaGen = std::abs(localDirGen.z);
@@ -2755,6 +3167,7 @@ public:
     // The pdf of sampling aWorldDirGen (or, with aReverse, of sampling the fixed
     // direction when aWorldDirGen were fixed), non-specular components only.
     float Pdf(const Vec3& aWorldDirGen, bool aReverse = false) const {
+        if (mMedium) return EvaluatePhase(aWorldDirGen).mDirPdfW;
         const BsdfEval eval = EvaluateNonSpecular(mFrame.ToLocal(aWorldDirGen));
         return aReverse ? eval.mRevPdfW : eval.mDirPdfW;
     }
@@ -2770,6 +3183,7 @@ public:
     // unusable, and a Bsdf of a light sub-path multiplies the adjoint factor in.
     // (mWeight is left to SampleBsdf.)
     std::optional<ScatterSample> Sample(const Vec3& aRnd) const {
+        if (mMedium) return SamplePhase(Vec2(aRnd));
         std::optional<ScatterSample> sample = SampleInShadingFrame(aRnd);
         if (!mShaded || !sample) return sample;
         const float cosGenGeometric = glm::dot(mGeometricNormal, sample->mDirection);
@@ -2780,6 +3194,27 @@ public:
     }
 
 private:
+    // A medium point's f = sigma_s p and pdfs p (fix . gen = -cos theta: both point away).
+    BsdfEval EvaluatePhase(const Vec3& aWorldDirGen) const {
+        BsdfEval eval;
+        const float phase = HenyeyGreensteinPdf(-glm::dot(mFrame.mZ, aWorldDirGen), mMedium->mG);
+        eval.mValue = mMedium->mSigmaS * phase;
+        eval.mCosThetaGen = 1.f;
+        eval.mDirPdfW = eval.mRevPdfW = phase;
+        return eval;
+    }
+    std::optional<ScatterSample> SamplePhase(const Vec2& aRnd) const {
+        std::optional<ScatterSample> sample(std::in_place);
+        ScatterSample& s = *sample;
+        s.mDirection = SampleHenyeyGreenstein(-mFrame.mZ, mMedium->mG, aRnd);
+        s.mEvent = kEventMedium;
+        s.mCosThetaOut = 1.f;
+        s.mPdfW = s.mReversePdfW = HenyeyGreensteinPdf(-glm::dot(mFrame.mZ, s.mDirection), mMedium->mG);
+        s.mValue = mMedium->mSigmaS * s.mPdfW;
+        if (!(s.mPdfW > 0.f) || IsBlack(s.mValue)) sample.reset();
+        return sample;
+    }
+
     // f_path from f (EvaluatePath): f |gen . Ns| / |gen . Ng|, f itself on a flat surface.
     Vec3 PathValue(const Vec3& aF, const Vec3& aWorldDirGen, float aCosThetaGen) const {
         if (!mShaded || IsBlack(aF)) return aF;
@@ -2958,6 +3393,7 @@ private:
     float mCosFixGeometric = 0.f; // fix . mGeometricNormal (= mLocalDirFix.z when flat)
     bool mShaded = false;         // the shading normal differs from the geometric one
     const Material* mMaterial = nullptr;
+    const Medium* mMedium = nullptr;  // set for a point in a medium (SetupInMedium)
     Reflectances mReflectance;  // the material's, textured at this point
     std::array<float, 4> mProbabilities{};
     float mFresnel = 1.f;
@@ -3335,76 +3771,95 @@ private:
     // One camera path, the estimator's steps at each vertex: the light it hits (BSDF
     // sampling's share of direct light), next-event estimation (the light sample's
     // share), and the continuation by BSDF sampling with Russian roulette.
+    // In a medium the next vertex may be a scattering point before the surface
+    // (TraceSegment samples the free flight); it is set up as a Bsdf like a surface.
     void TraceCameraPath(Sampler& aSampler, int aPixel, const Vec2& aRaster) {
         Ray ray = mScene.mCamera.GenerateRay(aRaster);
+        int medium = mScene.CameraMedium();
         Bsdf bsdf;
         for (PathState path;; path.mPathLength++) {
-            const SurfacePoint hit = mScene.Intersect(ray);
-            if (!hit.IsValid()) {
-                AddContribution(aPixel, path, BackgroundHit(path, ray.mDirection));
+            const PathSegment segment = TraceSegment(mScene, ray, medium, false, aSampler);
+            const SurfacePoint& hit = segment.mHit;
+            path.mThroughput *= segment.mWeight;
+            medium = segment.mMedium;
+            if (segment.Escaped()) {
+                AddContribution(aPixel, path, BackgroundHit(path, ray.mDirection, segment));
                 return;
             }
-            // The path goes on after a light only if the emitter's material reflects (the
-            // Cornell lights are black; the furnace test's walls are not).
-            if (hit.mLightId >= 0 && path.mPathLength >= mOptions.mMinPathLength)
-                AddContribution(aPixel, path, EmitterHit(path, ray, hit));
-            bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
+            if (segment.mInMedium) {
+                bsdf.SetupInMedium(-ray.mDirection, mScene.GetMedium(medium), Transport::kRadiance);
+            } else {
+                // The path goes on after a light only if the emitter's material reflects (the
+                // Cornell lights are black; the furnace test's walls are not).
+                if (hit.mLightId >= 0 && path.mPathLength >= mOptions.mMinPathLength)
+                    AddContribution(aPixel, path, EmitterHit(path, ray, segment));
+                bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
+            }
             if (!bsdf.IsValid() || path.mPathLength >= mOptions.mMaxPathLength) return;
             if (!bsdf.IsDelta() && path.mPathLength + 1 >= mOptions.mMinPathLength)
-                AddContribution(aPixel, path, ConnectToLight(aSampler, path, hit.mPosition, bsdf), /*aNextEvent=*/true);
+                AddContribution(aPixel, path, ConnectToLight(aSampler, path, segment, bsdf), /*aNextEvent=*/true);
             const std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(bsdf, aSampler);
             if (!scatter) return;
             path.mThroughput *= scatter->mWeight;
             path.mLastPdfW = scatter->mPdfW;
             path.mLastSpecular = scatter->IsSpecular();
             if (path.mPathLength == 1) path.mFirstSpecular = path.mLastSpecular;
-            ray = mScene.SpawnRay(hit.mPosition, scatter->mDirection);
+            if (!segment.mInMedium) medium = mScene.MediumAfter(hit, scatter->mDirection, medium);
+            ray = mScene.SpawnRay(segment.mPosition, scatter->mDirection);
         }
     }
 
-    // The ray left the scene: the background light, if any, found by BSDF sampling.
-    Vec3 BackgroundHit(const PathState& aPath, const Vec3& aDirection) const {
+    // The ray left the scene: the background light, if any, found by BSDF sampling (and
+    // by flying through the media on the way, aSegment's forward pdf).
+    Vec3 BackgroundHit(const PathState& aPath, const Vec3& aDirection, const PathSegment& aSegment) const {
         const Light* background = mScene.GetBackground();
         if (!background || aPath.mPathLength < mOptions.mMinPathLength) return Vec3(0.f);
         const Light::RadianceAtHit received = background->GetRadiance(mScene.GetSceneSphere(), aDirection, Vec3(0.f), Vec2(0.f));
         const float directPdfW = received.mDirectPdfA;  // a background's "area" pdf is per solid angle
-        const float weight = aPath.mLastSpecular ? 1.f : BsdfHitWeight(aPath.mLastPdfW, directPdfW * mScene.LightPickProb());
+        const float weight = aPath.mLastSpecular ? 1.f : BsdfHitWeight(aPath.mLastPdfW * aSegment.mPdfs.mForward, directPdfW * mScene.LightPickProb());
         return aPath.mThroughput * received.mRadiance * weight;
     }
 
     // A light hit by the path, found by BSDF sampling: MIS against next-event
     // estimation, whose area pdf is converted to solid angle at the previous vertex.
-    Vec3 EmitterHit(const PathState& aPath, const Ray& aRay, const SurfacePoint& aHit) const {
-        const Light& light = mScene.GetLight(aHit.mLightId);
-        const Light::RadianceAtHit received = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, aHit.GeometricNormal(), aHit.mUv);
+    Vec3 EmitterHit(const PathState& aPath, const Ray& aRay, const PathSegment& aSegment) const {
+        const SurfacePoint& hit = aSegment.mHit;
+        const Light& light = mScene.GetLight(hit.mLightId);
+        const Light::RadianceAtHit received = light.GetRadiance(mScene.GetSceneSphere(), aRay.mDirection, hit.GeometricNormal(), hit.mUv);
         if (IsBlack(received.mRadiance)) return Vec3(0.f);
         float weight = 1.f;
         if (!aPath.mLastSpecular) {
-            const float cosAtLight = glm::dot(aHit.GeometricNormal(), -aRay.mDirection);
-            const float distance = aHit.mDist + mScene.RayEpsilon();
+            const float cosAtLight = glm::dot(hit.GeometricNormal(), -aRay.mDirection);
+            const float distance = aSegment.mDistance + mScene.RayEpsilon();
             const float directPdfW = PdfAtoW(received.mDirectPdfA, distance, cosAtLight) * mScene.LightPickProb();
-            weight = BsdfHitWeight(aPath.mLastPdfW, directPdfW);
+            weight = BsdfHitWeight(aPath.mLastPdfW * aSegment.mPdfs.mForward, directPdfW);
         }
         return aPath.mThroughput * received.mRadiance * weight;
     }
 
     // Next-event estimation: one light picked, one point on it, a shadow ray; its MIS
-    // weight against the BSDF sample that could have hit the same point.
-    Vec3 ConnectToLight(Sampler& aSampler, const PathState& aPath, const Vec3& aHitPoint, const Bsdf& aBsdf) const {
+    // weight against the BSDF sample that could have hit the same point. Through media
+    // the shadow ray carries the transmittance, and the BSDF sample would have had to
+    // fly through them (the connection's forward pdf).
+    Vec3 ConnectToLight(Sampler& aSampler, const PathState& aPath, const PathSegment& aVertex, const Bsdf& aBsdf) const {
         // BEGIN EXERCISE pt_nee_mis
         if (mOptions.mDirectLight == DirectLightSampling::kBsdfOnly) return Vec3(0.f);
         const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
-        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, aSampler.Get2D());
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aVertex.mPosition, aSampler.Get2D());
         if (!sample || IsBlack(sample->mRadiance)) return Vec3(0.f);
         const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample->mDirToLight);
         if (bsdf.IsBlack()) return Vec3(0.f);
-        if (mScene.Occluded(aHitPoint, sample->mDirToLight, sample->mDistance)) return Vec3(0.f);
+        const SegmentMedia media = TraceConnection(mScene, aVertex.mPosition, sample->mDirToLight, sample->mDistance,
+                                                   MediumTowards(mScene, aVertex, sample->mDirToLight));
+        if (media.mOccluded) return Vec3(0.f);
         const float directPdfW = sample->mDirectPdfW * pick.mProb;
-        const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdf.mDirPdfW);
-        return aPath.mThroughput * bsdf.mValue * sample->mRadiance * (weight * bsdf.mCosThetaGen / directPdfW);
+        const float bsdfPdfW = bsdf.mDirPdfW * media.Pdfs(aVertex.mInMedium, false).mForward;
+        const float weight = light.IsDelta() ? 1.f : LightSampleWeight(directPdfW, bsdfPdfW);
+        return aPath.mThroughput * bsdf.mValue * sample->mRadiance * media.mTransmittance * (weight * bsdf.mCosThetaGen / directPdfW);
         // END EXERCISE pt_nee_mis
     }
+
 
 
     // w = p^b / (p^b + q^b), written as 1 / (1 + (q/p)^b): squaring the pdfs of a small
@@ -3800,6 +4255,13 @@ struct VcmMisConstants {
     float mVcWeightFactor = 0.f;        // Mis(1 / eta_VCM) if connecting is used, else 0
     float mInvEtaWeight = 0.f;          // Mis(1 / eta_VCM), used where no technique is gated
     float mVmNormalization = 0.f;       // 1 / (pi r^2 N_L): the merging kernel [tech. rep. (11)]
+    // Merging at a point in a medium (photon points, UPBP's point-point 3D estimator):
+    // the kernel is a ball, eta = N_L (4/3) pi r^3, and dVM keeps its surface scale 1 /
+    // eta_surface, so the merge at a vertex enters the sums relative to a surface merge:
+    // mMergeHere = Mis(eta_here / eta_surface), mInvMergeHere its inverse; both 1 at a
+    // surface. ForMedium() gives the constants of a medium vertex.
+    float mMergeHere = 1.f;
+    float mInvMergeHere = 1.f;
 
     float Mis(float aPdf) const { return MisPower(mHeuristic, aPdf); }
 
@@ -3820,6 +4282,18 @@ struct VcmMisConstants {
         // BEGIN EXERCISE ppm_merging/kernel
         c.mVmNormalization = 1.f / (kPi * Sqr(aRadius) * aLightPathCount);
         // END EXERCISE ppm_merging/kernel
+        return c;
+    }
+    // The same for a vertex in a medium: the 3D kernel 1 / ((4/3) pi r^3 N_L) [Krivanek et
+    // al. 2014, sec. 4, the point-point 3D estimator] and its eta.
+    VcmMisConstants ForMedium() const {
+        VcmMisConstants c = *this;
+        const float etaSurface = kPi * Sqr(mMergeRadius) * mLightPathCount;
+        const float etaVolume = 4.f / 3.f * kPi * mMergeRadius * Sqr(mMergeRadius) * mLightPathCount;
+        c.mVmWeightFactor = mUseVM ? Mis(etaVolume) : 0.f;
+        c.mMergeHere = Mis(etaVolume / etaSurface);
+        c.mInvMergeHere = Mis(etaSurface / etaVolume);
+        c.mVmNormalization = 1.f / etaVolume;
         return c;
     }
 };
@@ -3898,7 +4372,7 @@ inline void AfterScatter(const VcmMisConstants& c, SubpathMis& m, float aCosOut,
     const float newDVC = scale * (m.dVC * c.Mis(aRevPdfW) + connectHere + c.mVmWeightFactor);    // (35)
     // END EXERCISE bpt_mis/scatter
     // BEGIN EXERCISE vcm_mis/scatter
-    const float newDVM = scale * (m.dVM * c.Mis(aRevPdfW) + m.dVCM * c.mVcWeightFactor + 1.f);  // (36)
+    const float newDVM = scale * (m.dVM * c.Mis(aRevPdfW) + m.dVCM * c.mVcWeightFactor + c.mMergeHere);  // (36)
     // END EXERCISE vcm_mis/scatter
     m.dVC = newDVC;
     m.dVM = newDVM;
@@ -3907,6 +4381,18 @@ inline void AfterScatter(const VcmMisConstants& c, SubpathMis& m, float aCosOut,
     // END EXERCISE bpt_mis/scatter_dvcm
     SMALLVCM_CHECK(std::isfinite(m.dVCM) && std::isfinite(m.dVC) && std::isfinite(m.dVM),
                    "an MIS quantity is not finite after a scatter");
+}
+
+// After the distance sampling of a segment through media (SegmentPdfs): the next
+// vertex's forward pdf and the previous one's reverse pdf both gain the segment's
+// free-flight pdfs (the distance and cosine were applied by AfterSegment). 1 and 1 in
+// empty space.
+inline void ThroughMedia(const VcmMisConstants& c, SubpathMis& m, float aForwardPdf, float aReversePdf) {
+    const float invForward = 1.f / c.Mis(aForwardPdf);
+    const float reverse = c.Mis(aReversePdf) * invForward;
+    m.dVCM *= invForward;
+    m.dVC *= reverse;
+    m.dVM *= reverse;
 }
 
 // Camera sub-path hits a light (s = 0) [tech. rep. (42), (43)]. Pdfs include the pick
@@ -3951,14 +4437,17 @@ inline float WeightLightTracing(const VcmMisConstants& c, const SubpathMis& aLig
 // Vertex connection of a light vertex y and a camera vertex z [tech. rep. (40), (41)].
 // aCameraBsdfDirPdfA: z's BSDF generating y, as area pdf at y; aLightBsdfDirPdfA: y's
 // BSDF generating z, as area pdf at z; the Rev pdfs are towards each vertex's predecessor.
+// aLightVmWeightFactor, aCameraVmWeightFactor: c.mVmWeightFactor of each vertex (a surface
+// or a medium point: VcmMisConstants::ForMedium), the merge each could have made.
 inline float WeightConnection(const VcmMisConstants& c, const SubpathMis& aLight, const SubpathMis& aCamera,
                               float aCameraBsdfDirPdfA, float aCameraBsdfRevPdfW,
-                              float aLightBsdfDirPdfA, float aLightBsdfRevPdfW) {
+                              float aLightBsdfDirPdfA, float aLightBsdfRevPdfW,
+                              float aLightVmWeightFactor, float aCameraVmWeightFactor) {
     // BEGIN EXERCISE bpt_mis/weight_connection
     const float wLight = c.Mis(aCameraBsdfDirPdfA) *
-                         (c.mVmWeightFactor + aLight.dVCM + aLight.dVC * c.Mis(aLightBsdfRevPdfW));
+                         (aLightVmWeightFactor + aLight.dVCM + aLight.dVC * c.Mis(aLightBsdfRevPdfW));
     const float wCamera = c.Mis(aLightBsdfDirPdfA) *
-                          (c.mVmWeightFactor + aCamera.dVCM + aCamera.dVC * c.Mis(aCameraBsdfRevPdfW));
+                          (aCameraVmWeightFactor + aCamera.dVCM + aCamera.dVC * c.Mis(aCameraBsdfRevPdfW));
     return 1.f / (wLight + 1.f + wCamera);
     // END EXERCISE bpt_mis/weight_connection
 }
@@ -3969,8 +4458,8 @@ inline float WeightConnection(const VcmMisConstants& c, const SubpathMis& aLight
 inline float WeightMerge(const VcmMisConstants& c, const SubpathMis& aLight, const SubpathMis& aCamera,
                          float aCameraBsdfDirPdfW, float aCameraBsdfRevPdfW) {
     // BEGIN EXERCISE vcm_mis/merge_weight
-    const float wLight = aLight.dVCM * c.mVcWeightFactor + aLight.dVM * c.Mis(aCameraBsdfDirPdfW);
-    const float wCamera = aCamera.dVCM * c.mVcWeightFactor + aCamera.dVM * c.Mis(aCameraBsdfRevPdfW);
+    const float wLight = (aLight.dVCM * c.mVcWeightFactor + aLight.dVM * c.Mis(aCameraBsdfDirPdfW)) * c.mInvMergeHere;
+    const float wCamera = (aCamera.dVCM * c.mVcWeightFactor + aCamera.dVM * c.Mis(aCameraBsdfRevPdfW)) * c.mInvMergeHere;
     return 1.f / (wLight + 1.f + wCamera);
     // END EXERCISE vcm_mis/merge_weight
 }
@@ -4000,9 +4489,11 @@ private:
 class VertexCM : public AbstractRenderer {
 public:
     // Technique classes, the layers of the VCM overview (F15) and the VC/VM shares (F17).
-    enum Technique { kUnidirectional = 0, kNextEvent, kLightTracing, kConnection, kMerging, kTechniqueCount };
+    // Merging at points in a medium (photon points) is its own class; its layer exists only
+    // in a scene with media.
+    enum Technique { kUnidirectional = 0, kNextEvent, kLightTracing, kConnection, kMerging, kMediumMerging, kTechniqueCount };
     static constexpr const char* kTechniqueLayerNames[kTechniqueCount] = {
-        "unidirectional", "nee", "light_tracing", "connection", "merging"};
+        "unidirectional", "nee", "light_tracing", "connection", "merging", "merging_in_media"};
     // BPT's path pyramid: one layer per (s, t) up to this path length.
     static constexpr int kPyramidMaxLength = 5;
 
@@ -4033,15 +4524,18 @@ public:
         const int pathCount = mScene.mCamera.PixelCount();
         const float radius = MergeRadius(aIteration);
         mMisConstants = VcmMisConstants::Make(mOptions.mMisHeuristic, mUseVC, mUseVM, float(pathCount), radius);
+        mMisConstantsMedium = mMisConstants.ForMedium();
 
         // 1. Light sub-paths: traced, connected to the camera, their vertices stored.
         TraceLightSubpaths(aSampler, pathCount);
         if (mLightTraceOnly) return;
 
-        // 2. The range search over the stored vertices, for merging.
-        if (mUseVM)
-            mLightVertexSearch.Build(mLightVertices.size(), radius, [&](size_t i) { return mLightVertices[i].mHitPoint; },
-                                     [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[i]); });
+        // 2. The range searches over the stored vertices, for merging: the surface points,
+        //    and the points in media (each merges only with its own kind).
+        if (mUseVM) {
+            BuildVertexSearch(mLightVertexSearch, mSurfaceVertexIndices, false, radius);
+            if (mScene.HasMedia()) BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, radius);
+        }
 
         // 3. Camera sub-paths, one per pixel, each connecting to the light sub-path the
         //    sampler pairs it with (the pixel's own, or a permutation: see Sampler).
@@ -4067,6 +4561,7 @@ public:
         int mLightId = -1;    // the light at this point, if any
         uint32_t mEvent = kEventNone;  // the specular component sampled here, if one was
         bool mAtInfinity = false;
+        int mMedium = -1;     // a point in a medium: its medium (mNormal 0); -1 on surfaces
     };
     struct PathRecord {
         Technique mTechnique = kUnidirectional;
@@ -4089,7 +4584,9 @@ public:
     };
     struct LightVertex : MergeData {
         Vec3 mHitPoint{0.f};
-        int mPrimitiveId = -1;  // the primitive hit (see Scene)
+        int mPrimitiveId = -1;  // the primitive hit (see Scene); -1 for a point in a medium
+        int mMedium = -1;       // the medium it was reached through (the medium it is in)
+        bool mInMedium = false; // a point in a medium rather than on a surface
     };
 
 private:
@@ -4101,6 +4598,8 @@ private:
         int mPathLength = 1;        // segments so far, counting the one being traced
         bool mIsFiniteLight = true; // light sub-paths: did it start on a finite light?
         bool mSpecularPath = true;  // camera sub-paths: only specular vertices so far?
+        int mMedium = -1;           // the medium the next segment starts in
+        bool mInMedium = false;     // the last vertex is a point in a medium
         SubpathMis mMis;
     };
 
@@ -4151,38 +4650,62 @@ private:
         Bsdf bsdf;
         for (;;) {
             const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
-            const SurfacePoint hit = mScene.Intersect(ray);
-            if (!hit.IsValid()) return;
-            bsdf.Setup(ray, hit, mScene, Transport::kImportance);
+            const PathSegment segment = TraceSegment(mScene, ray, light.mMedium, light.mInMedium, aSampler);
+            if (segment.Escaped()) return;
+            light.mThroughput *= segment.mWeight;
+            if (segment.mInMedium) bsdf.SetupInMedium(-ray.mDirection, mScene.GetMedium(segment.mMedium), Transport::kImportance);
+            else bsdf.Setup(ray, segment.mHit, mScene, Transport::kImportance);
             if (!bsdf.IsValid()) return;
-            // The area pdf of this vertex: a change of measure, by the geometric cosine.
-            VcmMis::AfterSegment(mMisConstants, light.mMis, hit.mDist + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
+            // The area (in a medium: volume) pdf of this vertex: a change of measure, by the
+            // geometric cosine (1 in a medium), and the segment's free-flight pdfs.
+            VcmMis::AfterSegment(mMisConstants, light.mMis, segment.mDistance + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
                                  light.mPathLength > 1 || light.mIsFiniteLight);
-            if (mPathRecords) mLightHistories.back().push_back(PathVertex{hit.mPosition, hit.GeometricNormal(), hit.mMaterialId});
+            if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, light.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
+            if (mPathRecords) mLightHistories.back().push_back(RecordedVertex(segment));
 
             if (!bsdf.IsDelta()) {
-                if (mUseVC || mUseVM) StoreLightVertex(light, ray, hit);
+                if (mUseVC || mUseVM) StoreLightVertex(light, ray, segment);
                 // Light tracing: connect to the camera (t = 1); the path has mPathLength + 1 segments, within both limits.
                 if ((mUseVC || mLightTraceOnly) && light.mPathLength + 1 >= mOptions.mMinPathLength &&
                     light.mPathLength + 1 <= mOptions.mMaxPathLength)
-                    AddSplat(ConnectToCamera(light, hit.mPosition, bsdf));
+                    AddSplat(ConnectToCamera(light, segment, bsdf));
             }
             // A vertex of length L is useful only if a path of length L + 1 may follow.
             if (light.mPathLength + 2 > mOptions.mMaxPathLength) return;
-            const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, hit.mPosition, light);
+            const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, segment, light);
             if (!scatter) return;
             if (mPathRecords && scatter->IsSpecular()) mLightHistories.back().back().mEvent = scatter->mEvent;
         }
     }
 
-    void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const SurfacePoint& aHit) {
+    void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const PathSegment& aSegment) {
         LightVertex& vertex = mLightVertices.emplace_back();
-        vertex.mHitPoint = aHit.mPosition;
+        vertex.mHitPoint = aSegment.mPosition;
         vertex.mPathLength = aLight.mPathLength;
         vertex.mThroughput = aLight.mThroughput;
-        vertex.mPrimitiveId = aHit.mPrimitiveId;
+        vertex.mPrimitiveId = aSegment.mHit.mPrimitiveId;
+        vertex.mMedium = aSegment.mMedium;
+        vertex.mInMedium = aSegment.mInMedium;
         vertex.mDirFix = -aRay.mDirection;
         vertex.mMis = aLight.mMis;
+    }
+    // What the test hook records of a vertex a segment ended at.
+    // (A light sub-path's records leave the light of an emitter it hits out.)
+    PathVertex RecordedVertex(const PathSegment& aSegment, bool aCameraSubpath = false) const {
+        if (aSegment.mInMedium) return PathVertex{aSegment.mPosition, Vec3(0.f), -1, -1, kEventMedium, false, aSegment.mMedium};
+        const SurfacePoint& hit = aSegment.mHit;
+        return PathVertex{hit.mPosition, hit.GeometricNormal(), hit.mMaterialId, aCameraSubpath ? hit.mLightId : -1};
+    }
+
+    // --- stage 2: the range searches ------------------------------------------------------
+    // The range search over the stored vertices of one kind (surface or medium points);
+    // aIndices maps its points to mLightVertices.
+    void BuildVertexSearch(RangeSearch<MergeData>& aSearch, std::vector<uint32_t>& aIndices, bool aInMedium, float aRadius) {
+        aIndices.clear();
+        for (size_t i = 0; i < mLightVertices.size(); i++)
+            if (mLightVertices[i].mInMedium == aInMedium) aIndices.push_back(uint32_t(i));
+        aSearch.Build(aIndices.size(), aRadius, [&](size_t i) { return mLightVertices[aIndices[i]].mHitPoint; },
+                      [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[aIndices[i]]); });
     }
 
     // --- stage 3: camera sub-paths ---------------------------------------------------------
@@ -4204,40 +4727,33 @@ private:
         Ray ray{cam.mOrigin, cam.mDirection};
         Bsdf bsdf;
         for (;;) {
-            const SurfacePoint hit = mScene.Intersect(ray);
-            if (!hit.IsValid()) {
+            const PathSegment segment = TraceSegment(mScene, ray, cam.mMedium, cam.mInMedium, aSampler);
+            const SurfacePoint& hit = segment.mHit;
+            cam.mThroughput *= segment.mWeight;
+            if (segment.Escaped()) {
                 AddToFilm(aPixel, BackgroundHit(cam, ray.mDirection));
                 return;
             }
-            const float cosAtHit = glm::dot(hit.GeometricNormal(), -ray.mDirection);
-            const float distance = hit.mDist + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
+            const float cosAtHit = segment.mInMedium ? 1.f : glm::dot(hit.GeometricNormal(), -ray.mDirection);
+            const float distance = segment.mDistance + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
             VcmMis::AfterSegment(mMisConstants, cam.mMis, distance, cosAtHit, true);
-            if (mPathRecords) mCameraHistory.push_back(PathVertex{hit.mPosition, hit.GeometricNormal(), hit.mMaterialId, hit.mLightId});
+            if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, cam.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
+            if (mPathRecords) mCameraHistory.push_back(RecordedVertex(segment, true));
 
-            // Continues after a light only if the emitter's material reflects (see PathTracer).
-            if (hit.mLightId >= 0 && cam.mPathLength >= mOptions.mMinPathLength)
-                AddToFilm(aPixel, CameraHitsLight(cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.GeometricNormal(), hit.mUv));
-            bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
+            if (segment.mInMedium) {
+                bsdf.SetupInMedium(-ray.mDirection, mScene.GetMedium(segment.mMedium), Transport::kRadiance);
+            } else {
+                // Continues after a light only if the emitter's material reflects (see PathTracer).
+                if (hit.mLightId >= 0 && cam.mPathLength >= mOptions.mMinPathLength)
+                    AddToFilm(aPixel, CameraHitsLight(cam, mScene.GetLight(hit.mLightId), ray.mDirection, hit.GeometricNormal(), hit.mUv));
+                bsdf.Setup(ray, hit, mScene, Transport::kRadiance);
+            }
             if (!bsdf.IsValid()) return;
             // A vertex of length L is useful only for paths of length >= L + 1.
             if (cam.mPathLength >= mOptions.mMaxPathLength) return;
+            if (!bsdf.IsDelta()) ConnectAndMerge(aSampler, aPixel, aLightPath, cam, segment, bsdf);
 
-            if (!bsdf.IsDelta()) {
-                if (mUseVC) {
-                    if (cam.mPathLength + 1 >= mOptions.mMinPathLength) AddToFilm(aPixel, ConnectToLight(aSampler, cam, hit.mPosition, bsdf));
-                    const size_t begin = LightSubpathBegin(aLightPath), end = LightSubpathEnd(aLightPath);
-                    for (size_t i = begin; i < end; i++) {
-                        const LightVertex& vertex = mLightVertices[i];
-                        const int pathLength = vertex.mPathLength + cam.mPathLength + 1;
-                        if (pathLength > mOptions.mMaxPathLength) break;  // the sub-path's vertices only get longer
-                        if (pathLength < mOptions.mMinPathLength) continue;
-                        AddToFilm(aPixel, ConnectVertices(cam, hit.mPosition, bsdf, vertex, PixelLightBsdf(i - begin, vertex)));
-                    }
-                }
-                if (mUseVM) AddToFilm(aPixel, MergeWithLightVertices(cam, hit.mPosition, bsdf));
-            }
-
-            const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, hit.mPosition, cam);
+            const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, segment, cam);
             if (!scatter) return;
             if (mPathRecords && scatter->IsSpecular()) mCameraHistory.back().mEvent = scatter->mEvent;
             // PPM's camera path ends where it merged; only a specular component (of a
@@ -4245,6 +4761,25 @@ private:
             if (mPpm && !bsdf.IsDelta() && !scatter->IsSpecular()) return;
             ray = mScene.SpawnRay(cam.mOrigin, cam.mDirection);
         }
+    }
+
+    // The techniques that complete a path at a non-specular camera vertex: next-event
+    // estimation (s = 1), connections to the vertices of light sub-path aLightPath (VC),
+    // and merging with the light vertices within r (VM).
+    void ConnectAndMerge(Sampler& aSampler, int aPixel, int aLightPath, const SubpathState& aCamera,
+                         const PathSegment& aVertex, const Bsdf& aBsdf) {
+        if (mUseVC) {
+            if (aCamera.mPathLength + 1 >= mOptions.mMinPathLength) AddToFilm(aPixel, ConnectToLight(aSampler, aCamera, aVertex, aBsdf));
+            const size_t begin = LightSubpathBegin(aLightPath), end = LightSubpathEnd(aLightPath);
+            for (size_t i = begin; i < end; i++) {
+                const LightVertex& vertex = mLightVertices[i];
+                const int pathLength = vertex.mPathLength + aCamera.mPathLength + 1;
+                if (pathLength > mOptions.mMaxPathLength) break;  // the sub-path's vertices only get longer
+                if (pathLength < mOptions.mMinPathLength) continue;
+                AddToFilm(aPixel, ConnectVertices(aCamera, aVertex, aBsdf, vertex, PixelLightBsdf(i - begin, vertex)));
+            }
+        }
+        if (mUseVM) AddToFilm(aPixel, MergeWithLightVertices(aCamera, aVertex.mPosition, aBsdf));
     }
 
     // --- sub-path starts and steps -----------------------------------------------------------
@@ -4266,6 +4801,7 @@ private:
         state.mDirection = emission->mDirection;
         state.mThroughput = emission->mEnergy / emission->mEmissionPdfW;
         state.mIsFiniteLight = light.IsFinite();
+        state.mMedium = mScene.LightMedium(pick.mId);
         state.mMis = VcmMis::AtLightEmission(mMisConstants, emission->mDirectPdfA, emission->mEmissionPdfW,
                                              emission->mCosAtLight, light.IsDelta(), light.IsFinite());
         if (mPathRecords)
@@ -4291,6 +4827,7 @@ private:
         SubpathState state;
         state.mOrigin = ray.mOrigin;
         state.mDirection = ray.mDirection;
+        state.mMedium = mScene.CameraMedium();
         state.mMis = VcmMis::AtCameraStart(mMisConstants, cameraPdfW);
         return state;
     }
@@ -4298,7 +4835,7 @@ private:
     // Samples the continuation of a sub-path at a vertex, with Russian roulette, and
     // updates its throughput and MIS quantities [tech. rep. (34)-(36); specular
     // (53)-(55)]. Nothing when the sub-path ends.
-    std::optional<ScatterSample> SampleScattering(Sampler& aSampler, const Bsdf& aBsdf, const Vec3& aHitPoint,
+    std::optional<ScatterSample> SampleScattering(Sampler& aSampler, const Bsdf& aBsdf, const PathSegment& aVertex,
                                                   SubpathState& aState) const {
         std::optional<ScatterSample> scatter = SampleScatteringWithRoulette(aBsdf, aSampler);
         if (!scatter) return scatter;
@@ -4310,10 +4847,12 @@ private:
         // between the two sides; every technique still drops the same ratio, so the
         // weights still sum to one (unbiased), only not exactly the balance heuristic.
         // The cosine converts the reverse pdf at this vertex to area: the geometric one.
-        VcmMis::AfterScatter(mMisConstants, aState.mMis, aBsdf.GeometricCos(scatter->mDirection, scatter->mCosThetaOut),
+        VcmMis::AfterScatter(MisAt(aBsdf), aState.mMis, aBsdf.GeometricCos(scatter->mDirection, scatter->mCosThetaOut),
                              scatter->mPdfW, scatter->mReversePdfW, specular);
-        aState.mOrigin = aHitPoint;
+        aState.mOrigin = aVertex.mPosition;
         aState.mDirection = scatter->mDirection;
+        aState.mMedium = MediumTowards(mScene, aVertex, scatter->mDirection);
+        aState.mInMedium = aVertex.mInMedium;
         aState.mThroughput *= scatter->mWeight;
         aState.mSpecularPath = aState.mSpecularPath && specular;
         aState.mPathLength++;
@@ -4336,25 +4875,29 @@ private:
 
     // Light tracing (t = 1): a light vertex connected to the pinhole and splatted to the
     // pixel it projects to, weighted by [tech. rep. (46), (47)].
-    SMALLVCM_ALWAYS_INLINE Contribution ConnectToCamera(const SubpathState& aLight, const Vec3& aHitPoint, const Bsdf& aBsdf) const {
+    // Through media the connection carries the transmittance, and the camera's pdf of the
+    // vertex the free flight that would have reached it.
+    SMALLVCM_ALWAYS_INLINE Contribution ConnectToCamera(const SubpathState& aLight, const PathSegment& aVertex, const Bsdf& aBsdf) const {
         // BEGIN EXERCISE lt_camera/connect
         const Camera& camera = mScene.mCamera;
-        Vec3 dirToCamera = camera.Position() - aHitPoint;
+        Vec3 dirToCamera = camera.Position() - aVertex.mPosition;
         if (glm::dot(camera.Forward(), -dirToCamera) <= 0.f) return {};  // behind the camera
         const float distance = glm::length(dirToCamera);
         dirToCamera /= distance;
-        const std::optional<Vec2> raster = camera.WorldToRaster(aHitPoint);
+        const std::optional<Vec2> raster = camera.WorldToRaster(aVertex.mPosition);
         if (!raster || !camera.CheckRaster(*raster)) return {};
         const BsdfEval toCamera = aBsdf.EvaluateWithRoulette(dirToCamera);
         if (toCamera.IsBlack()) return {};
-        if (mScene.Occluded(aHitPoint, dirToCamera, distance)) return {};
+        const SegmentMedia media = TraceConnection(mScene, aVertex.mPosition, dirToCamera, distance, MediumTowards(mScene, aVertex, dirToCamera));
+        if (media.mOccluded) return {};
         // The camera's area pdf of this vertex (for MIS) converts by the geometric cosine;
         // the contribution takes the shading cosine that goes with the Bsdf's f (for
         // importance, f_s times the adjoint factor; Bsdf notes). Equal on flat surfaces.
-        const float cameraPdfA = CameraPdfA(dirToCamera, distance, aBsdf.GeometricCos(dirToCamera, toCamera.mCosThetaGen));
-        const float weight = mLightTraceOnly ? 1.f : VcmMis::WeightLightTracing(mMisConstants, aLight.mMis, cameraPdfA, toCamera.mRevPdfW);
+        const float cameraPdfA = CameraPdfA(dirToCamera, distance, aBsdf.GeometricCos(dirToCamera, toCamera.mCosThetaGen)) *
+                                 media.Pdfs(aVertex.mInMedium, false).mReverse;
+        const float weight = mLightTraceOnly ? 1.f : VcmMis::WeightLightTracing(MisAt(aBsdf), aLight.mMis, cameraPdfA, toCamera.mRevPdfW);
         // Each of the N_L light sub-paths estimates the whole image: divide by N_L.
-        const Vec3 unweighted = aLight.mThroughput * toCamera.mValue *
+        const Vec3 unweighted = aLight.mThroughput * toCamera.mValue * media.mTransmittance *
                                 (CameraPdfA(dirToCamera, distance, toCamera.mCosThetaGen) / mMisConstants.mLightPathCount);
         return Made(kLightTracing, unweighted, weight, aLight.mPathLength + 1, aLight.mPathLength + 1, camera.RasterToIndex(*raster));
         // END EXERCISE lt_camera/connect
@@ -4373,9 +4916,11 @@ private:
         if (cosAtLight <= kEpsCosine) return {};  // the side facing the camera does not emit
         // L_e G W_e / p_A(x0) / N_L, with G W_e the camera's area pdf of the point.
         const float positionPdfA = aLightPickProb / aLight.mArea;
-        const Vec3 contribution = aEmission.mRadiance * (CameraPdfA(dirToCamera, distance, cosAtLight) /
-                                                      (positionPdfA * mMisConstants.mLightPathCount));
-        if (mScene.Occluded(aEmission.mPosition, dirToCamera, distance)) return {};
+        const int lightId = int(&aLight - &mScene.GetLight(0));
+        const SegmentMedia media = TraceConnection(mScene, aEmission.mPosition, dirToCamera, distance, mScene.LightMedium(lightId));
+        if (media.mOccluded) return {};
+        const Vec3 contribution = aEmission.mRadiance * media.mTransmittance *
+                                  (CameraPdfA(dirToCamera, distance, cosAtLight) / (positionPdfA * mMisConstants.mLightPathCount));
         return Made(kLightTracing, contribution, 1.f, 1, 1, camera.RasterToIndex(*raster));
     }
 
@@ -4409,35 +4954,43 @@ private:
 
     // Next-event estimation (s = 1): a point sampled on a light, connected by a shadow ray,
     // weighted by [tech. rep. (44), (45)].
-    SMALLVCM_ALWAYS_INLINE Contribution ConnectToLight(Sampler& aSampler, const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
+    // Through media: the transmittance, and the free-flight pdfs of both directions.
+    SMALLVCM_ALWAYS_INLINE Contribution ConnectToLight(Sampler& aSampler, const SubpathState& aCamera, const PathSegment& aVertex, const Bsdf& aBsdf) {
+        const Vec3& point = aVertex.mPosition;
         const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
         const Vec2 rnd = aSampler.Get2D();
-        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aHitPoint, rnd);
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), point, rnd);
         if (!sample || IsBlack(sample->mRadiance)) return {};
         if (mPathRecords)
             mNextEventVertex = light.IsFinite()
-                ? PathVertex{aHitPoint + sample->mDirToLight * sample->mDistance, Vec3(0.f), -1, pick.mId}
+                ? PathVertex{point + sample->mDirToLight * sample->mDistance, Vec3(0.f), -1, pick.mId}
                 : PathVertex{sample->mDirToLight, Vec3(0.f), -1, pick.mId, kEventNone, true};
         const BsdfEval toLight = aBsdf.EvaluateWithRoulette(sample->mDirToLight);
         if (toLight.IsBlack()) return {};
-        if (mScene.Occluded(aHitPoint, sample->mDirToLight, sample->mDistance)) return {};
+        const SegmentMedia media = TraceConnection(mScene, point, sample->mDirToLight, sample->mDistance,
+                                                   MediumTowards(mScene, aVertex, sample->mDirToLight));
+        if (media.mOccluded) return {};
+        const SegmentPdfs flight = media.Pdfs(aVertex.mInMedium, false);
         const float directPdfW = sample->mDirectPdfW * pick.mProb;
         // The MIS weight converts the emission pdf to area at this vertex: geometric cosine;
         // the contribution's cosine is the shading one that goes with f (Bsdf notes).
-        const float weight = VcmMis::WeightNextEvent(mMisConstants, aCamera.mMis, toLight.mDirPdfW, toLight.mRevPdfW,
-                                                     directPdfW, sample->mEmissionPdfW * pick.mProb,
+        const float weight = VcmMis::WeightNextEvent(MisAt(aBsdf), aCamera.mMis, toLight.mDirPdfW * flight.mForward, toLight.mRevPdfW,
+                                                     directPdfW, sample->mEmissionPdfW * pick.mProb * flight.mReverse,
                                                      aBsdf.GeometricCos(sample->mDirToLight, toLight.mCosThetaGen),
                                                      sample->mCosAtLight, light.IsDelta());
-        const Vec3 unweighted = aCamera.mThroughput * toLight.mValue * sample->mRadiance * (toLight.mCosThetaGen / directPdfW);
+        const Vec3 unweighted = aCamera.mThroughput * toLight.mValue * sample->mRadiance * media.mTransmittance *
+                                (toLight.mCosThetaGen / directPdfW);
         return Made(kNextEvent, unweighted, weight, 1, aCamera.mPathLength + 1);
     }
 
     // Vertex connection (s, t >= 2) of the camera vertex with one vertex of this pixel's
     // own light sub-path, weighted by [tech. rep. (40), (41)].
-    SMALLVCM_ALWAYS_INLINE Contribution ConnectVertices(const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf,
+    // Through media: the transmittance, and the free-flight pdfs of both directions.
+    SMALLVCM_ALWAYS_INLINE Contribution ConnectVertices(const SubpathState& aCamera, const PathSegment& aCameraVertex, const Bsdf& aBsdf,
                                                 const LightVertex& aVertex, const Bsdf& aLightBsdf) const {
-        Vec3 direction = aVertex.mHitPoint - aHitPoint;
+        const Vec3& point = aCameraVertex.mPosition;
+        Vec3 direction = aVertex.mHitPoint - point;
         const float distanceSqr = glm::dot(direction, direction);
         if (!(distanceSqr > 0.f)) return {};
         const float distance = std::sqrt(distanceSqr);
@@ -4447,7 +5000,9 @@ private:
         if (cameraSide.IsBlack()) return {};
         const BsdfEval lightSide = aLightBsdf.EvaluateWithRoulette(-direction);
         if (lightSide.IsBlack()) return {};
-        if (mScene.Occluded(aHitPoint, direction, distance)) return {};
+        const SegmentMedia media = TraceConnection(mScene, point, direction, distance, MediumTowards(mScene, aCameraVertex, direction));
+        if (media.mOccluded) return {};
+        const SegmentPdfs flight = media.Pdfs(aCameraVertex.mInMedium, aVertex.mInMedium);
 
         // G takes the shading cosines that go with each side's f (the light side's f
         // carries the adjoint factor, so f cos is f_path |cos_geometric|: Bsdf notes);
@@ -4455,32 +5010,39 @@ private:
         const float geometryTerm = cameraSide.mCosThetaGen * lightSide.mCosThetaGen / distanceSqr;
         const float weight = VcmMis::WeightConnection(
             mMisConstants, aVertex.mMis, aCamera.mMis,
-            PdfWtoA(cameraSide.mDirPdfW, distance, aLightBsdf.GeometricCos(-direction, lightSide.mCosThetaGen)), cameraSide.mRevPdfW,
-            PdfWtoA(lightSide.mDirPdfW, distance, aBsdf.GeometricCos(direction, cameraSide.mCosThetaGen)), lightSide.mRevPdfW);
-        const Vec3 unweighted = aCamera.mThroughput * aVertex.mThroughput * cameraSide.mValue * lightSide.mValue * geometryTerm;
+            PdfWtoA(cameraSide.mDirPdfW, distance, aLightBsdf.GeometricCos(-direction, lightSide.mCosThetaGen)) * flight.mForward,
+            cameraSide.mRevPdfW,
+            PdfWtoA(lightSide.mDirPdfW, distance, aBsdf.GeometricCos(direction, cameraSide.mCosThetaGen)) * flight.mReverse,
+            lightSide.mRevPdfW, MisAt(aLightBsdf).mVmWeightFactor, MisAt(aBsdf).mVmWeightFactor);
+        const Vec3 unweighted = aCamera.mThroughput * aVertex.mThroughput * cameraSide.mValue * lightSide.mValue * media.mTransmittance *
+                                geometryTerm;
         return Made(kConnection, unweighted, weight, aVertex.mPathLength + 1, aVertex.mPathLength + aCamera.mPathLength + 1);
     }
 
     // Vertex merging: the light vertices within the radius, density-estimated with a
     // constant kernel 1 / (pi r^2) over N_L light sub-paths [tech. rep. (11)], weighted
     // by [tech. rep. (38), (39)].
+    // A camera point in a medium merges with the light points in media within r, with the
+    // 3D kernel 1 / ((4/3) pi r^3 N_L) (VcmMisConstants::ForMedium).
     Contribution MergeWithLightVertices(const SubpathState& aCamera, const Vec3& aHitPoint, const Bsdf& aBsdf) {
         // BEGIN EXERCISE ppm_merging/merge
+        const bool inMedium = aBsdf.IsInMedium();
+        const VcmMisConstants& mis = MisAt(aBsdf);
         Vec3 sum(0.f);
-        mLightVertexSearch.Process(aHitPoint, [&](const MergeData& vertex, uint32_t aIndex) {
+        (inMedium ? mMediumVertexSearch : mLightVertexSearch).Process(aHitPoint, [&](const MergeData& vertex, uint32_t aIndex) {
             const int pathLength = vertex.mPathLength + aCamera.mPathLength;
             if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
             // The camera's BSDF, evaluated towards where the light vertex came from: f_path,
             // as the density estimate spreads flux over geometric area (Bsdf notes).
             const BsdfEval cameraSide = aBsdf.EvaluatePathWithRoulette(vertex.mDirFix);
             if (cameraSide.IsBlack()) return;
-            const float weight = mPpm ? 1.f : VcmMis::WeightMerge(mMisConstants, vertex.mMis, aCamera.mMis,
+            const float weight = mPpm ? 1.f : VcmMis::WeightMerge(mis, vertex.mMis, aCamera.mMis,
                                                                  cameraSide.mDirPdfW, cameraSide.mRevPdfW);
-            if (mPathRecords) RecordMerge(aIndex, weight);
+            if (mPathRecords) RecordMerge((inMedium ? mMediumVertexIndices : mSurfaceVertexIndices)[aIndex], weight);
             sum += cameraSide.mValue * vertex.mThroughput * weight;
         });
         if (IsBlack(sum)) return {};
-        return Made(kMerging, aCamera.mThroughput * sum * mMisConstants.mVmNormalization, 1.f, -1, -1);
+        return Made(inMedium ? kMediumMerging : kMerging, aCamera.mThroughput * sum * mis.mVmNormalization, 1.f, -1, -1);
         // END EXERCISE ppm_merging/merge
     }
 
@@ -4492,7 +5054,10 @@ private:
     // sub-path, built at its first connection and kept for the camera sub-path's later
     // vertices, which connect to it again (building a BSDF costs more than evaluating one).
     const Bsdf& PixelLightBsdf(size_t aSlot, const LightVertex& aVertex) {
-        if (mPixelLightBsdfPath[aSlot] != mCameraPathNumber) {
+        if (mPixelLightBsdfPath[aSlot] != mCameraPathNumber && aVertex.mInMedium) {
+            mPixelLightBsdfs[aSlot].SetupInMedium(aVertex.mDirFix, mScene.GetMedium(aVertex.mMedium), Transport::kImportance);
+            mPixelLightBsdfPath[aSlot] = mCameraPathNumber;
+        } else if (mPixelLightBsdfPath[aSlot] != mCameraPathNumber) {
             SurfacePoint surface;
             surface.mPosition = aVertex.mHitPoint;
             surface.mPrimitiveId = aVertex.mPrimitiveId;
@@ -4528,7 +5093,8 @@ private:
     }
 
     void AddTechniqueLayers() {
-        for (int t = 0; t < kTechniqueCount; t++) mTechniqueLayers[t] = mFilm.AddLayer(kTechniqueLayerNames[t]);
+        for (int t = 0; t < kTechniqueCount; t++)
+            if (t != kMediumMerging || mScene.HasMedia()) mTechniqueLayers[t] = mFilm.AddLayer(kTechniqueLayerNames[t]);
         if (mOptions.mAlgorithm != Algorithm::kBidirectionalPathTracing) return;
         for (int length = 1; length <= kPyramidMaxLength; length++)
             for (int s = 0; s <= length; s++) {
@@ -4600,14 +5166,19 @@ private:
 
     bool mUseVC = false, mUseVM = false, mPpm = false, mLightTraceOnly = false;
     float mBaseRadius = 0.f;
-    VcmMisConstants mMisConstants;
+    VcmMisConstants mMisConstants;        // of this iteration, at surface vertices
+    VcmMisConstants mMisConstantsMedium;  // the same at points in media (ForMedium)
+    // The MIS constants of the vertex a Bsdf was set up at (a surface or a medium point).
+    const VcmMisConstants& MisAt(const Bsdf& aBsdf) const { return aBsdf.IsInMedium() ? mMisConstantsMedium : mMisConstants; }
     std::vector<LightVertex> mLightVertices;
     std::vector<size_t> mPathEnds;  // mPathEnds[p]: one past the last vertex of light sub-path p
-    RangeSearch<MergeData> mLightVertexSearch;
+    RangeSearch<MergeData> mLightVertexSearch;   // the stored surface points
+    RangeSearch<MergeData> mMediumVertexSearch;  // the stored points in media
+    std::vector<uint32_t> mSurfaceVertexIndices, mMediumVertexIndices;  // each search's points in mLightVertices
     std::vector<Bsdf> mPixelLightBsdfs;         // PixelLightBsdf's cache, for the current pixel
     std::vector<uint64_t> mPixelLightBsdfPath;  // the camera sub-path each entry was built for
     uint64_t mCameraPathNumber = 0;             // of the current camera sub-path, from 1
-    int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1};
+    int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1, -1};
     int mPyramidLayers[kPyramidMaxLength + 1][kPyramidMaxLength + 1][2] = {};
     int mLongerPathsLayer = -1;
 };

@@ -603,7 +603,8 @@ public:
             const float lightRevPdfW = lightEval.mRevPdfW * lightBsdf.ContinuationProb();
             return VcmMis::WeightConnection(mMis, mLightMis[size_t(y)], mCameraMis[size_t(z)],
                                             PdfWtoA(cameraDirPdfW, distance, cosLight), cameraRevPdfW,
-                                            PdfWtoA(lightDirPdfW, distance, cosCamera), lightRevPdfW);
+                                            PdfWtoA(lightDirPdfW, distance, cosCamera), lightRevPdfW,
+                                            mMis.mVmWeightFactor, mMis.mVmWeightFactor);
         }
         case Kind::kLightTracing: {
             // ConnectToCamera from the light vertex x_{k-1}.

@@ -78,6 +78,21 @@ inline Scene MakeEmissiveFurnace(float aAlbedo, float aEmitted, int aWidth, int 
     return scene;
 }
 
+// Furnace 1 filled with a medium (the scene medium: the diffuse sphere bounds none) of
+// scattering coefficient aSigmaS, no absorption, asymmetry aG: scattering neither adds
+// nor removes light where the radiance is the same in every direction, so every camera
+// ray still sees L = Le / (1 - a) for unbounded paths.
+inline Scene MakeMediumFurnace(float aAlbedo, float aEmitted, float aSigmaS, float aG, int aWidth, int aHeight) {
+    Scene scene = MakeEmissiveFurnace(aAlbedo, aEmitted, aWidth, aHeight);
+    Medium fog;
+    fog.mName = "furnace fog";
+    fog.mSigmaS = Vec3(aSigmaS);
+    fog.mG = aG;
+    scene.mSceneMedium = scene.AddMedium(fog);
+    scene.Finalize();
+    return scene;
+}
+
 // Furnace 2: a point light of intensity pi at the centre of a diffuse sphere of radius 1
 // and albedo 0.5. Direct: a E / pi = 0.5; with bounces L = 0.5 + 0.5 L = 1; with a
 // maximum path length k (the camera segment counts): L = 1 - 0.5^(k-1).

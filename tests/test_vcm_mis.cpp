@@ -294,7 +294,8 @@ TEST_CASE("Degenerate paths and pdfs give finite weights in [0, 1], never NaN", 
                     const SubpathMis& camera = recursive.CameraMis(s);
                     for (int mask = 0; mask < 16; mask++) {
                         const float w = VcmMis::WeightConnection(mis, light, camera, (mask & 1) ? 0.f : 1.f, (mask & 2) ? 0.f : 0.3f,
-                                                                 (mask & 4) ? 0.f : 2.f, (mask & 8) ? 0.f : 0.5f);
+                                                                 (mask & 4) ? 0.f : 2.f, (mask & 8) ? 0.f : 0.5f,
+                                                                 mis.mVmWeightFactor, mis.mVmWeightFactor);
                         CHECK(FiniteUnitInterval(w));
                         checked++;
                     }
@@ -308,7 +309,7 @@ TEST_CASE("Degenerate paths and pdfs give finite weights in [0, 1], never NaN", 
                     const float cameraDirPdfW = cameraEval.mDirPdfW, cameraRevPdfW = cameraEval.mRevPdfW;
                     if (cameraDirPdfW == 0.f && cameraRevPdfW == 0.f) belowSurface++;
                     const float w = VcmMis::WeightConnection(mis, light, camera, PdfWtoA(cameraDirPdfW, 1.f, cosCamera),
-                                                             cameraRevPdfW, 0.f, 0.f);
+                                                             cameraRevPdfW, 0.f, 0.f, mis.mVmWeightFactor, mis.mVmWeightFactor);
                     CHECK(FiniteUnitInterval(w));
                 }
                 for (int i = 1; i < path.K(); i++) {
