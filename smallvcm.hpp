@@ -3620,6 +3620,9 @@ struct RenderOptions {
     int mMinPathLength = 0;       // in segments, as SmallVCM counts them
     int mMaxPathLength = 10;
     float mRadiusFactor = 0.003f; // merging radius = factor * scene radius (SmallVCM's default)
+    // The radius of merging at points in media, likewise: a ball holds far fewer photons
+    // than a disc of the same radius, so it is larger (shrinking on the same schedule).
+    float mMediumRadiusFactor = 0.03f;
     float mRadiusAlpha = 0.75f;   // radius shrinks as r_i = r_0 (i+1)^((alpha-1)/2)
     MisHeuristic mMisHeuristic = MisHeuristic::kBalance;
     DirectLightSampling mDirectLight = DirectLightSampling::kMis;  // path tracing only
@@ -4286,10 +4289,11 @@ struct VcmMisConstants {
     }
     // The same for a vertex in a medium: the 3D kernel 1 / ((4/3) pi r^3 N_L) [Krivanek et
     // al. 2014, sec. 4, the point-point 3D estimator] and its eta.
-    VcmMisConstants ForMedium() const {
+    // aRadius: the radius of merging in media (RenderOptions::mMediumRadiusFactor).
+    VcmMisConstants ForMedium(float aRadius) const {
         VcmMisConstants c = *this;
         const float etaSurface = kPi * Sqr(mMergeRadius) * mLightPathCount;
-        const float etaVolume = 4.f / 3.f * kPi * mMergeRadius * Sqr(mMergeRadius) * mLightPathCount;
+        const float etaVolume = 4.f / 3.f * kPi * aRadius * Sqr(aRadius) * mLightPathCount;
         c.mVmWeightFactor = mUseVM ? Mis(etaVolume) : 0.f;
         c.mMergeHere = Mis(etaVolume / etaSurface);
         c.mInvMergeHere = Mis(etaSurface / etaVolume);
@@ -4524,7 +4528,8 @@ public:
         const int pathCount = mScene.mCamera.PixelCount();
         const float radius = MergeRadius(aIteration);
         mMisConstants = VcmMisConstants::Make(mOptions.mMisHeuristic, mUseVC, mUseVM, float(pathCount), radius);
-        mMisConstantsMedium = mMisConstants.ForMedium();
+        const float mediumRadius = radius * (mOptions.mMediumRadiusFactor / mOptions.mRadiusFactor);
+        mMisConstantsMedium = mMisConstants.ForMedium(mediumRadius);
 
         // 1. Light sub-paths: traced, connected to the camera, their vertices stored.
         TraceLightSubpaths(aSampler, pathCount);
@@ -4534,7 +4539,7 @@ public:
         //    and the points in media (each merges only with its own kind).
         if (mUseVM) {
             BuildVertexSearch(mLightVertexSearch, mSurfaceVertexIndices, false, radius);
-            if (mScene.HasMedia()) BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, radius);
+            if (mScene.HasMedia()) BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, mediumRadius);
         }
 
         // 3. Camera sub-paths, one per pixel, each connecting to the light sub-path the
@@ -6902,6 +6907,8 @@ inline void ValidateRenderOptions(const RenderOptions& aOptions) {
     if (aOptions.mRadiusFactor > kMaxRadiusFactor)
         throw Error("radius factor: " + std::to_string(aOptions.mRadiusFactor) + " is above " + std::to_string(kMaxRadiusFactor) +
                     " (a merging radius that large blurs light across whole surfaces and makes every lookup visit most light vertices)");
+    if (!(aOptions.mMediumRadiusFactor > 0.f) || !(aOptions.mMediumRadiusFactor <= kMaxRadiusFactor))
+        throw Error("medium radius factor: must be a number in (0, " + std::to_string(kMaxRadiusFactor) + "]");
     if (!(aOptions.mRadiusAlpha > 0.f && aOptions.mRadiusAlpha <= 1.f)) throw Error("radius alpha: must be in (0, 1]");
     if (aOptions.mPhotonCount < 1) throw Error("photon count: must be >= 1");
     if (aOptions.mNearestPhotons < 1) throw Error("nearest photons: must be >= 1");
