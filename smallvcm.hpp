@@ -16,6 +16,10 @@
 //  The MIS weights of the last five follow Georgiev's technical report "Implementing
 //  Vertex Connection and Merging" (2012/2013); every MIS line cites it as
 //  [tech. rep. (NN)] so that the code can be read with the report open beside it.
+//  Light also travels through homogeneous participating media (fog, smoke, absorbing
+//  glass) in every one of them but pm and pmfg: ppm, bpm and vcm merge photon points in
+//  media with the 3D kernel of Krivanek et al.'s "Unifying Points, Beams, and Paths in
+//  Volumetric Light Transport Simulation" (2014).
 //
 // =====================================================================================
 //  HOW TO USE IT
@@ -110,7 +114,9 @@
 //  [SECTION] Random numbers and sampling
 //  [SECTION] Geometry: ray, sphere, triangle, BVH        (the BVH by its contract)
 //  [SECTION] Scene: materials, lights, camera
-//  [SECTION] BSDF
+//  [SECTION] Participating media     (transmittance, free flight, phase function,
+//      the walks through media: TraceSegment, TraceConnection)
+//  [SECTION] BSDF                    (a point in a medium is a Bsdf too: SetupInMedium)
 //  [SECTION] Film
 //  [SECTION] Integrator interface
 //  [SECTION] Integrator: eye light
@@ -4064,6 +4070,10 @@ inline PhotonMaps TracePhotons(const Scene& aScene, int aPhotonCount, int aMaxPa
 class PhotonMapper : public AbstractRenderer {
 public:
     PhotonMapper(const Scene& aScene, const RenderOptions& aOptions) : AbstractRenderer(aScene, aOptions) {
+        if (aScene.HasMedia())
+            throw Error(std::string(AlgorithmShortName(aOptions.mAlgorithm)) +
+                        ": classic photon mapping keeps no volume photon map and does not render participating media; "
+                        "use ppm, bpm or vcm (photon points in media), or pt or bpt");
         mFinalGather = aOptions.mAlgorithm == Algorithm::kPhotonMappingFinalGather;
         mMaxRadius = aOptions.mMaxPhotonRadiusFactor * aScene.GetSceneSphere().mRadius;
         if (mOptions.mTechniqueLayers) {
