@@ -14,6 +14,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 namespace {
 
@@ -2210,5 +2211,82 @@ TEST_CASE("Bad media are one clear error naming the file and the material or sce
         CHECK(StartsWith(error, path + ": "));
         CHECK_THAT(error, Catch::Contains(c.mFragment));
         CHECK(error.find('\n') == std::string::npos);
+    }
+}
+
+namespace {
+
+// Whether the triangles of aScene with material aMaterialId form a closed surface wound
+// outwards: each directed edge (by its end points) once, its reverse once, and a positive
+// signed volume.
+bool ClosedAndOutwards(const Scene& aScene, int aMaterialId, double* oVolume) {
+    using Point = std::tuple<float, float, float>;
+    auto key = [](const Vec3& aP) { return Point(aP.x, aP.y, aP.z); };
+    std::set<std::pair<Point, Point>> edges;
+    double volume = 0.0;
+    for (const Triangle& t : aScene.mTriangles) {
+        if (t.mMaterialId != aMaterialId) continue;
+        const Vec3 p[3] = {t.mP0, t.mP1, t.mP2};
+        for (int k = 0; k < 3; k++)
+            if (!edges.insert({key(p[k]), key(p[(k + 1) % 3])}).second) return false;
+        volume += glm::dot(glm::dvec3(p[0]), glm::cross(glm::dvec3(p[1]), glm::dvec3(p[2]))) / 6.0;
+    }
+    for (const auto& [from, to] : edges)
+        if (!edges.count({to, from})) return false;
+    *oVolume = volume;
+    return !edges.empty() && volume > 0.0;
+}
+
+} // namespace
+
+TEST_CASE("The media scenes load with their media, and each medium's mesh is closed and wound outwards", "[gltf][media]") {
+    SECTION("fog_caustic_box: fog as the scene medium, clear glass sphere, a mirror") {
+        GltfLoadReport report;
+        const Scene scene = LoadGltfScene("../scenes/fog_caustic_box.gltf", &report);
+        REQUIRE(scene.mMedia.size() == 1);
+        REQUIRE(scene.mSceneMedium == 0);
+        CHECK_VEC3(scene.mMedia[0].mSigmaS, Vec3(0.1f), 0.f);
+        CHECK_VEC3(scene.mMedia[0].mSigmaA, Vec3(0.01f), 0.f);
+        CHECK(scene.mMedia[0].mG == 0.3f);
+        REQUIRE(scene.mSpheres.size() == 1);
+        const Material& glass = scene.mMaterials.at(size_t(scene.mSpheres[0].mMaterialId));
+        CHECK(glass.mIor == 1.5f);
+        CHECK(glass.mMedium == -1);
+        CHECK(report.mNotes.empty());
+    }
+    SECTION("dense_scattering_sphere: an index-matched boundary around albedo ~0.95") {
+        const Scene scene = LoadGltfScene("../scenes/dense_scattering_sphere.gltf");
+        REQUIRE(scene.mMedia.size() == 1);
+        CHECK(scene.mSceneMedium == -1);
+        const Medium& medium = scene.mMedia[0];
+        const Vec3 albedo = medium.mSigmaS / medium.SigmaT();
+        CHECK(albedo.x == Approx(0.97).margin(0.01));
+        CHECK(albedo.y == Approx(0.95).margin(0.01));
+        CHECK(albedo.z == Approx(0.92).margin(0.01));
+        int boundaries = 0;
+        for (size_t m = 0; m < scene.mMaterials.size(); m++) {
+            if (scene.mMaterials[m].mMedium < 0) continue;
+            boundaries++;
+            CHECK(scene.mMaterials[m].IsIndexMatchedBoundary());
+            double volume = 0.0;
+            CHECK(ClosedAndOutwards(scene, int(m), &volume));
+            CHECK(volume == Approx(4.0 / 3.0 * 3.14159265 * 0.4 * 0.4 * 0.4).epsilon(0.02));  // the icosphere is a little smaller
+        }
+        CHECK(boundaries == 1);
+    }
+    SECTION("absorbing_glass: KHR_materials_volume in a closed wedge and a closed sphere") {
+        const Scene scene = LoadGltfScene("../scenes/absorbing_glass.gltf");
+        REQUIRE(scene.mMedia.size() == 1);
+        CHECK_VEC3(scene.mMedia[0].mSigmaA, Vec3(0.3512017f, 2.3104906f, 5.3647929f), 1e-5f);  // -ln(0.9, 0.5, 0.2) / 0.3
+        int glass = 0;
+        for (size_t m = 0; m < scene.mMaterials.size(); m++) {
+            if (scene.mMaterials[m].mMedium < 0) continue;
+            glass++;
+            CHECK(scene.mMaterials[m].mIor == 1.5f);
+            double volume = 0.0;
+            CHECK(ClosedAndOutwards(scene, int(m), &volume));  // the wedge and the sphere together
+            CHECK(volume == Approx(0.5 * 0.9 * 0.45 * 0.5 + 4.0 / 3.0 * 3.14159265 * 0.027).epsilon(0.02));
+        }
+        CHECK(glass == 1);
     }
 }
