@@ -6769,7 +6769,8 @@ std::shared_ptr<const EnvironmentMap> LoadEnvironmentMap(const std::string& aPat
 // =====================================================================================
 // Provides: LoadGltfScene, which reads the subset of glTF 2.0 documented in
 // docs/scene_format.md (triangle meshes, spheres and a background by our SMALLVCM_*
-// extensions, KHR_lights_punctual, emissive materials, one perspective camera) into a
+// extensions, KHR_lights_punctual, emissive materials, participating media by
+// KHR_materials_volume and SMALLVCM_medium, one perspective camera) into a
 // finalized Scene. Anything outside the subset throws Error naming the file and the
 // feature: a scene is never silently rendered differently from what the file says.
 // Compiled under SMALLVCM_IMPLEMENTATION (it needs tinygltf).
