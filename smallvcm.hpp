@@ -7357,7 +7357,8 @@ std::shared_ptr<const EnvironmentMap> LoadEnvironmentMap(const std::string& aPat
 // =====================================================================================
 // Provides: LoadGltfScene, which reads the subset of glTF 2.0 documented in
 // docs/scene_format.md (triangle meshes, spheres and a background by our SMALLVCM_*
-// extensions, KHR_lights_punctual, emissive materials, one perspective camera) into a
+// extensions, KHR_lights_punctual, emissive materials, participating media by
+// KHR_materials_volume and SMALLVCM_medium, one perspective camera) into a
 // finalized Scene. Anything outside the subset throws Error naming the file and the
 // feature: a scene is never silently rendered differently from what the file says.
 // Compiled under SMALLVCM_IMPLEMENTATION (it needs tinygltf).
@@ -7401,6 +7402,11 @@ struct GltfLoadOptions {
     std::string mEnvironmentMap;
     float mEnvironmentRotationDegrees = 0.f;
     float mEnvironmentScale = 1.f;
+    // With mReplaceSceneMedium, mSceneMedium fills all space outside every closed mesh
+    // (Scene::mSceneMedium) instead of the file's scene medium (SMALLVCM_medium on the
+    // scene, or none). Scene::Finalize, at the end of loading, validates it.
+    bool mReplaceSceneMedium = false;
+    Medium mSceneMedium;
 };
 
 // The light a file without one gets (GltfLoadOptions::Background::kFromFile): a neutral
@@ -8116,6 +8122,7 @@ public:
         const int sceneIndex = mModel.defaultScene >= 0 ? mModel.defaultScene : 0;
         if (mModel.scenes.empty()) Fail("the file has no scene");
         if (sceneIndex >= int(mModel.scenes.size())) Fail("the default scene " + std::to_string(sceneIndex) + " does not exist");
+        ReadSceneMedium(sceneIndex);
         for (int root : mModel.scenes[size_t(sceneIndex)].nodes) VisitNode(root, Mat4(1.0), 0);
         FinishPrimitiveNotes();
         if (mOptions.mCamera >= 0 && !mHasCamera)
@@ -8188,6 +8195,7 @@ private:
             CheckDeclaredBuffers(json);
             CheckSpotAnglesAreNumbers(json);
             CheckAlphaModes(json);
+            CheckMediaAreObjects(json);
         }
 
         tinygltf::TinyGLTF gltf;
@@ -8260,6 +8268,7 @@ private:
     // one is ignored and listed in a note.
     static const std::set<std::string>& SupportedExtensions() {
         static const std::set<std::string> kSupported = {
+            "KHR_materials_volume", "SMALLVCM_medium",
             "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
             "KHR_materials_ior", "KHR_texture_transform", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
         return kSupported;
@@ -8466,6 +8475,27 @@ private:
                 if (!cutoff.is_number() || !(cutoff.get<double>() >= 0.0))
                     Fail(what + ": alphaCutoff must be a number >= 0 (glTF 2.0; the default is 0.5)");
             }
+        }
+    }
+
+    // tinygltf drops an extension whose value is not an object: a medium written as an
+    // array or a number would silently vanish from the scene (docs/scene_format.md 4.4).
+    void CheckMediaAreObjects(const nlohmann::json& aJson) {
+        const nlohmann::json& materials = Member(aJson, "materials");
+        for (size_t m = 0; materials.is_array() && m < materials.size(); m++) {
+            const nlohmann::json& extensions = Member(materials[m], "extensions");
+            const nlohmann::json& name = Member(materials[m], "name");
+            const std::string what = "material " + std::to_string(m) +
+                                     (name.is_string() && !name.get<std::string>().empty() ? " '" + Excerpt(name.get<std::string>()) + "'" : "");
+            for (const char* extension : {"SMALLVCM_medium", "KHR_materials_volume"})
+                if (extensions.is_object() && extensions.contains(extension) && !extensions[extension].is_object())
+                    Fail(what + ": " + extension + " must be an object");
+        }
+        const nlohmann::json& scenes = Member(aJson, "scenes");
+        for (size_t i = 0; scenes.is_array() && i < scenes.size(); i++) {
+            const nlohmann::json& extensions = Member(scenes[i], "extensions");
+            if (extensions.is_object() && extensions.contains("SMALLVCM_medium") && !extensions["SMALLVCM_medium"].is_object())
+                Fail("scene " + std::to_string(i) + ": SMALLVCM_medium must be an object");
         }
     }
 
@@ -8854,8 +8884,6 @@ private:
                     if (!(ior >= 1.f || ior == 0.f) || !std::isfinite(ior))
                         Fail(what + ": KHR_materials_ior.ior must be a number >= 1, or 0");
                     if (roughness > 0.f) Approximated("roughnessFactor on transmission (rendered as smooth glass)");
-                    if (source.extensions.count("KHR_materials_volume"))
-                        Approximated("KHR_materials_volume (no absorption in the volume: the tint applies at each crossing)");
                 }
                 // The opaque rest, as without transmission when t = 0. With ior 0 (F = 1) the
                 // glass share reflects all it receives, untinted: it joins that specular.
@@ -8897,6 +8925,14 @@ private:
                 Fail(what + ": ior must be a positive index of refraction, or -1 for none");
             if (material.mIor > 0.f && !IsBlack(material.mDiffuseReflectance + material.mPhongReflectance + material.mOpaqueMirror))
                 material.mTwoSided = false;  // glass decides inside from outside by the normal
+            // The medium inside the material's closed mesh (docs/scene_format.md 4.4). Without
+            // refraction its surface is an index-matched boundary: no component at all.
+            const int medium = MaterialMedium(source, what, material.mIor > 0.f);
+            if (medium >= 0 && !(material.mIor > 0.f)) {
+                Material boundary;
+                boundary.mName = material.mName;
+                material = boundary;
+            }
 
             // Emission: emissiveFactor times KHR_materials_emissive_strength.
             Vec3 emission(0.f);
@@ -8946,7 +8982,96 @@ private:
                 black.mName = material.mName;
                 material = black;
             }
+            material.mMedium = medium;
             mScene.AddMaterial(material);
+        }
+    }
+
+    // --- media (docs/scene_format.md 4.4) ------------------------------------------------
+    // SMALLVCM_medium: {"sigmaA": [r, g, b], "sigmaS": [r, g, b], "g": g}, coefficients in
+    // 1 / scene unit (default 0), g the Henyey-Greenstein asymmetry (default 0). Any other
+    // member is refused: a misspelt one would silently leave a coefficient 0.
+    Medium ReadMedium(const tinygltf::Value& aValue, const std::string& aWhat, const std::string& aName) const {
+        const std::string what = aWhat + ": SMALLVCM_medium";
+        if (!aValue.IsObject()) Fail(what + " must be an object");
+        for (const std::string& key : aValue.Keys())
+            if (key != "sigmaA" && key != "sigmaS" && key != "g")
+                Fail(what + " has an unknown member '" + Excerpt(key) + "' (it has sigmaA, sigmaS and g)");
+        Medium medium;
+        medium.mName = aName;
+        medium.mSigmaA = ColorOr(aValue, "sigmaA", Vec3(0.f), what);
+        medium.mSigmaS = ColorOr(aValue, "sigmaS", Vec3(0.f), what);
+        CheckColor(medium.mSigmaA, what + ".sigmaA", false);
+        CheckColor(medium.mSigmaS, what + ".sigmaS", false);
+        medium.mG = float(NumberOr(aValue, "g", 0.0));
+        if (!(std::abs(medium.mG) < 1.f)) Fail(what + ".g must be a number in (-1, 1) (the Henyey-Greenstein asymmetry)");
+        return medium;
+    }
+
+    // KHR_materials_volume's medium: white light that travels attenuationDistance d in it
+    // becomes attenuationColor c (Beer-Lambert), so sigma_a = -ln(c) / d per channel; it
+    // does not scatter. d defaults to infinity (no absorption). A channel c = 0 (all of it
+    // absorbed: sigma_a infinite) is clamped to 1e-38, sigma_a = 87.5 / d, and noted when
+    // the medium is used (aUsed). thicknessFactor and thicknessTexture stand in for the
+    // geometry in a rasteriser; the geometry is traced here, so they are not read.
+    Medium VolumeMedium(const tinygltf::Value& aVolume, const std::string& aWhat, const std::string& aName, bool aUsed) {
+        const std::string what = aWhat + ": KHR_materials_volume";
+        if (!aVolume.IsObject()) Fail(what + " must be an object");
+        const double distance = NumberOr(aVolume, "attenuationDistance", std::numeric_limits<double>::infinity());
+        if (!(distance > 0.0)) Fail(what + ".attenuationDistance must be a number > 0 (absent: infinity, no absorption)");
+        const Vec3 color = ColorOr(aVolume, "attenuationColor", Vec3(1.f), what);
+        if (!(color.x >= 0.f && color.y >= 0.f && color.z >= 0.f && MaxComponent(color) <= 1.f))
+            Fail(what + ".attenuationColor must be 3 numbers in [0, 1]");
+        Medium medium;
+        medium.mName = aName;
+        for (int c = 0; c < 3; c++) {
+            double kept = double(color[c]);
+            if (kept == 0.0 && std::isfinite(distance)) {
+                kept = 1e-38;
+                if (aUsed) Approximated("KHR_materials_volume attenuationColor 0 (sigma_a clamped to 87.5 / attenuationDistance)");
+            }
+            medium.mSigmaA[c] = float(std::max(0.0, -std::log(kept) / distance));
+        }
+        CheckColor(medium.mSigmaA, what + ": sigma_a = -ln(attenuationColor) / attenuationDistance", false);
+        return medium;
+    }
+
+    // The medium inside the closed mesh a material covers, added to the scene, or -1:
+    // SMALLVCM_medium when the material has it, else KHR_materials_volume's when it
+    // absorbs and the material refracts (aRefracts: glTF's volume needs transmission).
+    // Every medium extension is checked, used or not.
+    int MaterialMedium(const tinygltf::Material& aSource, const std::string& aWhat, bool aRefracts) {
+        const std::string name = aSource.name.empty() ? aWhat : aSource.name;
+        const auto own = aSource.extensions.find("SMALLVCM_medium");
+        const auto volume = aSource.extensions.find("KHR_materials_volume");
+        const bool hasOwn = own != aSource.extensions.end(), hasVolume = volume != aSource.extensions.end();
+        const Medium absorbing = hasVolume ? VolumeMedium(volume->second, aWhat, name, !hasOwn && aRefracts) : Medium();
+        if (hasOwn) {
+            const Medium medium = ReadMedium(own->second, aWhat, name);
+            if (hasVolume) Approximated("KHR_materials_volume beside SMALLVCM_medium (ignored: SMALLVCM_medium is used)");
+            return mScene.AddMedium(medium);
+        }
+        if (!hasVolume) return -1;
+        if (!aRefracts) {
+            Approximated("KHR_materials_volume on a material that does not refract (ignored: the volume needs KHR_materials_transmission)");
+            return -1;
+        }
+        return absorbing.Attenuates() ? mScene.AddMedium(absorbing) : -1;
+    }
+
+    // The medium filling all space outside every closed mesh: the scene's SMALLVCM_medium,
+    // or the options' instead (the file's is checked all the same).
+    void ReadSceneMedium(int aSceneIndex) {
+        const tinygltf::Scene& scene = mModel.scenes[size_t(aSceneIndex)];
+        const auto extension = scene.extensions.find("SMALLVCM_medium");
+        if (extension != scene.extensions.end()) {
+            const Medium medium = ReadMedium(extension->second, "scene " + std::to_string(aSceneIndex), "scene medium");
+            if (!mOptions.mReplaceSceneMedium) mScene.mSceneMedium = mScene.AddMedium(medium);
+        }
+        if (mOptions.mReplaceSceneMedium) {
+            Medium medium = mOptions.mSceneMedium;
+            if (medium.mName.empty()) medium.mName = "scene medium";
+            mScene.mSceneMedium = mScene.AddMedium(medium);
         }
     }
 

@@ -9,8 +9,8 @@
 //                     sidecar that was paired with another image is found out
 //   "scene"           the scene file as given (a Cornell index resolved to its file)
 //   "estimator"       everything that decides what the pixels are an estimate of: the
-//                     algorithm, the scene file's FNV-1a, the resolution, the camera and
-//                     background, the path lengths, radii, MIS and photon settings the
+//                     algorithm, the scene file's FNV-1a, the resolution, the camera,
+//                     background and --medium, the path lengths, radii, MIS and photon settings the
 //                     algorithm uses, and which layer (null: the image itself). Runs
 //                     merge only if these are equal.
 //   "seed"            the base seed (a merged image lists "seeds")

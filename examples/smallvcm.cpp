@@ -124,6 +124,9 @@ void PrintHelp() {
         "  --envmap-rotate DEG turn the environment about the up axis, counter-clockwise seen from above\n"
         "                        (default 0: the image's centre faces +X)\n"
         "  --envmap-scale S    multiply the environment's radiance by S > 0 (default 1)\n"
+        "  --medium S,A,G      fill all space outside the closed meshes with a grey medium (or replace the\n"
+        "                        file's scene medium): scattering S >= 0 and absorption A >= 0 per scene\n"
+        "                        unit, Henyey-Greenstein asymmetry G in (-1, 1) (docs/scene_format.md 4.4)\n"
         "  -q                  quiet: nothing on success (no summary, notes or progress); errors still go to stderr\n"
         "  --help              this text\n"
         "Ctrl-C or SIGTERM writes the iterations done so far (exit 130 or 143); a second one stops at once.\n"
@@ -230,6 +233,30 @@ void ParseBackground(const std::string& aText, smallvcm::GltfLoadOptions& oLoad)
     oLoad.mBackground = Background::kRadiance;
 }
 
+// "SIGMA_S,SIGMA_A,G": a grey scene-wide medium. The loader puts it into the scene before
+// its Scene::Finalize, which validates media, so the scene is finalized with it.
+void ParseMedium(const std::string& aText, smallvcm::GltfLoadOptions& oLoad) {
+    const std::string range = "SIGMA_S,SIGMA_A,G (three numbers: scattering and absorption in [0, 1e30] per scene unit, "
+                              "Henyey-Greenstein asymmetry in (-1, 1))";
+    float values[3];
+    size_t begin = 0;
+    for (int k = 0; k < 3; k++) {
+        const size_t comma = aText.find(',', begin);
+        if ((k < 2) != (comma != std::string::npos)) throw Error("--medium: '" + aText + "' is not " + range);
+        const std::string part = aText.substr(begin, k < 2 ? comma - begin : std::string::npos);
+        values[k] = k < 2 ? ParseNumber<float>("--medium", part, 0.f, 1e30f, range.c_str())
+                          : ParseNumber<float>("--medium", part, -1.f, 1.f, range.c_str());
+        if (k == 2 && !(std::abs(values[k]) < 1.f)) throw Error("--medium: '" + part + "' is not " + range);
+        begin = comma + 1;
+    }
+    oLoad.mReplaceSceneMedium = true;
+    oLoad.mSceneMedium = smallvcm::Medium();
+    oLoad.mSceneMedium.mName = "scene medium (--medium)";
+    oLoad.mSceneMedium.mSigmaS = smallvcm::Vec3(values[0]);
+    oLoad.mSceneMedium.mSigmaA = smallvcm::Vec3(values[1]);
+    oLoad.mSceneMedium.mG = values[2];
+}
+
 CommandLine Parse(int argc, char** argv) {
     CommandLine cl;
     cl.mOptions.mIterations = 1;
@@ -317,6 +344,7 @@ CommandLine Parse(int argc, char** argv) {
         else if (arg == "--layers") cl.mOptions.mTechniqueLayers = true;
         else if (arg == "--camera") cl.mLoad.mCamera = ParseNumber<int>(arg, value(i), 0, 1000000, "a camera number in [0, 1e6]");
         else if (arg == "--background") { ParseBackground(value(i), cl.mLoad); backgroundGiven = true; }
+        else if (arg == "--medium") ParseMedium(value(i), cl.mLoad);
         else if (arg == "--envmap") {
             cl.mLoad.mEnvironmentMap = value(i);
             if (cl.mLoad.mEnvironmentMap.empty()) throw Error("--envmap: needs a file name");
@@ -373,6 +401,10 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
         environment["rotate_degrees"] = Shortest(aCl.mLoad.mEnvironmentRotationDegrees);
         environment["scale"] = Shortest(aCl.mLoad.mEnvironmentScale);
         estimator["background"] = Json{{"envmap", environment}};
+    }
+    if (aCl.mLoad.mReplaceSceneMedium) {  // the file's medium is in its fingerprint; this one is not
+        const smallvcm::Medium& medium = aCl.mLoad.mSceneMedium;
+        estimator["medium"] = {{"sigma_s", Shortest(medium.mSigmaS.x)}, {"sigma_a", Shortest(medium.mSigmaA.x)}, {"g", Shortest(medium.mG)}};
     }
     // Only the settings a built-in algorithm uses: runs that differ in one it ignores still
     // merge. An integrator linked in from elsewhere may read any of them: all are recorded.

@@ -883,6 +883,260 @@ def build_cutout_leaves():
 
 
 # ---------------------------------------------------------------------------
+# Participating media (issue #43, docs/scene_format.md 4.4): rooms of plain glTF
+# materials, +z up like the Cornell files, every wall a mesh of its own (an open quad,
+# so the room is no closed mesh: a scene medium fills it). A medium's mesh is closed:
+# every edge shared by exactly two triangles, wound outwards (check_closed).
+# ---------------------------------------------------------------------------
+
+def check_closed(positions, triangles):
+    """Asserts that the triangles (index triples) form a closed, consistently wound
+    surface (each directed edge once, and its reverse once) enclosing a positive volume
+    (wound outwards); returns the volume."""
+    edges = {}
+    for a, b, c in triangles:
+        for e in ((a, b), (b, c), (c, a)):
+            assert e not in edges, "edge %s used twice in one direction" % (e,)
+            edges[e] = True
+    for a, b in edges:
+        assert (b, a) in edges, "edge %s has no twin: the mesh is open" % ((a, b),)
+    volume = sum(dot3(positions[a], cross(positions[b], positions[c])) for a, b, c in triangles) / 6.0
+    assert volume > 0.0, "the mesh is wound inwards"
+    return volume
+
+
+def dot3(a, b):
+    return sum(a[i] * b[i] for i in range(3))
+
+
+def look_at_camera(position, target, yfov_deg, aspect=1.0):
+    forward = tuple(target[i] - position[i] for i in range(3))
+    return {"matrix": camera_matrix(position, forward, (0.0, 0.0, 1.0)),
+            "perspective": {"aspectRatio": aspect, "yfov": math.radians(yfov_deg), "znear": 0.01}}
+
+
+class MediaScene:
+    """A glTF document built mesh by mesh (indexed float32 positions, optional NORMAL)."""
+
+    def __init__(self, name, note):
+        self.name, self.note = name, note
+        self.nodes, self.meshes, self.materials, self.accessors, self.views = [], [], [], [], []
+        self.data = bytearray()
+        self.lights = []
+        self.material_index = {}
+
+    def material(self, key, gltf_material):
+        self.material_index[key] = len(self.materials)
+        self.materials.append(gltf_material)
+
+    def view(self, raw, target):
+        self.views.append({"buffer": 0, "byteOffset": len(self.data), "byteLength": len(raw), "target": target})
+        self.data += raw
+        self.data += b"\0" * (-len(self.data) % 4)
+        return len(self.views) - 1
+
+    def mesh(self, name, positions, triangles, material, normals=None):
+        positions = [f32_point(p) for p in positions]
+        attributes = {"POSITION": len(self.accessors)}
+        self.accessors.append({
+            "bufferView": self.view(b"".join(struct.pack("<3f", *p) for p in positions), 34962),
+            "componentType": 5126, "count": len(positions), "type": "VEC3",
+            "min": f32_vec([min(p[k] for p in positions) for k in range(3)]),
+            "max": f32_vec([max(p[k] for p in positions) for k in range(3)])})
+        if normals is not None:
+            attributes["NORMAL"] = len(self.accessors)
+            self.accessors.append({
+                "bufferView": self.view(b"".join(struct.pack("<3f", *f32_point(n)) for n in normals), 34962),
+                "componentType": 5126, "count": len(normals), "type": "VEC3"})
+        flat = [i for t in triangles for i in t]
+        self.accessors.append({"bufferView": self.view(struct.pack("<%dI" % len(flat), *flat), 34963),
+                               "componentType": 5125, "count": len(flat), "type": "SCALAR"})
+        self.meshes.append({"name": name, "primitives": [{
+            "attributes": attributes, "indices": len(self.accessors) - 1,
+            "material": self.material_index[material], "mode": 4}]})
+        self.nodes.append({"name": name, "mesh": len(self.meshes) - 1})
+
+    def quad(self, name, corner, edge_u, edge_v, material):
+        """A parallelogram whose front side faces cross(edge_u, edge_v)."""
+        p = [corner, tuple(corner[i] + edge_u[i] for i in range(3)),
+             tuple(corner[i] + edge_u[i] + edge_v[i] for i in range(3)),
+             tuple(corner[i] + edge_v[i] for i in range(3))]
+        self.mesh(name, p, [(0, 1, 2), (2, 3, 0)], material)
+
+    def room(self, x, y, z, materials):
+        """The six walls of the box x[0]..x[1], y[0]..y[1], z[0]..z[1], facing inwards,
+        each its own mesh; materials: floor, ceiling, back, front, left, right."""
+        (x0, x1), (y0, y1), (z0, z1) = x, y, z
+        dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+        floor, ceiling, back, front, left, right = materials
+        self.quad("floor", (x0, y0, z0), (dx, 0, 0), (0, dy, 0), floor)
+        self.quad("ceiling", (x0, y0, z1), (0, dy, 0), (dx, 0, 0), ceiling)
+        self.quad("back wall", (x0, y1, z0), (dx, 0, 0), (0, 0, dz), back)
+        self.quad("front wall (behind the camera)", (x0, y0, z0), (0, 0, dz), (dx, 0, 0), front)
+        self.quad("left wall", (x0, y0, z0), (0, dy, 0), (0, 0, dz), left)
+        self.quad("right wall", (x1, y0, z0), (0, 0, dz), (0, dy, 0), right)
+
+    def sphere(self, name, centre, radius, material):
+        self.nodes.append({"name": name, "translation": f32_vec(centre),
+                           "extensions": {"SMALLVCM_sphere": {"radius": f32_json(radius),
+                                                              "material": self.material_index[material]}}})
+
+    def finish(self, camera, figures, scene_extensions=None):
+        nodes = [dict(name="camera", camera=0, matrix=camera["matrix"])] + self.nodes
+        used = set(scene_extensions or {})
+        for m in self.materials:
+            used.update(m.get("extensions", {}))
+        for n in nodes:
+            used.update(n.get("extensions", {}))
+        scene = {"name": self.name, "nodes": list(range(len(nodes))),
+                 "extras": {"smallvcm": {"name": self.name, "figures": figures}}}
+        if scene_extensions:
+            scene["extensions"] = scene_extensions
+        doc = {
+            "asset": {"version": "2.0", "generator": "smallvcm scenes/make_scenes.py",
+                      "extras": {"note": self.note + " +z up, as the Cornell files. See docs/scene_format.md 4.4."}},
+            "scene": 0, "scenes": [scene], "nodes": nodes,
+            "cameras": [{"name": "camera", "type": "perspective", "perspective": camera["perspective"]}],
+            "meshes": self.meshes, "materials": self.materials, "accessors": self.accessors,
+            "bufferViews": self.views,
+            "buffers": [{"byteLength": len(self.data),
+                         "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(self.data)).decode("ascii")}],
+            "extensionsUsed": sorted(used)}
+        if "SMALLVCM_sphere" in used:
+            doc["extensionsRequired"] = ["SMALLVCM_sphere"]
+        return doc
+
+
+def lambert(name, colour):
+    """A Lambert wall: exact in SMALLVCM_material, approximated for other viewers."""
+    return {"name": name, "pbrMetallicRoughness": {"baseColorFactor": list(colour) + [1.0],
+                                                   "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "extensions": {"SMALLVCM_material": {"diffuse": f32_vec(colour)}}}
+
+
+def emitter(name, radiance):
+    return {"name": name, "emissiveFactor": [1.0, 1.0, 1.0],
+            "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0]},
+            "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": radiance}}}
+
+
+def room_materials(scene):
+    scene.material("white", lambert("white wall", (0.75, 0.75, 0.75)))
+    scene.material("green", lambert("green wall", (0.2, 0.6, 0.2)))
+    scene.material("red", lambert("red wall", (0.65, 0.2, 0.2)))
+    return ("white", "white", "white", "white", "green", "red")
+
+
+def closed_sphere_mesh(subdivisions, centre, radius):
+    """The icosphere (welded vertices, wound outwards) placed at centre, with its exact
+    normals; asserts it is closed."""
+    verts, faces = icosphere(subdivisions)
+    positions = [tuple(centre[i] + radius * v[i] for i in range(3)) for v in verts]
+    check_closed([f32_point(p) for p in positions], faces)
+    return positions, faces, verts
+
+
+# Fog of F20: in a room 2 wide, 2 high and 4.5 deep, extinction 0.11 per unit: 30% of
+# the light is scattered or absorbed over the 3.3 from the camera to the sphere.
+FOG = {"sigmaA": [0.01, 0.01, 0.01], "sigmaS": [0.1, 0.1, 0.1], "g": 0.3}
+
+
+def build_fog_caustic_box():
+    """F20, the volumetric twin of F08/F13: a closed room filled with fog (the scene
+    medium), a small bright lamp under the ceiling above a floating glass sphere (r 0.25,
+    ior 1.5) that focuses its light into a cone converging about 0.65 below the sphere's
+    centre, in the fog: a volumetric caustic (light -> glass -> glass -> fog -> eye). A
+    mirror panel standing by the left wall, turned towards the camera, shows the cone from
+    its side."""
+    scene = MediaScene("fog caustic box: a glass sphere focuses a lamp into a cone of light in fog",
+                       "F20: fog (scene-wide SMALLVCM_medium), a glass sphere under a small lamp, a mirror.")
+    walls = room_materials(scene)
+    scene.material("lamp", emitter("lamp (emitter)", 400.0))
+    scene.material("glass", {"name": "glass", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                                                                       "metallicFactor": 0.0, "roughnessFactor": 0.0},
+                             "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                                            "KHR_materials_ior": {"ior": 1.5}}})
+    scene.material("mirror", {"name": "mirror", "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0],
+                                                                         "metallicFactor": 1.0, "roughnessFactor": 0.0}})
+    scene.room((-1.0, 1.0), (-3.5, 1.0), (0.0, 2.0), walls)
+    lamp = 0.1
+    scene.quad("lamp (emitter, 0.1 x 0.1, facing down)", (-lamp / 2, -lamp / 2, 1.95), (0.0, lamp, 0.0), (lamp, 0.0, 0.0), "lamp")
+    scene.sphere("glass sphere", (0.0, 0.0, 1.1), 0.25, "glass")
+    # The mirror: 0.7 wide, 1.3 high, its normal halfway between the camera and the cone.
+    eye, cone, centre = (0.3, -3.3, 1.0), (0.0, 0.0, 0.6), (-0.62, 0.25, 0.85)
+    to_eye = normalize(tuple(eye[i] - centre[i] for i in range(3)))
+    to_cone = normalize(tuple(cone[i] - centre[i] for i in range(3)))
+    n = normalize((to_eye[0] + to_cone[0], to_eye[1] + to_cone[1], 0.0))  # upright
+    u = normalize(cross(n, (0.0, 0.0, 1.0)))   # cross(u, up) = n: the front faces n
+    half_w, half_h = 0.35, 0.65
+    corner = tuple(centre[i] - half_w * u[i] - half_h * (0.0, 0.0, 1.0)[i] for i in range(3))
+    scene.quad("mirror panel (facing the room)", corner, tuple(2 * half_w * c for c in u), (0.0, 0.0, 2 * half_h), "mirror")
+    doc = scene.finish(look_at_camera(eye, (0.0, 0.0, 0.75), 45.0), ["F20"], {"SMALLVCM_medium": FOG})
+    return doc
+
+
+def build_dense_scattering_sphere():
+    """A sphere (radius 0.4) of dense scattering medium behind an index-matched boundary
+    (SMALLVCM_medium without transmission: rays cross its surface unbent): sigma_t about
+    20, a mean free path of 0.05 (the radius is 8 of them), single-scattering albedo 0.97,
+    0.95, 0.92 (warm: the look of marble or skin), isotropic; lit from above and behind by
+    a 0.6 x 0.6 area light in a closed room."""
+    scene = MediaScene("dense scattering sphere: subsurface-like transport behind an index-matched boundary",
+                       "A sphere of dense scattering medium (SMALLVCM_medium, no transmission) under an area light.")
+    walls = room_materials(scene)
+    scene.material("lamp", emitter("ceiling lamp (emitter)", 20.0))
+    scene.material("marble", {"name": "marble medium (index-matched boundary)",
+                              "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.92, 0.88, 1.0],
+                                                       "metallicFactor": 0.0, "roughnessFactor": 0.6},
+                              "extensions": {"SMALLVCM_medium": {"sigmaA": [0.6, 1.0, 1.6], "sigmaS": [19.0, 19.0, 18.5],
+                                                                 "g": 0.0}}})
+    scene.room((-1.0, 1.0), (-2.5, 1.0), (0.0, 2.0), walls)
+    scene.quad("ceiling lamp (emitter, 0.6 x 0.6, facing down)", (-0.3, 0.2, 1.98), (0.0, 0.6, 0.0), (0.6, 0.0, 0.0), "lamp")
+    positions, faces, _ = closed_sphere_mesh(3, (0.0, 0.0, 0.41), 0.4)
+    scene.mesh("marble sphere (1280 triangles, closed)", positions, faces, "marble")
+    return scene.finish(look_at_camera((0.0, -2.3, 1.0), (0.0, 0.0, 0.45), 40.0), [])
+
+
+def build_absorbing_glass():
+    """Absorbing glass by KHR_materials_volume (attenuationColor (0.9, 0.5, 0.2) after
+    attenuationDistance 0.3): a wedge 0.9 long rising from 0 to 0.45 (its thick end
+    darker, redder, than its thin edge) and a sphere of radius 0.3 (darkest through its
+    centre, 0.6 of glass: (0.81, 0.25, 0.04) of the light kept), both closed triangle
+    meshes, under an area light in a closed room."""
+    scene = MediaScene("absorbing glass: KHR_materials_volume in a wedge and a sphere",
+                       "Absorbing glass (KHR_materials_volume): thick parts darker than thin ones.")
+    walls = room_materials(scene)
+    scene.material("lamp", emitter("ceiling lamp (emitter)", 20.0))
+    scene.material("amber", {"name": "amber glass",
+                             "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                                                      "metallicFactor": 0.0, "roughnessFactor": 0.0},
+                             "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                                            "KHR_materials_ior": {"ior": 1.5},
+                                            "KHR_materials_volume": {"attenuationColor": [0.9, 0.5, 0.2],
+                                                                     "attenuationDistance": 0.3,
+                                                                     "thicknessFactor": 0.3}}})
+    scene.room((-1.0, 1.0), (-2.5, 1.0), (0.0, 2.0), walls)
+    scene.quad("ceiling lamp (emitter, 0.6 x 0.6, facing down)", (-0.3, -0.3, 1.98), (0.0, 0.6, 0.0), (0.6, 0.0, 0.0), "lamp")
+    # The wedge: a right-triangle prism, thin edge at x = -0.95, 0.45 high at x = -0.05.
+    x0, x1, y0, y1, z0, h = -0.95, -0.05, -0.25, 0.25, 0.002, 0.45
+    wedge = [(x0, y0, z0), (x1, y0, z0), (x1, y0, z0 + h), (x0, y1, z0), (x1, y1, z0), (x1, y1, z0 + h)]
+    wedge_faces = [(0, 1, 2), (3, 5, 4), (0, 3, 4), (0, 4, 1), (1, 4, 5), (1, 5, 2), (0, 2, 5), (0, 5, 3)]
+    check_closed([f32_point(p) for p in wedge], wedge_faces)
+    scene.mesh("amber wedge (closed prism)", wedge, wedge_faces, "amber")
+    positions, faces, normals = closed_sphere_mesh(3, (0.45, 0.0, 0.31), 0.3)
+    scene.mesh("amber sphere (1280 triangles, closed, smooth normals)", positions, faces, "amber", normals)
+    return scene.finish(look_at_camera((0.0, -2.3, 1.0), (0.0, 0.0, 0.3), 40.0), [])
+
+
+# (file name, builder) of the media scenes: builders return the glTF document.
+MEDIA_SCENES = [
+    ("fog_caustic_box.gltf", build_fog_caustic_box),
+    ("dense_scattering_sphere.gltf", build_dense_scattering_sphere),
+    ("absorbing_glass.gltf", build_absorbing_glass),
+]
+
+
+# ---------------------------------------------------------------------------
 # Compact JSON: number arrays and short objects on one line, the rest indented
 # ---------------------------------------------------------------------------
 
@@ -919,6 +1173,11 @@ def main():
     with open(os.path.join(out_dir, "cutout_leaves.gltf"), "w", encoding="ascii", newline="\n") as f:
         f.write(dumps(build_cutout_leaves()) + "\n")
     print("wrote scenes/cutout_leaves.gltf  (the default Cornell box with 400 leaf cut-outs)")
+    for file_name, builder in MEDIA_SCENES:
+        doc = builder()
+        with open(os.path.join(out_dir, file_name), "w", encoding="ascii", newline="\n") as f:
+            f.write(dumps(doc) + "\n")
+        print("wrote scenes/%s  (%s)" % (file_name, doc["scenes"][0]["name"]))
 
 
 if __name__ == "__main__":

@@ -131,6 +131,10 @@ if [ "${1:-}" = "--smoke" ]; then
 -i
 --exposure nan
 --tonemap foo
+--medium 0.1,0.1,1
+--medium -1,0,0
+--medium nan,0,0
+--medium 0.1,0.1
 OPTIONS
   echo "smoke stage with $binary: $((passed)) passed so far, $failed failed so far"
   rm -rf "$out"

@@ -149,6 +149,46 @@ TEST_CASE("Bad options exit with code 2 and one line naming the option", "[cli]"
     }
 }
 
+TEST_CASE("Bad --medium values exit with code 2, one line naming the option, and no output", "[cli][media]") {
+    TemporaryFolder folder;
+    const std::vector<std::string> values = {
+        "1,2", "1", "", "1,2,3,4", "a,b,c", "0.1,0.1,0.3x", ",0.1,0.3", "-1,0,0", "0,-0.5,0", "nan,0,0", "0,inf,0", "1e31,0,0",
+        "0,0,1", "0,0,-1", "0,0,1.5", "0,0,nan", "0.1;0.1;0.3",
+    };
+    int index = 0;
+    for (const std::string& value : values) {
+        const std::string output = folder / ("out" + std::to_string(index++) + ".png");
+        const Run run = RunProgram(Tiny(output) + " -s 2 --medium " + Quote(value));
+        CheckFailure(run, 2, "--medium", output);
+    }
+    CheckFailure(RunProgram(Tiny(folder / "missing.png") + " -s 2 --medium"), 2, "--medium", folder / "missing.png");
+    const Run one = RunProgram(Tiny(folder / "g.png") + " -s 2 --medium 0.1,0.01,1");
+    CHECK(one.mStderr == "smallvcm: --medium: '1' is not SIGMA_S,SIGMA_A,G (three numbers: scattering and absorption in [0, 1e30] "
+                         "per scene unit, Henyey-Greenstein asymmetry in (-1, 1))\n");
+}
+
+TEST_CASE("--medium S,A,G is accepted, and the sidecar records the grey scene-wide medium the scene carried", "[cli][media]") {
+    // The loader puts the medium into the scene before its Finalize (tests/test_gltf.cpp
+    // checks the scene's numbers, "[gltf][media]"); here the program takes it and says so.
+    TemporaryFolder folder;
+    const std::string output = folder / "fog.pfm";
+    const Run run = RunProgram("-s 2 -a el -i 1 -r 8x8 -j 1 -q --medium 0.125,0.0625,-0.25 -o " + Quote(output));
+    INFO(run);
+    REQUIRE(run.mExitCode == 0);
+    const nlohmann::json sidecar = nlohmann::json::parse(ReadText(output + ".json"));
+    INFO(sidecar.dump(2));
+    const nlohmann::json& medium = sidecar["estimator"]["medium"];
+    CHECK(medium["sigma_s"] == 0.125);
+    CHECK(medium["sigma_a"] == 0.0625);
+    CHECK(medium["g"] == -0.25);
+    // Without --medium the estimator has no "medium" (older sidecars merge as before).
+    const std::string plain = folder / "plain.pfm";
+    REQUIRE(RunProgram("-s 2 -a el -i 1 -r 8x8 -j 1 -q -o " + Quote(plain)).mExitCode == 0);
+    CHECK_FALSE(nlohmann::json::parse(ReadText(plain + ".json"))["estimator"].contains("medium"));
+    // --help lists the option.
+    CHECK(RunProgram("--help").mStdout.find("--medium S,A,G") != std::string::npos);
+}
+
 TEST_CASE("A missing scene or an unwritable output exits with code 1 and one line naming the file", "[cli]") {
     TemporaryFolder folder;
     const std::string output = folder / "out.png";

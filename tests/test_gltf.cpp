@@ -14,6 +14,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 namespace {
 
@@ -1946,7 +1947,9 @@ TEST_CASE("What the glass rule does not model is named in the load note; clear g
     const std::string note = ApproximatedNote(rough);
     CHECK_THAT(note, Catch::Contains("roughnessFactor on transmission (rendered as smooth glass)"));
     CHECK_THAT(note, Catch::Contains("transmissionTexture (transmissionFactor is used)"));
-    CHECK_THAT(note, Catch::Contains("KHR_materials_volume (no absorption in the volume"));
+    // A volume without attenuationDistance absorbs nothing (thicknessFactor is not read): no medium, no note.
+    CHECK(m.mMedium == -1);
+    CHECK(note.find("KHR_materials_volume") == std::string::npos);
     // Transmission on a metal (metallicFactor 1, glTF's default) is no glass: said, not hidden.
     GltfLoadReport metal;
     const Material m1 = GlassFloor(PbrGlass("1, 1, 1", 1.f, 0.f, R"("KHR_materials_transmission": {"transmissionFactor": 1})"), &metal);
@@ -2002,4 +2005,288 @@ TEST_CASE("A base-colour texture on glass tints the refraction and the opaque sh
     CHECK(mirror.mIor < 0.f);
     CHECK_VEC3(mirror.mMirrorReflectance, Vec3(0.52f), 1e-7f);
     CHECK_VEC3(mirror.mSpecularUntinted, Vec3(0.52f), 1e-7f);
+}
+
+// ---------------------------------------------------------------------------------------
+// Participating media: KHR_materials_volume, SMALLVCM_medium on materials and scenes
+// (docs/scene_format.md 4.4). Each medium sits in the closed test cube.
+// ---------------------------------------------------------------------------------------
+namespace {
+
+// The test cube with one material aMaterial and a point light above it; aSceneExtensions
+// (if any) become the scene's "extensions".
+std::string MediumCubeGltf(const std::string& aMaterial, const std::string& aSceneExtensions = "") {
+    std::string text = MeshGltf(Cube(Vec3(0.f)), R"(, {"translation": [0, 3, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}})",
+                                R"(, "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 10}]}})", aMaterial);
+    if (!aSceneExtensions.empty())
+        text = Replaced(text, R"("scenes": [{"nodes": [0]}])", R"("scenes": [{"nodes": [0], "extensions": {)" + aSceneExtensions + "}}]");
+    return text;
+}
+Scene LoadMediumCube(const std::string& aMaterial, GltfLoadReport* oReport = nullptr, const std::string& aSceneExtensions = "",
+                     const GltfLoadOptions& aOptions = {}) {
+    TemporaryFolder folder;
+    return LoadGltfScene(WriteTemporary(folder, "cube.gltf", MediumCubeGltf(aMaterial, aSceneExtensions)), oReport, aOptions);
+}
+// A glass material (transmission 1, metallic 0) named aName with aExtensions beside.
+std::string GlassWith(const std::string& aName, const std::string& aExtensions) {
+    return R"({"name": ")" + aName + R"(", "pbrMetallicRoughness": {"metallicFactor": 0, "roughnessFactor": 0}, "extensions": {)"
+           R"("KHR_materials_transmission": {"transmissionFactor": 1})" + (aExtensions.empty() ? "" : ", " + aExtensions) + "}}";
+}
+
+} // namespace
+
+TEST_CASE("KHR_materials_volume on glass: sigma_a = -ln(attenuationColor) / attenuationDistance per channel, no scattering, inside the glass", "[gltf][media]") {
+    GltfLoadReport report;
+    const Scene scene = LoadMediumCube(GlassWith("amber", R"("KHR_materials_volume": {"attenuationColor": [0.9, 0.5, 0.2], )"
+                                                          R"("attenuationDistance": 0.5, "thicknessFactor": 2})"), &report);
+    const Material& m = scene.mMaterials.at(0);
+    REQUIRE(scene.mMedia.size() == 1);
+    CHECK(m.mMedium == 0);
+    CHECK(m.mIor == 1.5f);  // still the glass of 4.3 around it
+    CHECK_VEC3(m.mMirrorReflectance, Vec3(1.f), 0.f);
+    CHECK(scene.mSceneMedium == -1);
+    const Medium& medium = scene.mMedia[0];
+    CHECK(medium.mName == "amber");
+    // -ln(0.9) / 0.5, -ln(0.5) / 0.5, -ln(0.2) / 0.5; colours are read as float.
+    CHECK_VEC3(medium.mSigmaA, Vec3(0.2107210f, 1.3862944f, 3.2188758f), 1e-6f);
+    CHECK_VEC3(medium.mSigmaS, Vec3(0.f), 0.f);
+    CHECK(medium.mG == 0.f);
+    CHECK(ApproximatedNote(report).empty());  // thicknessFactor is not read, and not worth a note
+}
+
+TEST_CASE("KHR_materials_volume without absorption adds no medium; attenuationColor 0 is clamped and noted; without refraction it is noted and ignored", "[gltf][media]") {
+    SECTION("attenuationDistance absent: infinity, no absorption") {
+        const Scene scene = LoadMediumCube(GlassWith("clear", R"("KHR_materials_volume": {"attenuationColor": [0.5, 0.5, 0.5]})"));
+        CHECK(scene.mMaterials.at(0).mMedium == -1);
+        CHECK(scene.mMedia.empty());
+    }
+    SECTION("attenuationColor white (the default)") {
+        const Scene scene = LoadMediumCube(GlassWith("clear", R"("KHR_materials_volume": {"attenuationDistance": 2})"));
+        CHECK(scene.mMaterials.at(0).mMedium == -1);
+        CHECK(scene.mMedia.empty());
+    }
+    SECTION("a channel 0: sigma_a = -ln(1e-38) / d = 87.5 / d, and the note says so") {
+        GltfLoadReport report;
+        const Scene scene = LoadMediumCube(GlassWith("red", R"("KHR_materials_volume": {"attenuationColor": [1, 0, 0], "attenuationDistance": 2})"),
+                                           &report);
+        REQUIRE(scene.mMedia.size() == 1);
+        CHECK_VEC3(scene.mMedia[0].mSigmaA, Vec3(0.f, 43.749f, 43.749f), 1e-3f);
+        CHECK(std::isfinite(scene.mMedia[0].mSigmaA.y));
+        CHECK_THAT(ApproximatedNote(report), Catch::Contains("KHR_materials_volume attenuationColor 0 (sigma_a clamped to 87.5 / attenuationDistance)"));
+    }
+    SECTION("on a material that does not refract (no transmission, or a metal): ignored, with one note") {
+        GltfLoadReport report;
+        const Scene scene = LoadMediumCube(R"({"name": "opaque", "pbrMetallicRoughness": {"metallicFactor": 0}, "extensions": {)"
+                                           R"("KHR_materials_volume": {"attenuationColor": [0.5, 0.5, 0.5], "attenuationDistance": 1}}})", &report);
+        CHECK(scene.mMaterials.at(0).mMedium == -1);
+        CHECK(scene.mMedia.empty());
+        CHECK_THAT(ApproximatedNote(report), Catch::Contains("KHR_materials_volume on a material that does not refract (ignored"));
+    }
+}
+
+TEST_CASE("SMALLVCM_medium: read as given; with transmission the glass holds it, without it the surface is an index-matched boundary", "[gltf][media]") {
+    const std::string fog = R"("SMALLVCM_medium": {"sigmaA": [0.01, 0.02, 0.03], "sigmaS": [0.5, 0.6, 0.7], "g": 0.3})";
+    auto checkFog = [](const Medium& aMedium, const std::string& aName) {
+        CHECK(aMedium.mName == aName);
+        CHECK_VEC3(aMedium.mSigmaA, Vec3(0.01f, 0.02f, 0.03f), 0.f);
+        CHECK_VEC3(aMedium.mSigmaS, Vec3(0.5f, 0.6f, 0.7f), 0.f);
+        CHECK(aMedium.mG == 0.3f);
+    };
+    SECTION("without transmission: no component at all (Mitsuba's null BSDF), whatever pbrMetallicRoughness says") {
+        const Scene scene = LoadMediumCube(R"({"name": "marble", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1], )"
+                                           R"("metallicFactor": 0, "roughnessFactor": 0.5}, "extensions": {)" + fog + "}}");
+        const Material& m = scene.mMaterials.at(0);
+        REQUIRE(scene.mMedia.size() == 1);
+        CHECK(m.mMedium == 0);
+        CHECK(m.IsIndexMatchedBoundary());
+        CHECK(m.mIor == -1.f);
+        CHECK(IsBlack(m.mDiffuseReflectance + m.mPhongReflectance + m.mMirrorReflectance + m.mOpaqueMirror));
+        CHECK_FALSE(m.HasSpecular());
+        CHECK_FALSE(m.HasNonSpecular());
+        checkFog(scene.mMedia[0], "marble");
+    }
+    SECTION("with transmission and KHR_materials_ior: glass of that ior around the medium") {
+        const Scene scene = LoadMediumCube(GlassWith("jelly", R"("KHR_materials_ior": {"ior": 1.33}, )" + fog));
+        const Material& m = scene.mMaterials.at(0);
+        REQUIRE(scene.mMedia.size() == 1);
+        CHECK(m.mMedium == 0);
+        CHECK(m.mIor == 1.33f);
+        CHECK_FALSE(m.IsIndexMatchedBoundary());
+        checkFog(scene.mMedia[0], "jelly");
+    }
+    SECTION("with SMALLVCM_material's glass (ior > 0)") {
+        const Scene scene = LoadMediumCube(R"({"name": "exact", "extensions": {"SMALLVCM_material": {"mirror": [1, 1, 1], "ior": 1.6}, )" + fog + "}}");
+        CHECK(scene.mMaterials.at(0).mIor == 1.6f);
+        CHECK(scene.mMaterials.at(0).mMedium == 0);
+    }
+    SECTION("an unnamed material's medium is named as the material is in messages; members default to 0") {
+        const Scene scene = LoadMediumCube(R"({"extensions": {"SMALLVCM_medium": {}}})");
+        REQUIRE(scene.mMedia.size() == 1);
+        CHECK(scene.mMedia[0].mName == "material 0");
+        CHECK_FALSE(scene.mMedia[0].Attenuates());
+        CHECK(scene.mMedia[0].mG == 0.f);
+        CHECK(scene.mMaterials.at(0).IsIndexMatchedBoundary());
+    }
+    SECTION("beside KHR_materials_volume, SMALLVCM_medium wins and the note says so") {
+        GltfLoadReport report;
+        const Scene scene = LoadMediumCube(GlassWith("both", R"("KHR_materials_volume": {"attenuationColor": [0.1, 0.1, 0.1], "attenuationDistance": 1}, )" + fog),
+                                           &report);
+        REQUIRE(scene.mMedia.size() == 1);
+        checkFog(scene.mMedia[0], "both");
+        CHECK_THAT(ApproximatedNote(report), Catch::Contains("KHR_materials_volume beside SMALLVCM_medium (ignored: SMALLVCM_medium is used)"));
+    }
+}
+
+TEST_CASE("SMALLVCM_medium on the scene fills space outside the meshes; GltfLoadOptions::mSceneMedium replaces it", "[gltf][media]") {
+    const std::string sceneFog = R"("SMALLVCM_medium": {"sigmaA": [0.01, 0.01, 0.01], "sigmaS": [0.1, 0.2, 0.3], "g": -0.2})";
+    const std::string grey = R"({"pbrMetallicRoughness": {"metallicFactor": 0}})";
+    const Scene scene = LoadMediumCube(grey, nullptr, sceneFog);
+    REQUIRE(scene.mMedia.size() == 1);
+    CHECK(scene.mSceneMedium == 0);
+    CHECK(scene.mMedia[0].mName == "scene medium");
+    CHECK_VEC3(scene.mMedia[0].mSigmaS, Vec3(0.1f, 0.2f, 0.3f), 0.f);
+    CHECK(scene.mMedia[0].mG == -0.2f);
+    CHECK(scene.mMaterials.at(0).mMedium == -1);
+    CHECK(scene.IsFinalized());
+
+    GltfLoadOptions options;
+    options.mReplaceSceneMedium = true;
+    options.mSceneMedium.mSigmaS = Vec3(0.05f);
+    options.mSceneMedium.mSigmaA = Vec3(0.002f);
+    options.mSceneMedium.mG = 0.5f;
+    for (const std::string& extensions : {sceneFog, std::string()}) {
+        INFO("the file's scene extensions: " << extensions);
+        const Scene replaced = LoadMediumCube(grey, nullptr, extensions, options);
+        REQUIRE(replaced.mMedia.size() == 1);  // the file's, replaced, is not kept
+        CHECK(replaced.mSceneMedium == 0);
+        CHECK(replaced.mMedia[0].mName == "scene medium");
+        CHECK_VEC3(replaced.mMedia[0].mSigmaS, Vec3(0.05f), 0.f);
+        CHECK_VEC3(replaced.mMedia[0].mSigmaA, Vec3(0.002f), 0.f);
+        CHECK(replaced.mMedia[0].mG == 0.5f);
+        CHECK(replaced.IsFinalized());
+    }
+    // Without either, space is empty.
+    CHECK(LoadMediumCube(grey).mSceneMedium == -1);
+}
+
+TEST_CASE("Bad media are one clear error naming the file and the material or scene", "[gltf][media]") {
+    struct BadMedium {
+        std::string mMaterialExtensions, mSceneExtensions, mFragment;
+    };
+    const std::string v = R"("KHR_materials_transmission": {"transmissionFactor": 1}, "KHR_materials_volume": )";
+    const std::string what = "material 0 'm': ";
+    const std::vector<BadMedium> cases = {
+        {R"("SMALLVCM_medium": [0.1, 0.1, 0.1])", "", what + "SMALLVCM_medium must be an object"},
+        {R"("SMALLVCM_medium": "fog")", "", what + "SMALLVCM_medium must be an object"},
+        {R"("SMALLVCM_medium": {"sigmaS": [1, 2]})", "", what + "SMALLVCM_medium: 'sigmaS' must be an array of 3 numbers"},
+        {R"("SMALLVCM_medium": {"sigmaS": [1, 2, 3, 4]})", "", what + "SMALLVCM_medium: 'sigmaS' must be an array of 3 numbers"},
+        {R"("SMALLVCM_medium": {"sigmaA": ["0.1", 0, 0]})", "", what + "SMALLVCM_medium: 'sigmaA' must be an array of 3 numbers"},
+        {R"("SMALLVCM_medium": {"sigmaA": 0.1})", "", what + "SMALLVCM_medium: 'sigmaA' must be an array of 3 numbers"},
+        {R"("SMALLVCM_medium": {"sigmaS": [0.1, -0.1, 0]})", "", what + "SMALLVCM_medium.sigmaS must be finite and non-negative"},
+        {R"("SMALLVCM_medium": {"sigmaA": [1e39, 0, 0]})", "", what + "SMALLVCM_medium.sigmaA must be finite and non-negative"},
+        {R"("SMALLVCM_medium": {"g": 1})", "", what + "SMALLVCM_medium.g must be a number in (-1, 1)"},
+        {R"("SMALLVCM_medium": {"g": -1})", "", what + "SMALLVCM_medium.g must be a number in (-1, 1)"},
+        {R"("SMALLVCM_medium": {"g": 0.999999999})", "", what + "SMALLVCM_medium.g must be a number in (-1, 1)"},  // 1 in float
+        {R"("SMALLVCM_medium": {"g": "0.5"})", "", what + "SMALLVCM_medium.g must be a number in (-1, 1)"},
+        {R"("SMALLVCM_medium": {"sigma_s": [1, 1, 1]})", "", what + "SMALLVCM_medium has an unknown member 'sigma_s'"},
+        {v + R"({"attenuationDistance": 0})", "", what + "KHR_materials_volume.attenuationDistance must be a number > 0"},
+        {v + R"({"attenuationDistance": -2})", "", what + "KHR_materials_volume.attenuationDistance must be a number > 0"},
+        {v + R"({"attenuationDistance": "far"})", "", what + "KHR_materials_volume.attenuationDistance must be a number > 0"},
+        {v + R"({"attenuationDistance": 1e-300, "attenuationColor": [0.5, 0.5, 0.5]})", "",
+         what + "KHR_materials_volume: sigma_a = -ln(attenuationColor) / attenuationDistance must be finite"},
+        {v + R"({"attenuationColor": [1.5, 0.5, 0.5], "attenuationDistance": 1})", "", what + "KHR_materials_volume.attenuationColor must be 3 numbers in [0, 1]"},
+        {v + R"({"attenuationColor": [0.5, -0.1, 0.5], "attenuationDistance": 1})", "", what + "KHR_materials_volume.attenuationColor must be 3 numbers in [0, 1]"},
+        {v + R"({"attenuationColor": [0.5, 0.5], "attenuationDistance": 1})", "", what + "KHR_materials_volume: 'attenuationColor' must be an array of 3 numbers"},
+        {v + R"([1])", "", what + "KHR_materials_volume must be an object"},
+        {"", R"("SMALLVCM_medium": {"g": 2})", "scene 0: SMALLVCM_medium.g must be a number in (-1, 1)"},
+        {"", R"("SMALLVCM_medium": {"sigmaS": [-1, 0, 0]})", "scene 0: SMALLVCM_medium.sigmaS must be finite and non-negative"},
+        {"", R"("SMALLVCM_medium": 7)", "scene 0: SMALLVCM_medium must be an object"},
+    };
+    TemporaryFolder folder;
+    for (const BadMedium& c : cases) {
+        INFO(c.mMaterialExtensions << " / " << c.mSceneExtensions);
+        const std::string material = R"({"name": "m", "pbrMetallicRoughness": {"metallicFactor": 0}, "extensions": {)" + c.mMaterialExtensions + "}}";
+        const std::string path = WriteTemporary(folder, "bad.gltf", MediumCubeGltf(material, c.mSceneExtensions));
+        const std::string error = LoadError(path);
+        CHECK(StartsWith(error, path + ": "));
+        CHECK_THAT(error, Catch::Contains(c.mFragment));
+        CHECK(error.find('\n') == std::string::npos);
+    }
+}
+
+namespace {
+
+// Whether the triangles of aScene with material aMaterialId form a closed surface wound
+// outwards: each directed edge (by its end points) once, its reverse once, and a positive
+// signed volume.
+bool ClosedAndOutwards(const Scene& aScene, int aMaterialId, double* oVolume) {
+    using Point = std::tuple<float, float, float>;
+    auto key = [](const Vec3& aP) { return Point(aP.x, aP.y, aP.z); };
+    std::set<std::pair<Point, Point>> edges;
+    double volume = 0.0;
+    for (const Triangle& t : aScene.mTriangles) {
+        if (t.mMaterialId != aMaterialId) continue;
+        const Vec3 p[3] = {t.mP0, t.mP1, t.mP2};
+        for (int k = 0; k < 3; k++)
+            if (!edges.insert({key(p[k]), key(p[(k + 1) % 3])}).second) return false;
+        volume += glm::dot(glm::dvec3(p[0]), glm::cross(glm::dvec3(p[1]), glm::dvec3(p[2]))) / 6.0;
+    }
+    for (const auto& [from, to] : edges)
+        if (!edges.count({to, from})) return false;
+    *oVolume = volume;
+    return !edges.empty() && volume > 0.0;
+}
+
+} // namespace
+
+TEST_CASE("The media scenes load with their media, and each medium's mesh is closed and wound outwards", "[gltf][media]") {
+    SECTION("fog_caustic_box: fog as the scene medium, clear glass sphere, a mirror") {
+        GltfLoadReport report;
+        const Scene scene = LoadGltfScene("../scenes/fog_caustic_box.gltf", &report);
+        REQUIRE(scene.mMedia.size() == 1);
+        REQUIRE(scene.mSceneMedium == 0);
+        CHECK_VEC3(scene.mMedia[0].mSigmaS, Vec3(0.1f), 0.f);
+        CHECK_VEC3(scene.mMedia[0].mSigmaA, Vec3(0.01f), 0.f);
+        CHECK(scene.mMedia[0].mG == 0.3f);
+        REQUIRE(scene.mSpheres.size() == 1);
+        const Material& glass = scene.mMaterials.at(size_t(scene.mSpheres[0].mMaterialId));
+        CHECK(glass.mIor == 1.5f);
+        CHECK(glass.mMedium == -1);
+        CHECK(report.mNotes.empty());
+    }
+    SECTION("dense_scattering_sphere: an index-matched boundary around albedo ~0.95") {
+        const Scene scene = LoadGltfScene("../scenes/dense_scattering_sphere.gltf");
+        REQUIRE(scene.mMedia.size() == 1);
+        CHECK(scene.mSceneMedium == -1);
+        const Medium& medium = scene.mMedia[0];
+        const Vec3 albedo = medium.mSigmaS / medium.SigmaT();
+        CHECK(albedo.x == Approx(0.97).margin(0.01));
+        CHECK(albedo.y == Approx(0.95).margin(0.01));
+        CHECK(albedo.z == Approx(0.92).margin(0.01));
+        int boundaries = 0;
+        for (size_t m = 0; m < scene.mMaterials.size(); m++) {
+            if (scene.mMaterials[m].mMedium < 0) continue;
+            boundaries++;
+            CHECK(scene.mMaterials[m].IsIndexMatchedBoundary());
+            double volume = 0.0;
+            CHECK(ClosedAndOutwards(scene, int(m), &volume));
+            CHECK(volume == Approx(4.0 / 3.0 * 3.14159265 * 0.4 * 0.4 * 0.4).epsilon(0.02));  // the icosphere is a little smaller
+        }
+        CHECK(boundaries == 1);
+    }
+    SECTION("absorbing_glass: KHR_materials_volume in a closed wedge and a closed sphere") {
+        const Scene scene = LoadGltfScene("../scenes/absorbing_glass.gltf");
+        REQUIRE(scene.mMedia.size() == 1);
+        CHECK_VEC3(scene.mMedia[0].mSigmaA, Vec3(0.3512017f, 2.3104906f, 5.3647929f), 1e-5f);  // -ln(0.9, 0.5, 0.2) / 0.3
+        int glass = 0;
+        for (size_t m = 0; m < scene.mMaterials.size(); m++) {
+            if (scene.mMaterials[m].mMedium < 0) continue;
+            glass++;
+            CHECK(scene.mMaterials[m].mIor == 1.5f);
+            double volume = 0.0;
+            CHECK(ClosedAndOutwards(scene, int(m), &volume));  // the wedge and the sphere together
+            CHECK(volume == Approx(0.5 * 0.9 * 0.45 * 0.5 + 4.0 / 3.0 * 3.14159265 * 0.027).epsilon(0.02));
+        }
+        CHECK(glass == 1);
+    }
 }

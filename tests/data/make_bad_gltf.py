@@ -455,6 +455,40 @@ bad("emission_power_overflow.gltf", "emissiveStrength 1e38: finite, but the ligh
     lambda: modified(lambda d: d["materials"][1]["extensions"]["KHR_materials_emissive_strength"].update(
         emissiveStrength=1e38)))
 
+# --- media (docs/scene_format.md 4.4) ------------------------------------------
+def floor_extension(name, value):
+    return lambda: modified(lambda d: d["materials"][0]["extensions"].update({name: value}))
+
+
+def glass_floor_volume(volume):
+    return lambda: scene(floor_material=pbr((1.0, 1.0, 1.0), 0.0, 0.0, extensions={
+        "KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_volume": volume}))
+
+
+bad("medium_not_object.gltf", "the floor's SMALLVCM_medium is an array", "material 0 'white Lambert': SMALLVCM_medium must be an object")(
+    floor_extension("SMALLVCM_medium", [0.1, 0.1, 0.1]))
+bad("medium_sigma_negative.gltf", "SMALLVCM_medium sigmaS (0.1, -0.1, 0)",
+    "material 0 'white Lambert': SMALLVCM_medium.sigmaS must be finite and non-negative")(
+    floor_extension("SMALLVCM_medium", {"sigmaS": [0.1, -0.1, 0.0]}))
+bad("medium_sigma_two_numbers.gltf", "SMALLVCM_medium sigmaA has 2 numbers",
+    "material 0 'white Lambert': SMALLVCM_medium: 'sigmaA' must be an array of 3 numbers")(
+    floor_extension("SMALLVCM_medium", {"sigmaA": [0.1, 0.1]}))
+bad("medium_g_one.gltf", "SMALLVCM_medium g = 1 (Henyey-Greenstein needs -1 < g < 1)",
+    "material 0 'white Lambert': SMALLVCM_medium.g must be a number in (-1, 1)")(
+    floor_extension("SMALLVCM_medium", {"sigmaS": [1.0, 1.0, 1.0], "g": 1.0}))
+bad("medium_unknown_member.gltf", "SMALLVCM_medium has 'sigma_s' (misspelt sigmaS)",
+    "SMALLVCM_medium has an unknown member 'sigma_s'")(
+    floor_extension("SMALLVCM_medium", {"sigma_s": [1.0, 1.0, 1.0]}))
+bad("scene_medium_g_string.gltf", "the scene's SMALLVCM_medium has g \"0.3\" (a string)",
+    "scene 0: SMALLVCM_medium.g must be a number in (-1, 1)")(
+    lambda: modified(lambda d: d["scenes"][0].update(extensions={"SMALLVCM_medium": {"g": "0.3"}})))
+bad("volume_distance_zero.gltf", "glass with KHR_materials_volume attenuationDistance 0",
+    "material 0 'floor': KHR_materials_volume.attenuationDistance must be a number > 0")(
+    glass_floor_volume({"attenuationDistance": 0.0, "attenuationColor": [0.5, 0.5, 0.5]}))
+bad("volume_color_above_one.gltf", "glass with KHR_materials_volume attenuationColor (1.2, 0.5, 0.5)",
+    "material 0 'floor': KHR_materials_volume.attenuationColor must be 3 numbers in [0, 1]")(
+    glass_floor_volume({"attenuationDistance": 1.0, "attenuationColor": [1.2, 0.5, 0.5]}))
+
 # --- lights -----------------------------------------------------------------
 POINT_LIGHT_NODE = {"name": "point light", "translation": [0, 0, 0.5],
                     "extensions": {"KHR_lights_punctual": {"light": 0}}}
