@@ -2058,7 +2058,7 @@ public:
 
     // Nearest surface point along aRay (origin already offset off any surface by the
     // caller); an invalid SurfacePoint when the ray leaves the scene.
-    SurfacePoint Intersect(const Ray& aRay) const {
+    SMALLVCM_ALWAYS_INLINE SurfacePoint Intersect(const Ray& aRay) const {
         RayCounter()++;
         SurfacePoint hit;
         float tMax = std::numeric_limits<float>::infinity();
@@ -2728,22 +2728,35 @@ struct SegmentPdfs {
 // Where a sub-path's next segment ends (TraceSegment): at a surface, at a scattering
 // point in a medium, or out of the scene.
 struct PathSegment {
-    SurfacePoint mHit;        // the surface it ends on (invalid: a medium point, or out)
-    Vec3 mPosition{0.f};      // its end: the surface point or the medium point
+    // Where it ends: a surface point; at a point in a medium only mHit's mPosition and
+    // mDist are set (IsValid() is false); out of the scene it is invalid, mDist infinite.
+    // mDist is the length from the origin, across index-matched boundaries.
+    SurfacePoint mHit;
     bool mInMedium = false;   // it ends at a scattering point of medium mMedium
     int mMedium = -1;         // the medium it ends in (the last piece's)
     Vec3 mWeight{1.f};        // T / (its distance pdf), per channel
-    float mDistance = 0.f;    // from the origin, across index-matched boundaries
     SegmentPdfs mPdfs;
+    const Vec3& Position() const { return mHit.mPosition; }
+    float Length() const { return mHit.mDist; }
     bool Escaped() const { return !mInMedium && !mHit.IsValid(); }
 };
 
 // The next vertex from aRay's origin, a vertex in medium aMedium (aFromMedium: a medium
 // point rather than a surface, which decides the reverse pdf). Steps through
 // index-matched boundaries, and samples a free flight in each attenuating medium.
-inline PathSegment TraceSegment(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler) {
+inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler);
+// In a scene without media the next vertex is the nearest surface, and every factor 1.
+SMALLVCM_ALWAYS_INLINE PathSegment TraceSegment(const Scene& aScene, const Ray& aRay, int aMedium, bool aFromMedium,
+                                                Sampler& aSampler) {
+    if (aScene.HasMedia()) return TraceSegmentThroughMedia(aScene, aRay, aMedium, aFromMedium, aSampler);
+    PathSegment segment;
+    segment.mHit = aScene.Intersect(aRay);
+    return segment;
+}
+inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler) {
     PathSegment segment;
     segment.mMedium = aMedium;
+    float length = 0.f;
     for (int piece = 0;; piece++) {
         segment.mHit = aScene.Intersect(aRay);
         const float toSurface = segment.mHit.mDist;
@@ -2756,22 +2769,21 @@ inline PathSegment TraceSegment(const Scene& aScene, Ray aRay, int aMedium, bool
             segment.mWeight *= MediumTransmittance(medium, d) / forward;
             segment.mPdfs.mForward *= forward;
             segment.mPdfs.mReverse *= piece == 0 && aFromMedium ? FreeFlightDensity(medium, d) : FreeFlightProbability(medium, d);
-            segment.mDistance += d;
             if (scatters) {
                 segment.mInMedium = true;
                 segment.mHit = SurfacePoint{};
-                segment.mPosition = aRay.mOrigin + t * aRay.mDirection;
+                segment.mHit.mPosition = aRay.mOrigin + t * aRay.mDirection;
+                segment.mHit.mDist = length + t;
                 return segment;
             }
-        } else {
-            segment.mDistance += toSurface;
         }
+        length += toSurface;
         if (!segment.mHit.IsValid() || !aScene.IsIndexMatchedBoundary(segment.mHit) || piece >= kMaxMediumCrossings) break;
         aMedium = segment.mMedium = aScene.MediumAfter(segment.mHit, aRay.mDirection, aMedium);
         aRay = aScene.SpawnRay(segment.mHit.mPosition, aRay.mDirection);
-        segment.mDistance += aScene.RayEpsilon();
+        length += aScene.RayEpsilon();
     }
-    segment.mPosition = segment.mHit.mPosition;
+    segment.mHit.mDist = length;
     return segment;
 }
 
@@ -2801,13 +2813,18 @@ struct SegmentMedia {
 // The way from aPoint along aDirection over aDistance, starting in medium aMedium: a
 // shadow ray in empty space, or a walk through index-matched boundaries otherwise. Both
 // ends are pulled in by the ray epsilon (Scene::Occluded).
-inline SegmentMedia TraceConnection(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, float aDistance,
-                                    int aMedium) {
+inline SegmentMedia TraceConnectionThroughMedia(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, float aDistance,
+                                                int aMedium);
+SMALLVCM_ALWAYS_INLINE SegmentMedia TraceConnection(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, float aDistance,
+                                                    int aMedium) {
+    if (aScene.HasMedia()) return TraceConnectionThroughMedia(aScene, aPoint, aDirection, aDistance, aMedium);
     SegmentMedia media;
-    if (!aScene.HasMedia()) {
-        media.mOccluded = aScene.Occluded(aPoint, aDirection, aDistance);
-        return media;
-    }
+    media.mOccluded = aScene.Occluded(aPoint, aDirection, aDistance);
+    return media;
+}
+inline SegmentMedia TraceConnectionThroughMedia(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, float aDistance,
+                                                int aMedium) {
+    SegmentMedia media;
     Vec3 origin = aPoint;
     float remaining = aDistance;
     for (;; media.mPieces++) {
@@ -3189,8 +3206,7 @@ public:
     // unusable, and a Bsdf of a light sub-path multiplies the adjoint factor in.
     // (mWeight is left to SampleBsdf.)
     std::optional<ScatterSample> Sample(const Vec3& aRnd) const {
-        if (mMedium) return SamplePhase(Vec2(aRnd));
-        std::optional<ScatterSample> sample = SampleInShadingFrame(aRnd);
+        std::optional<ScatterSample> sample = mMedium ? SamplePhase(Vec2(aRnd)) : SampleInShadingFrame(aRnd);
         if (!mShaded || !sample) return sample;
         const float cosGenGeometric = glm::dot(mGeometricNormal, sample->mDirection);
         if (!SidesAgree(glm::dot(mFrame.mZ, sample->mDirection), cosGenGeometric)) sample.reset();
@@ -3201,7 +3217,7 @@ public:
 
 private:
     // A medium point's f = sigma_s p and pdfs p (fix . gen = -cos theta: both point away).
-    BsdfEval EvaluatePhase(const Vec3& aWorldDirGen) const {
+    SMALLVCM_NOINLINE BsdfEval EvaluatePhase(const Vec3& aWorldDirGen) const {
         BsdfEval eval;
         const float phase = HenyeyGreensteinPdf(-glm::dot(mFrame.mZ, aWorldDirGen), mMedium->mG);
         eval.mValue = mMedium->mSigmaS * phase;
@@ -3209,7 +3225,7 @@ private:
         eval.mDirPdfW = eval.mRevPdfW = phase;
         return eval;
     }
-    std::optional<ScatterSample> SamplePhase(const Vec2& aRnd) const {
+    SMALLVCM_NOINLINE std::optional<ScatterSample> SamplePhase(const Vec2& aRnd) const {
         std::optional<ScatterSample> sample(std::in_place);
         ScatterSample& s = *sample;
         s.mDirection = SampleHenyeyGreenstein(-mFrame.mZ, mMedium->mG, aRnd);
@@ -3814,7 +3830,7 @@ private:
             path.mLastSpecular = scatter->IsSpecular();
             if (path.mPathLength == 1) path.mFirstSpecular = path.mLastSpecular;
             if (!segment.mInMedium) medium = mScene.MediumAfter(hit, scatter->mDirection, medium);
-            ray = mScene.SpawnRay(segment.mPosition, scatter->mDirection);
+            ray = mScene.SpawnRay(segment.Position(), scatter->mDirection);
         }
     }
 
@@ -3839,7 +3855,7 @@ private:
         float weight = 1.f;
         if (!aPath.mLastSpecular) {
             const float cosAtLight = glm::dot(hit.GeometricNormal(), -aRay.mDirection);
-            const float distance = aSegment.mDistance + mScene.RayEpsilon();
+            const float distance = aSegment.Length() + mScene.RayEpsilon();
             const float directPdfW = PdfAtoW(received.mDirectPdfA, distance, cosAtLight) * mScene.LightPickProb();
             weight = BsdfHitWeight(aPath.mLastPdfW * aSegment.mPdfs.mForward, directPdfW);
         }
@@ -3855,11 +3871,11 @@ private:
         if (mOptions.mDirectLight == DirectLightSampling::kBsdfOnly) return Vec3(0.f);
         const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
-        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aVertex.mPosition, aSampler.Get2D());
+        const std::optional<LightSample> sample = light.Illuminate(mScene.GetSceneSphere(), aVertex.Position(), aSampler.Get2D());
         if (!sample || IsBlack(sample->mRadiance)) return Vec3(0.f);
         const BsdfEval bsdf = aBsdf.EvaluateWithRoulette(sample->mDirToLight);
         if (bsdf.IsBlack()) return Vec3(0.f);
-        const SegmentMedia media = TraceConnection(mScene, aVertex.mPosition, sample->mDirToLight, sample->mDistance,
+        const SegmentMedia media = TraceConnection(mScene, aVertex.Position(), sample->mDirToLight, sample->mDistance,
                                                    MediumTowards(mScene, aVertex, sample->mDirToLight));
         if (media.mOccluded) return Vec3(0.f);
         const float directPdfW = sample->mDirectPdfW * pick.mProb;
@@ -4673,7 +4689,7 @@ private:
             if (!bsdf.IsValid()) return;
             // The area (in a medium: volume) pdf of this vertex: a change of measure, by the
             // geometric cosine (1 in a medium), and the segment's free-flight pdfs.
-            VcmMis::AfterSegment(mMisConstants, light.mMis, segment.mDistance + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
+            VcmMis::AfterSegment(mMisConstants, light.mMis, segment.Length() + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
                                  light.mPathLength > 1 || light.mIsFiniteLight);
             if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, light.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
             if (mPathRecords) mLightHistories.back().push_back(RecordedVertex(segment));
@@ -4695,7 +4711,7 @@ private:
 
     void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const PathSegment& aSegment) {
         LightVertex& vertex = mLightVertices.emplace_back();
-        vertex.mHitPoint = aSegment.mPosition;
+        vertex.mHitPoint = aSegment.Position();
         vertex.mPathLength = aLight.mPathLength;
         vertex.mThroughput = aLight.mThroughput;
         vertex.mPrimitiveId = aSegment.mHit.mPrimitiveId;
@@ -4707,7 +4723,7 @@ private:
     // What the test hook records of a vertex a segment ended at.
     // (A light sub-path's records leave the light of an emitter it hits out.)
     PathVertex RecordedVertex(const PathSegment& aSegment, bool aCameraSubpath = false) const {
-        if (aSegment.mInMedium) return PathVertex{aSegment.mPosition, Vec3(0.f), -1, -1, kEventMedium, false, aSegment.mMedium};
+        if (aSegment.mInMedium) return PathVertex{aSegment.Position(), Vec3(0.f), -1, -1, kEventMedium, false, aSegment.mMedium};
         const SurfacePoint& hit = aSegment.mHit;
         return PathVertex{hit.mPosition, hit.GeometricNormal(), hit.mMaterialId, aCameraSubpath ? hit.mLightId : -1};
     }
@@ -4750,7 +4766,7 @@ private:
                 return;
             }
             const float cosAtHit = segment.mInMedium ? 1.f : glm::dot(hit.GeometricNormal(), -ray.mDirection);
-            const float distance = segment.mDistance + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
+            const float distance = segment.Length() + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
             VcmMis::AfterSegment(mMisConstants, cam.mMis, distance, cosAtHit, true);
             if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, cam.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
             if (mPathRecords) mCameraHistory.push_back(RecordedVertex(segment, true));
@@ -4794,7 +4810,7 @@ private:
                 AddToFilm(aPixel, ConnectVertices(aCamera, aVertex, aBsdf, vertex, PixelLightBsdf(i - begin, vertex)));
             }
         }
-        if (mUseVM) AddToFilm(aPixel, MergeWithLightVertices(aCamera, aVertex.mPosition, aBsdf));
+        if (mUseVM) AddToFilm(aPixel, MergeWithLightVertices(aCamera, aVertex.Position(), aBsdf));
     }
 
     // --- sub-path starts and steps -----------------------------------------------------------
@@ -4864,7 +4880,7 @@ private:
         // The cosine converts the reverse pdf at this vertex to area: the geometric one.
         VcmMis::AfterScatter(MisAt(aBsdf), aState.mMis, aBsdf.GeometricCos(scatter->mDirection, scatter->mCosThetaOut),
                              scatter->mPdfW, scatter->mReversePdfW, specular);
-        aState.mOrigin = aVertex.mPosition;
+        aState.mOrigin = aVertex.Position();
         aState.mDirection = scatter->mDirection;
         aState.mMedium = MediumTowards(mScene, aVertex, scatter->mDirection);
         aState.mInMedium = aVertex.mInMedium;
@@ -4895,15 +4911,15 @@ private:
     SMALLVCM_ALWAYS_INLINE Contribution ConnectToCamera(const SubpathState& aLight, const PathSegment& aVertex, const Bsdf& aBsdf) const {
         // BEGIN EXERCISE lt_camera/connect
         const Camera& camera = mScene.mCamera;
-        Vec3 dirToCamera = camera.Position() - aVertex.mPosition;
+        Vec3 dirToCamera = camera.Position() - aVertex.Position();
         if (glm::dot(camera.Forward(), -dirToCamera) <= 0.f) return {};  // behind the camera
         const float distance = glm::length(dirToCamera);
         dirToCamera /= distance;
-        const std::optional<Vec2> raster = camera.WorldToRaster(aVertex.mPosition);
+        const std::optional<Vec2> raster = camera.WorldToRaster(aVertex.Position());
         if (!raster || !camera.CheckRaster(*raster)) return {};
         const BsdfEval toCamera = aBsdf.EvaluateWithRoulette(dirToCamera);
         if (toCamera.IsBlack()) return {};
-        const SegmentMedia media = TraceConnection(mScene, aVertex.mPosition, dirToCamera, distance, MediumTowards(mScene, aVertex, dirToCamera));
+        const SegmentMedia media = TraceConnection(mScene, aVertex.Position(), dirToCamera, distance, MediumTowards(mScene, aVertex, dirToCamera));
         if (media.mOccluded) return {};
         // The camera's area pdf of this vertex (for MIS) converts by the geometric cosine;
         // the contribution takes the shading cosine that goes with the Bsdf's f (for
@@ -4971,7 +4987,7 @@ private:
     // weighted by [tech. rep. (44), (45)].
     // Through media: the transmittance, and the free-flight pdfs of both directions.
     SMALLVCM_ALWAYS_INLINE Contribution ConnectToLight(Sampler& aSampler, const SubpathState& aCamera, const PathSegment& aVertex, const Bsdf& aBsdf) {
-        const Vec3& point = aVertex.mPosition;
+        const Vec3& point = aVertex.Position();
         const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
         const Vec2 rnd = aSampler.Get2D();
@@ -5004,7 +5020,7 @@ private:
     // Through media: the transmittance, and the free-flight pdfs of both directions.
     SMALLVCM_ALWAYS_INLINE Contribution ConnectVertices(const SubpathState& aCamera, const PathSegment& aCameraVertex, const Bsdf& aBsdf,
                                                 const LightVertex& aVertex, const Bsdf& aLightBsdf) const {
-        const Vec3& point = aCameraVertex.mPosition;
+        const Vec3& point = aCameraVertex.Position();
         Vec3 direction = aVertex.mHitPoint - point;
         const float distanceSqr = glm::dot(direction, direction);
         if (!(distanceSqr > 0.f)) return {};
