@@ -2744,16 +2744,22 @@ struct PathSegment {
 // The next vertex from aRay's origin, a vertex in medium aMedium (aFromMedium: a medium
 // point rather than a surface, which decides the reverse pdf). Steps through
 // index-matched boundaries, and samples a free flight in each attenuating medium.
-inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler);
+// aGap: how far aRay's origin lies off the vertex it leaves (the ray epsilon of SpawnRay,
+// 0 for a camera's primary ray). The throughput takes the distance flown; the MIS pdfs
+// take each piece's whole length, gaps included, as TraceConnection measures the same
+// segment for the techniques that connect it (otherwise they differ by exp(sigma_t eps)).
+inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler,
+                                            float aGap);
 // In a scene without media the next vertex is the nearest surface, and every factor 1.
 SMALLVCM_ALWAYS_INLINE PathSegment TraceSegment(const Scene& aScene, const Ray& aRay, int aMedium, bool aFromMedium,
-                                                Sampler& aSampler) {
-    if (aScene.HasMedia()) return TraceSegmentThroughMedia(aScene, aRay, aMedium, aFromMedium, aSampler);
+                                                Sampler& aSampler, float aGap) {
+    if (aScene.HasMedia()) return TraceSegmentThroughMedia(aScene, aRay, aMedium, aFromMedium, aSampler, aGap);
     PathSegment segment;
     segment.mHit = aScene.Intersect(aRay);
     return segment;
 }
-inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler) {
+inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler,
+                                            float aGap) {
     PathSegment segment;
     segment.mMedium = aMedium;
     float length = 0.f;
@@ -2767,8 +2773,10 @@ inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int a
             const float d = scatters ? t : toSurface;
             const float forward = scatters ? FreeFlightDensity(medium, d) : FreeFlightProbability(medium, d);
             segment.mWeight *= MediumTransmittance(medium, d) / forward;
-            segment.mPdfs.mForward *= forward;
-            segment.mPdfs.mReverse *= piece == 0 && aFromMedium ? FreeFlightDensity(medium, d) : FreeFlightProbability(medium, d);
+            const float pieceLength = d + (piece == 0 ? aGap : aScene.RayEpsilon());
+            segment.mPdfs.mForward *= scatters ? FreeFlightDensity(medium, pieceLength) : FreeFlightProbability(medium, pieceLength);
+            segment.mPdfs.mReverse *= piece == 0 && aFromMedium ? FreeFlightDensity(medium, pieceLength)
+                                                                : FreeFlightProbability(medium, pieceLength);
             if (scatters) {
                 segment.mInMedium = true;
                 segment.mHit = SurfacePoint{};
@@ -3803,7 +3811,7 @@ private:
         int medium = mScene.CameraMedium();
         Bsdf bsdf;
         for (PathState path;; path.mPathLength++) {
-            const PathSegment segment = TraceSegment(mScene, ray, medium, false, aSampler);
+            const PathSegment segment = TraceSegment(mScene, ray, medium, false, aSampler, path.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
             const SurfacePoint& hit = segment.mHit;
             path.mThroughput *= segment.mWeight;
             medium = segment.mMedium;
@@ -4681,7 +4689,7 @@ private:
         Bsdf bsdf;
         for (;;) {
             const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
-            const PathSegment segment = TraceSegment(mScene, ray, light.mMedium, light.mInMedium, aSampler);
+            const PathSegment segment = TraceSegment(mScene, ray, light.mMedium, light.mInMedium, aSampler, mScene.RayEpsilon());
             if (segment.Escaped()) return;
             light.mThroughput *= segment.mWeight;
             if (segment.mInMedium) bsdf.SetupInMedium(-ray.mDirection, mScene.GetMedium(segment.mMedium), Transport::kImportance);
@@ -4758,7 +4766,8 @@ private:
         Ray ray{cam.mOrigin, cam.mDirection};
         Bsdf bsdf;
         for (;;) {
-            const PathSegment segment = TraceSegment(mScene, ray, cam.mMedium, cam.mInMedium, aSampler);
+            const PathSegment segment = TraceSegment(mScene, ray, cam.mMedium, cam.mInMedium, aSampler,
+                                                     cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
             const SurfacePoint& hit = segment.mHit;
             cam.mThroughput *= segment.mWeight;
             if (segment.Escaped()) {

@@ -29,6 +29,26 @@
 // fixed seeds, and closed either by hitting an emitter / escaping to the background or by
 // sampling a light (Light::Illuminate) with a visibility check.
 //
+// Participating media ([SECTION] Participating media; paths recorded by the renderer in
+// scenes with media): a vertex may be a scattering point in a medium (FullPath::medium).
+//   Such a vertex has no cosine: its "area" pdf is a volume pdf, p_W / d^2 times the
+//   free-flight pdf; its directional pdf is the Henyey-Greenstein phase function and its
+//   continuation probability the medium's largest albedo, both computed here in double
+//   from the medium's coefficients (not through Bsdf::SetupInMedium).
+//   Every segment x_{i-1} x_i gains free-flight factors (SegmentFlight): the forward pdf of
+//   x_i the density sigma_t T (x_i in a medium) or the probability T (x_i on a surface),
+//   the reverse pdf of x_{i-1} likewise by x_{i-1}'s kind, each averaged over the RGB
+//   channels (the renderer picks the channel uniformly); through index-matched boundaries
+//   the product over the pieces, every inner piece flown through (T). The segment's media
+//   are found by walking from the light (Scene::LightMedium) through the vertices
+//   (Scene::MediumAfter at surfaces, a medium point's own medium) and through the
+//   index-matched boundaries on the way (Scene::Intersect), the lengths in double.
+//   A technique that does not sample a segment (the connection of NEE, light tracing, a
+//   vertex connection) has no free-flight factor for it; the other techniques do.
+//   A merge at a medium vertex has the 3D kernel: pdf = (4/3) pi r_m^3 N_L x the pdfs of
+//   both sub-paths up to that vertex (r_m: the radius of merging in media); merges join
+//   only vertices of one kind (medium with medium, surface with surface).
+//
 // Everything is inline in namespace misbf: the header may be included by any test file.
 #pragma once
 #include "smallvcm.hpp"
@@ -164,6 +184,10 @@ struct FullPath {
     // the BSDF at the merge (the renderer evaluates the camera's).
     int mergeAt = -1;
     Vec3 cameraX{0.f}, cameraN{0.f};
+    // Per vertex the medium of a scattering point in a medium, -1 on surfaces and at the
+    // ends (empty for a path without media). A merged medium vertex is one of the same
+    // medium from both sides (PathFromRecord).
+    std::vector<int> medium;
 
     // Where vertex aI is as seen from vertex aOther: x[aI], or the camera's end of a merge.
     Vec3 At(int aI, int aOther) const { return aI == mergeAt && aOther > aI ? cameraX : x[size_t(aI)]; }
@@ -172,6 +196,7 @@ struct FullPath {
 
     int K() const { return int(x.size()) - 1; }
     bool Specular(int aI) const { return event[size_t(aI)] != 0; }
+    bool InMedium(int aI) const { return !medium.empty() && medium[size_t(aI)] >= 0; }
 };
 
 inline Vec3 Dir(const FullPath& aPath, int aFrom, int aTo) {
@@ -194,6 +219,11 @@ inline double DDistSqr(const FullPath& aPath, int aA, int aB) {
 inline double DAbsCos(const FullPath& aPath, int aAt, int aOther) {
     return std::abs(glm::dot(DVec3(aPath.NormalAt(aAt, aOther)), DDir(aPath, aAt, aOther)));
 }
+// The factor that turns a solid-angle pdf at x_aOther into the measure of x_aAt, times
+// d^2: |cos| at a surface, 1 at a point in a medium (a volume pdf).
+inline double DMeasureCos(const FullPath& aPath, int aAt, int aOther) {
+    return aPath.InMedium(aAt) ? 1.0 : DAbsCos(aPath, aAt, aOther);
+}
 
 // The BSDFs of the interior vertices as each sub-path sets them up: the light sub-path at
 // x_i has its fixed direction towards x_{i-1}, the camera sub-path towards x_{i+1}.
@@ -206,6 +236,13 @@ inline bool SetupBsdfs(const Scene& aScene, const FullPath& aPath, PathBsdfs& oB
     oBsdfs.light.assign(size_t(k), Bsdf());
     oBsdfs.camera.assign(size_t(k), Bsdf());
     for (int i = 1; i < k; i++) {
+        if (aPath.InMedium(i)) {
+            const Medium& medium = aScene.GetMedium(aPath.medium[size_t(i)]);
+            oBsdfs.light[size_t(i)].SetupInMedium(Dir(aPath, i, i - 1), medium, Transport::kImportance);
+            oBsdfs.camera[size_t(i)].SetupInMedium(Dir(aPath, i, i + 1), medium, Transport::kRadiance);
+            if (!oBsdfs.light[size_t(i)].IsValid() || !oBsdfs.camera[size_t(i)].IsValid()) return false;
+            continue;
+        }
         const Material& material = aScene.GetMaterial(aPath.material[size_t(i)]);
         oBsdfs.light[size_t(i)].Setup(Dir(aPath, i, i - 1), aPath.BsdfNormal(i), material, Transport::kImportance);
         oBsdfs.camera[size_t(i)].Setup(Dir(aPath, i, i + 1), aPath.BsdfNormal(i), material, Transport::kRadiance);
@@ -420,11 +457,140 @@ inline std::vector<Technique> Techniques(const FullPath& aPath, bool aUseVC, boo
 // Brute force: explicit products of area pdfs, double precision
 // ---------------------------------------------------------------------------------------
 
+// ---- media: the free-flight factors of each segment -----------------------------------
+
+// A medium's free-flight pdfs over a distance, in double, averaged over the channels as
+// the renderer picks one uniformly: the density of scattering at aDistance (1/3 sum
+// sigma_t,c exp(-sigma_t,c d)) and the probability of flying past it (1/3 sum exp(...)).
+// A clear channel (sigma_t = 0) adds 0 to the density and 1 to the probability.
+struct FreeFlight {
+    double density = 1.0, probability = 1.0;
+};
+inline FreeFlight DFreeFlight(const Scene& aScene, int aMedium, double aDistance) {
+    if (aMedium < 0) return {};
+    const Medium& medium = aScene.GetMedium(aMedium);
+    if (!medium.Attenuates()) return {};
+    FreeFlight result{0.0, 0.0};
+    for (int c = 0; c < 3; c++) {
+        const double sigmaT = double(medium.mSigmaA[c]) + double(medium.mSigmaS[c]);
+        const double transmittance = std::exp(-sigmaT * aDistance);
+        result.density += sigmaT * transmittance / 3.0;
+        result.probability += transmittance / 3.0;
+    }
+    return result;
+}
+// Henyey-Greenstein in double: aCosTheta between the directions light travels before and
+// after the scattering.
+inline double DHenyeyGreenstein(double aCosTheta, double aG) {
+    const double denominator = 1.0 + aG * aG - 2.0 * aG * aCosTheta;
+    return (1.0 - aG * aG) / (4.0 * 3.14159265358979323846 * denominator * std::sqrt(denominator));
+}
+// Russian roulette at a point in a medium: its largest single-scattering albedo.
+inline double DMediumContinuation(const Medium& aMedium) {
+    double result = 0.0;
+    for (int c = 0; c < 3; c++) {
+        const double sigmaT = double(aMedium.mSigmaA[c]) + double(aMedium.mSigmaS[c]);
+        if (sigmaT > 0.0) result = std::max(result, std::min(1.0, double(aMedium.mSigmaS[c]) / sigmaT));
+    }
+    return result;
+}
+// The directional pdf (with continuation) at the medium point x_aAt of sampling x_aTo,
+// light having arrived from x_aFrom: the phase function of the angle between the two.
+inline double DPhasePdf(const Scene& aScene, const FullPath& aPath, int aFrom, int aAt, int aTo) {
+    const Medium& medium = aScene.GetMedium(aPath.medium[size_t(aAt)]);
+    const double cosTheta = glm::dot(DDir(aPath, aFrom, aAt), DDir(aPath, aAt, aTo));
+    return DHenyeyGreenstein(cosTheta, double(medium.mG)) * DMediumContinuation(medium);
+}
+
+// One segment x_{i-1} x_i walked through the index-matched boundaries on it: its
+// free-flight factors, the medium it arrives in and the surface it ends on.
+struct SegmentFlight {
+    bool ok = false;       // unoccluded, and it ends where the path says
+    double forward = 1.0;  // F_i: into p->(x_i)
+    double reverse = 1.0;  // R_i: into p<-(x_{i-1})
+    int pieces = 0;
+    int endMedium = -1;
+    SurfacePoint endHit;   // the surface x_i is on (invalid for a medium point or the camera)
+};
+inline SegmentFlight WalkSegment(const Scene& aScene, const FullPath& aPath, int aI, int aStartMedium) {
+    SegmentFlight flight;
+    const Vec3 from = aPath.At(aI - 1, aI), to = aPath.At(aI, aI - 1);
+    const Vec3 direction = glm::normalize(to - from);
+    const bool endOnSurface = aI < aPath.K() && !aPath.InMedium(aI);
+    const float eps = aScene.RayEpsilon();
+    std::vector<std::pair<double, int>> pieces;  // (length, medium)
+    Vec3 origin = from;
+    int medium = aStartMedium;
+    for (int crossing = 0;; crossing++) {
+        const double remaining = glm::length(DVec3(to) - DVec3(origin));
+        const SurfacePoint hit = aScene.Intersect(aScene.SpawnRay(origin, direction));
+        if (hit.IsValid() && double(hit.mDist) < remaining - 2.0 * double(eps)) {
+            // Something before the end: only an index-matched boundary lets the path through.
+            if (!aScene.IsIndexMatchedBoundary(hit) || crossing >= kMaxMediumCrossings) return flight;
+            pieces.push_back({glm::length(DVec3(hit.mPosition) - DVec3(origin)), medium});
+            medium = aScene.MediumAfter(hit, direction, medium);
+            origin = hit.mPosition;
+            continue;
+        }
+        pieces.push_back({remaining, medium});
+        if (endOnSurface) {
+            // The hit just past the end must be x_i's own surface.
+            if (!hit.IsValid() || double(hit.mDist) > remaining + 2.0 * double(eps) ||
+                hit.mMaterialId != aPath.material[size_t(aI)])
+                return flight;
+            flight.endHit = hit;
+        }
+        break;
+    }
+    const size_t last = pieces.size() - 1;
+    for (size_t p = 0; p <= last; p++) {
+        const FreeFlight f = DFreeFlight(aScene, pieces[p].second, pieces[p].first);
+        flight.forward *= p == last && aPath.InMedium(aI) ? f.density : f.probability;
+        flight.reverse *= p == 0 && aPath.InMedium(aI - 1) ? f.density : f.probability;
+    }
+    flight.pieces = int(pieces.size());
+    flight.endMedium = medium;
+    flight.ok = true;
+    return flight;
+}
+
+// F_i and R_i of every segment i = 1..k of aPath (index 0 unused), walking the media from
+// the light; all 1 in a scene without media. False when a segment is occluded, does not
+// end where the path says, or the walk disagrees with a medium the renderer recorded (a
+// medium point's, or the camera's at the end).
+inline bool SegmentFlights(const Scene& aScene, const FullPath& aPath, std::vector<double>& oForward, std::vector<double>& oReverse,
+                           int* oCrossingSegments = nullptr) {
+    const int k = aPath.K();
+    oForward.assign(size_t(k + 1), 1.0);
+    oReverse.assign(size_t(k + 1), 1.0);
+    if (!aScene.HasMedia()) return true;
+    if (aPath.infiniteLight) return false;  // the media scenes have finite lights only
+    int medium = aScene.LightMedium(aPath.lightId);
+    SurfacePoint previousHit;
+    for (int i = 1; i <= k; i++) {
+        if (i > 1) medium = aPath.InMedium(i - 1) ? aPath.medium[size_t(i - 1)] : aScene.MediumAfter(previousHit, Dir(aPath, i - 1, i), medium);
+        const SegmentFlight flight = WalkSegment(aScene, aPath, i, medium);
+        if (!flight.ok) return false;
+        if (aPath.InMedium(i) && flight.endMedium != aPath.medium[size_t(i)]) return false;
+        if (i == k && flight.endMedium != aScene.CameraMedium()) return false;
+        if (oCrossingSegments && flight.pieces > 1) (*oCrossingSegments)++;
+        oForward[size_t(i)] = flight.forward;
+        oReverse[size_t(i)] = flight.reverse;
+        medium = flight.endMedium;
+        previousHit = flight.endHit;
+    }
+    return true;
+}
+
 struct BruteForcePdfs {
     double forward01 = 0.0;    // p->(x_0) p->(x_1)
     double direct = 0.0;       // p_direct(x_0) of next-event estimation
     std::vector<double> fwd;   // p->(x_i), i = 2..k-1
     std::vector<double> rev;   // p<-(x_i), i = 0..k
+    // Media: F_i and R_i of segment i (SegmentFlight; 1 without media), and which vertices
+    // are points in a medium (whose merges have the 3D kernel).
+    std::vector<double> flightForward, flightReverse;
+    std::vector<char> inMedium;
 };
 
 inline bool ComputeBruteForcePdfs(const Scene& aScene, const FullPath& aPath, const PathBsdfs& aBsdfs, BruteForcePdfs& oPdfs) {
@@ -437,10 +603,15 @@ inline bool ComputeBruteForcePdfs(const Scene& aScene, const FullPath& aPath, co
     oPdfs = BruteForcePdfs();
     oPdfs.fwd.assign(size_t(k + 1), 0.0);
     oPdfs.rev.assign(size_t(k + 1), 0.0);
+    oPdfs.inMedium.assign(size_t(k + 1), 0);
+    for (int i = 1; i < k; i++) oPdfs.inMedium[size_t(i)] = aPath.InMedium(i);
+    if (!SegmentFlights(aScene, aPath, oPdfs.flightForward, oPdfs.flightReverse)) return false;
+    const std::vector<double>& flightF = oPdfs.flightForward;
+    const std::vector<double>& flightR = oPdfs.flightReverse;
 
     // The light's start: p->(x_0) p->(x_1) and p_direct(x_0).
     if (k >= 2) {
-        const double cos1 = DAbsCos(aPath, 1, 0);
+        const double cos1 = DMeasureCos(aPath, 1, 0) * flightF[1];
         switch (light.mType) {
         case LightType::kArea:
         case LightType::kSphere: {
@@ -480,9 +651,10 @@ inline bool ComputeBruteForcePdfs(const Scene& aScene, const FullPath& aPath, co
     // Forward pdfs x_2 .. x_{k-1}: the light sub-path's BSDF at x_{i-1}.
     for (int i = 2; i <= k - 1; i++) {
         const Bsdf& bsdf = aBsdfs.light[size_t(i - 1)];
-        const double dirPdf = aPath.Specular(i - 1) ? SpecularSelectionProbability(bsdf, aPath.event[size_t(i - 1)])
-                                                    : bsdf.Pdf(Dir(aPath, i - 1, i));
-        oPdfs.fwd[size_t(i)] = dirPdf * bsdf.ContinuationProb() * DAbsCos(aPath, i, i - 1) / DDistSqr(aPath, i, i - 1);
+        const double dirPdf = aPath.InMedium(i - 1)   ? DPhasePdf(aScene, aPath, i - 2, i - 1, i)
+                              : aPath.Specular(i - 1) ? double(SpecularSelectionProbability(bsdf, aPath.event[size_t(i - 1)])) * bsdf.ContinuationProb()
+                                                      : double(bsdf.Pdf(Dir(aPath, i - 1, i))) * bsdf.ContinuationProb();
+        oPdfs.fwd[size_t(i)] = dirPdf * DMeasureCos(aPath, i, i - 1) / DDistSqr(aPath, i, i - 1) * flightF[size_t(i)];
     }
 
     // Reverse pdfs: the pinhole, then the camera pdf of x_{k-1}, then camera-side BSDFs.
@@ -494,20 +666,23 @@ inline bool ComputeBruteForcePdfs(const Scene& aScene, const FullPath& aPath, co
         const double imagePlane = double(camera.ImagePlaneDist());
         const double cameraPdfW = imagePlane * imagePlane / (cosTheta * cosTheta * cosTheta);
         if (k - 1 == 0 && aPath.infiniteLight) oPdfs.rev[size_t(k - 1)] = cameraPdfW;
-        else oPdfs.rev[size_t(k - 1)] = cameraPdfW * DAbsCos(aPath, k - 1, k) / DDistSqr(aPath, k - 1, k);
+        else oPdfs.rev[size_t(k - 1)] = cameraPdfW * DMeasureCos(aPath, k - 1, k) / DDistSqr(aPath, k - 1, k) * flightR[size_t(k)];
     }
     for (int i = k - 2; i >= 0; i--) {
         if (i == 0 && aPath.deltaLight) break;  // no technique samples a delta light's point from the camera
         const Bsdf& bsdf = aBsdfs.camera[size_t(i + 1)];
-        const double dirPdf = aPath.Specular(i + 1) ? SpecularSelectionProbability(bsdf, aPath.event[size_t(i + 1)])
-                                                    : bsdf.Pdf(Dir(aPath, i + 1, i));
-        const double toArea = (i == 0 && aPath.infiniteLight) ? 1.0 : DAbsCos(aPath, i, i + 1) / DDistSqr(aPath, i, i + 1);
-        oPdfs.rev[size_t(i)] = dirPdf * bsdf.ContinuationProb() * toArea;
+        const double dirPdf = aPath.InMedium(i + 1)   ? DPhasePdf(aScene, aPath, i + 2, i + 1, i)
+                              : aPath.Specular(i + 1) ? double(SpecularSelectionProbability(bsdf, aPath.event[size_t(i + 1)])) * bsdf.ContinuationProb()
+                                                      : double(bsdf.Pdf(Dir(aPath, i + 1, i))) * bsdf.ContinuationProb();
+        const double toArea = (i == 0 && aPath.infiniteLight) ? 1.0 : DMeasureCos(aPath, i, i + 1) / DDistSqr(aPath, i, i + 1);
+        oPdfs.rev[size_t(i)] = dirPdf * toArea * flightR[size_t(i + 1)];
     }
     return true;
 }
 
-inline double TechniquePdf(const BruteForcePdfs& aPdfs, const Technique& aTechnique, int aK, double aLightPathCount, double aEta) {
+// aEta: pi r^2 N_L of a merge on a surface; aEtaMedium: (4/3) pi r_m^3 N_L of one in a medium.
+inline double TechniquePdf(const BruteForcePdfs& aPdfs, const Technique& aTechnique, int aK, double aLightPathCount, double aEta,
+                           double aEtaMedium = 0.0) {
     auto forwardProduct = [&](int aLast) {  // p->(x_0) .. p->(x_aLast), aLast >= 1
         double p = aPdfs.forward01;
         for (int i = 2; i <= aLast; i++) p *= aPdfs.fwd[size_t(i)];
@@ -523,17 +698,19 @@ inline double TechniquePdf(const BruteForcePdfs& aPdfs, const Technique& aTechni
     case Kind::kNextEvent: return aPdfs.direct * reverseProduct(1);
     case Kind::kConnection: return forwardProduct(aTechnique.index - 1) * reverseProduct(aTechnique.index);
     case Kind::kLightTracing: return aLightPathCount * forwardProduct(aK - 1);
-    case Kind::kMerge: return aEta * forwardProduct(aTechnique.index) * reverseProduct(aTechnique.index);
+    case Kind::kMerge:
+        return (aPdfs.inMedium[size_t(aTechnique.index)] ? aEtaMedium : aEta) * forwardProduct(aTechnique.index) *
+               reverseProduct(aTechnique.index);
     }
     return 0.0;
 }
 
 inline std::vector<double> BruteForceWeights(const BruteForcePdfs& aPdfs, const std::vector<Technique>& aTechniques, int aK,
-                                      MisHeuristic aHeuristic, double aLightPathCount, double aEta) {
+                                      MisHeuristic aHeuristic, double aLightPathCount, double aEta, double aEtaMedium = 0.0) {
     std::vector<double> weights;
     double sum = 0.0;
     for (const Technique& t : aTechniques) {
-        const double p = TechniquePdf(aPdfs, t, aK, aLightPathCount, aEta);
+        const double p = TechniquePdf(aPdfs, t, aK, aLightPathCount, aEta, aEtaMedium);
         weights.push_back(aHeuristic == MisHeuristic::kPower ? p * p : p);
         sum += weights.back();
     }
@@ -555,9 +732,21 @@ inline float CameraPdfW(const Camera& aCamera, const Vec3& aDirection) {
 class RecursiveWeights {
 public:
     RecursiveWeights(const Scene& aScene, const FullPath& aPath, const PathBsdfs& aBsdfs, const VcmMisConstants& aMis)
-        : mScene(aScene), mPath(aPath), mBsdfs(aBsdfs), mMis(aMis), mLight(aScene.GetLight(aPath.lightId)),
-          mPick(1.f / float(aScene.LightCount())) {
+        : RecursiveWeights(aScene, aPath, aBsdfs, aMis, aMis, {}, {}) {}
+    // In a scene with media: aMisMedium, the constants at points in media
+    // (VcmMisConstants::ForMedium), and the free-flight pdfs F_i, R_i of each segment
+    // (SegmentFlights), which VertexCM passes to VcmMis::ThroughMedia after each segment
+    // and multiplies into the pdfs of the connections that do not sample one.
+    RecursiveWeights(const Scene& aScene, const FullPath& aPath, const PathBsdfs& aBsdfs, const VcmMisConstants& aMis,
+                     const VcmMisConstants& aMisMedium, const std::vector<double>& aFlightForward,
+                     const std::vector<double>& aFlightReverse)
+        : mScene(aScene), mPath(aPath), mBsdfs(aBsdfs), mMis(aMis), mMisMedium(aMisMedium), mLight(aScene.GetLight(aPath.lightId)),
+          mPick(1.f / float(aScene.LightCount())), mMedia(aScene.HasMedia()) {
         const int k = aPath.K();
+        mFlightF.assign(size_t(k + 1), 1.f);
+        mFlightR.assign(size_t(k + 1), 1.f);
+        for (size_t i = 0; i < aFlightForward.size() && i <= size_t(k); i++) mFlightF[i] = float(aFlightForward[i]);
+        for (size_t i = 0; i < aFlightReverse.size() && i <= size_t(k); i++) mFlightR[i] = float(aFlightReverse[i]);
         mLightMis.assign(size_t(k + 1), SubpathMis());
         mCameraMis.assign(size_t(k + 1), SubpathMis());
         if (k >= 2) TraceLightPrefix();
@@ -584,8 +773,9 @@ public:
             const float cosToLight = eval.mCosThetaGen;
             const float bsdfDirPdfW = eval.mDirPdfW * bsdf.ContinuationProb();
             const float bsdfRevPdfW = eval.mRevPdfW * bsdf.ContinuationProb();
-            return VcmMis::WeightNextEvent(mMis, mCameraMis[1], bsdfDirPdfW, bsdfRevPdfW, sample.mDirectPdfW * mPick,
-                                           sample.mEmissionPdfW * mPick, cosToLight, sample.mCosAtLight, mLight.IsDelta());
+            // Through media the BSDF sample would fly from x_1 to x_0 (R_1), the light's from x_0 to x_1 (F_1).
+            return VcmMis::WeightNextEvent(MisAt(1), mCameraMis[1], bsdfDirPdfW * mFlightR[1], bsdfRevPdfW, sample.mDirectPdfW * mPick,
+                                           sample.mEmissionPdfW * mPick * mFlightF[1], cosToLight, sample.mCosAtLight, mLight.IsDelta());
         }
         case Kind::kConnection: {
             // ConnectVertices: light vertex y = x_{s-1}, camera vertex z = x_s.
@@ -602,9 +792,9 @@ public:
             const float lightDirPdfW = lightEval.mDirPdfW * lightBsdf.ContinuationProb();
             const float lightRevPdfW = lightEval.mRevPdfW * lightBsdf.ContinuationProb();
             return VcmMis::WeightConnection(mMis, mLightMis[size_t(y)], mCameraMis[size_t(z)],
-                                            PdfWtoA(cameraDirPdfW, distance, cosLight), cameraRevPdfW,
-                                            PdfWtoA(lightDirPdfW, distance, cosCamera), lightRevPdfW,
-                                            mMis.mVmWeightFactor, mMis.mVmWeightFactor);
+                                            PdfWtoA(cameraDirPdfW, distance, cosLight) * mFlightR[size_t(z)], cameraRevPdfW,
+                                            PdfWtoA(lightDirPdfW, distance, cosCamera) * mFlightF[size_t(z)], lightRevPdfW,
+                                            MisAt(y).mVmWeightFactor, MisAt(z).mVmWeightFactor);
         }
         case Kind::kLightTracing: {
             // ConnectToCamera from the light vertex x_{k-1}.
@@ -616,8 +806,8 @@ public:
             const BsdfEval eval = bsdf.Evaluate(dirToCamera);
             const float cosToCamera = eval.mCosThetaGen;
             const float bsdfRevPdfW = eval.mRevPdfW * bsdf.ContinuationProb();
-            const float cameraPdfA = CameraPdfW(mScene.mCamera, -dirToCamera) * std::abs(cosToCamera) / Sqr(distance);
-            return VcmMis::WeightLightTracing(mMis, mLightMis[size_t(y)], cameraPdfA, bsdfRevPdfW);
+            const float cameraPdfA = CameraPdfW(mScene.mCamera, -dirToCamera) * std::abs(cosToCamera) / Sqr(distance) * mFlightR[size_t(k)];
+            return VcmMis::WeightLightTracing(MisAt(y), mLightMis[size_t(y)], cameraPdfA, bsdfRevPdfW);
         }
         case Kind::kMerge: {
             // MergeWithLightVertices: the light vertex stored at x_i meets the camera vertex x_i.
@@ -626,7 +816,7 @@ public:
             const BsdfEval cameraEval = cameraBsdf.Evaluate(mBsdfs.light[size_t(i)].WorldDirFix());
             const float cameraDirPdfW = cameraEval.mDirPdfW * cameraBsdf.ContinuationProb();
             const float cameraRevPdfW = cameraEval.mRevPdfW * cameraBsdf.ContinuationProb();
-            return VcmMis::WeightMerge(mMis, mLightMis[size_t(i)], mCameraMis[size_t(i)], cameraDirPdfW, cameraRevPdfW);
+            return VcmMis::WeightMerge(MisAt(i), mLightMis[size_t(i)], mCameraMis[size_t(i)], cameraDirPdfW, cameraRevPdfW);
         }
         }
         return -1.f;
@@ -685,7 +875,7 @@ private:
         }
         dirPdfW *= aBsdf.ContinuationProb();
         revPdfW *= aBsdf.ContinuationProb();
-        VcmMis::AfterScatter(mMis, ioMis, cosOut, dirPdfW, revPdfW, specular);
+        VcmMis::AfterScatter(MisAt(aAt), ioMis, cosOut, dirPdfW, revPdfW, specular);
     }
 
     // GenerateLightSample + the light pass: the state stored at x_1 .. x_{k-1}.
@@ -726,6 +916,7 @@ private:
             const float distance = applyDistance ? Dist(mPath, i - 1, i)
                                                  : glm::dot(mPath.x[1] - sceneSphere.mCenter, travel) + sceneSphere.mRadius;
             VcmMis::AfterSegment(mMis, mis, distance, mBsdfs.light[size_t(i)].CosThetaFix(), applyDistance);
+            if (mMedia) VcmMis::ThroughMedia(mMis, mis, mFlightF[size_t(i)], mFlightR[size_t(i)]);
             mLightMis[size_t(i)] = mis;
             if (i + 1 <= k - 1) Scatter(mis, mBsdfs.light[size_t(i)], i, i + 1);
         }
@@ -736,8 +927,10 @@ private:
         const int k = mPath.K();
         SubpathMis mis = VcmMis::AtCameraStart(mMis, CameraPdfW(mScene.mCamera, Dir(mPath, k, k - 1)));
         for (int j = k - 1; j >= 1; j--) {
-            const float cosAtHit = glm::dot(mPath.n[size_t(j)], -Dir(mPath, j + 1, j));
+            const float cosAtHit = mPath.InMedium(j) ? 1.f : glm::dot(mPath.n[size_t(j)], -Dir(mPath, j + 1, j));
             VcmMis::AfterSegment(mMis, mis, Dist(mPath, j + 1, j), cosAtHit, true);
+            // The camera flies segment j + 1 backwards: its forward pdf is R, its reverse F.
+            if (mMedia) VcmMis::ThroughMedia(mMis, mis, mFlightR[size_t(j + 1)], mFlightF[size_t(j + 1)]);
             mCameraMis[size_t(j)] = mis;
             if (j == 1 && mPath.deltaLight) break;  // no camera path reaches a delta light
             Scatter(mis, mBsdfs.camera[size_t(j)], j, j - 1);
@@ -748,6 +941,7 @@ private:
         } else {
             const float cosAtHit = glm::dot(mPath.n[0], -Dir(mPath, 1, 0));
             VcmMis::AfterSegment(mMis, mis, Dist(mPath, 1, 0), cosAtHit, true);
+            if (mMedia) VcmMis::ThroughMedia(mMis, mis, mFlightR[1], mFlightF[1]);
             mCameraMis[0] = mis;
         }
     }
@@ -756,10 +950,16 @@ private:
     const FullPath& mPath;
     const PathBsdfs& mBsdfs;
     const VcmMisConstants& mMis;
+    VcmMisConstants mMisMedium;
     const Light& mLight;
     float mPick;
+    bool mMedia;                           // the scene has media: VertexCM calls ThroughMedia
+    std::vector<float> mFlightF, mFlightR;  // F_i, R_i of segment i (1 without media)
     std::vector<SubpathMis> mLightMis, mCameraMis;
     SubpathMis mCameraAtBackground;
+
+    // The constants at x_aI: VertexCM::MisAt (a surface's or a medium point's).
+    const VcmMisConstants& MisAt(int aI) const { return mPath.InMedium(aI) ? mMisMedium : mMis; }
 };
 
 // ---------------------------------------------------------------------------------------
@@ -841,9 +1041,16 @@ inline std::string DescribePath(const Scene& aScene, const FullPath& aPath) {
     std::ostringstream out;
     out << "k=" << aPath.K() << ", light " << aPath.lightId << " (" << LightTypeName(aScene.GetLight(aPath.lightId).mType) << "), "
         << (aPath.closedByLightSample ? "closed by a light sample" : "recorded or hit the light") << ", vertices:";
-    for (int i = 1; i < aPath.K(); i++)
+    for (int i = 1; i < aPath.K(); i++) {
+        if (aPath.InMedium(i)) {
+            const Medium& medium = aScene.GetMedium(aPath.medium[size_t(i)]);
+            out << " x" << i << "=in medium " << aPath.medium[size_t(i)] << (medium.mName.empty() ? "" : " '" + medium.mName + "'");
+            continue;
+        }
         out << " x" << i << "=" << aScene.GetMaterial(aPath.material[size_t(i)]).mName
             << (aPath.event[size_t(i)] == kEventReflect ? "[reflect]" : aPath.event[size_t(i)] == kEventRefract ? "[refract]" : "");
+    }
+    if (aPath.mergeAt >= 0) out << " (merged at x" << aPath.mergeAt << ")";
     return out.str();
 }
 
@@ -945,14 +1152,20 @@ inline bool PathFromVertices(const Scene& aScene, const std::vector<VertexCM::Pa
         oPath.n.push_back(vertex.mNormal);
         oPath.material.push_back(i == 0 || i == k ? -1 : vertex.mMaterialId);
         oPath.event.push_back(i == 0 || i == k ? 0u : (vertex.mEvent & kEventSpecular));
+        oPath.medium.push_back(i == 0 || i == k ? -1 : vertex.mMedium);
     }
     if (v[0].mAtInfinity) oPath.dirToInfinity = v[0].mPosition;
     // A point that next-event estimation sampled on an area light carries no normal: the
     // surface seen from x_1 in its direction gives it.
+    // (In a scene with media the probe steps through the index-matched boundaries on the way.)
     if (!oPath.infiniteLight && !oPath.deltaLight && oPath.n[0] == Vec3(0.f)) {
         Vec3 point;
-        const SurfacePoint hit = Probe(aScene, oPath.x[1] + aScene.RayEpsilon() * glm::normalize(oPath.x[0] - oPath.x[1]),
-                              oPath.x[0], point);
+        Vec3 from = oPath.x[1] + aScene.RayEpsilon() * glm::normalize(oPath.x[0] - oPath.x[1]);
+        SurfacePoint hit = Probe(aScene, from, oPath.x[0], point);
+        for (int crossing = 0; hit.IsValid() && aScene.IsIndexMatchedBoundary(hit) && crossing < kMaxMediumCrossings; crossing++) {
+            from = point + aScene.RayEpsilon() * glm::normalize(oPath.x[0] - oPath.x[1]);
+            hit = Probe(aScene, from, oPath.x[0], point);
+        }
         if (hit.mLightId != oPath.lightId) return false;
         oPath.n[0] = hit.GeometricNormal();
     }
@@ -971,7 +1184,7 @@ inline bool PathFromRecord(const Scene& aScene, const VertexCM::PathRecord& aRec
     if (aRecord.mTechnique == VertexCM::kMerging) {
         const size_t s = size_t(aRecord.mLightVertexCount);  // v[s - 1]: the light vertex, v[s]: the camera's
         if (s < 2 || s + 1 >= v.size()) return false;
-        if (v[s - 1].mMaterialId != v[s].mMaterialId) return false;
+        if (v[s - 1].mMaterialId != v[s].mMaterialId || v[s - 1].mMedium != v[s].mMedium) return false;
         std::vector<VertexCM::PathVertex> joined = v;
         joined.erase(joined.begin() + std::ptrdiff_t(s));
         oTechnique = {Kind::kMerge, int(s) - 1};
