@@ -2107,7 +2107,7 @@ public:
     // Shadow ray: is anything between aPoint and aPoint + aDistance * aDirection?
     // Both ends are pulled in by the ray epsilon so the two surfaces do not occlude.
     // A cut-out's holes let it through, as they let Intersect's rays through.
-    bool Occluded(const Vec3& aPoint, const Vec3& aDirection, float aDistance) const {
+    SMALLVCM_ALWAYS_INLINE bool Occluded(const Vec3& aPoint, const Vec3& aDirection, float aDistance) const {
         RayCounter()++;
         const Ray ray{aPoint + aDirection * mRayEpsilon, aDirection};
         return mBvh.Occluded(ray, 0.f, aDistance - 2.f * mRayEpsilon, [&](int aTriangle, float aT) {
@@ -2754,9 +2754,7 @@ inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int a
 SMALLVCM_ALWAYS_INLINE PathSegment TraceSegment(const Scene& aScene, const Ray& aRay, int aMedium, bool aFromMedium,
                                                 Sampler& aSampler, float aGap) {
     if (aScene.HasMedia()) return TraceSegmentThroughMedia(aScene, aRay, aMedium, aFromMedium, aSampler, aGap);
-    PathSegment segment;
-    segment.mHit = aScene.Intersect(aRay);
-    return segment;
+    return PathSegment{aScene.Intersect(aRay), false, -1, Vec3(1.f), SegmentPdfs{}};
 }
 inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler,
                                             float aGap) {
@@ -4806,7 +4804,7 @@ private:
     // The techniques that complete a path at a non-specular camera vertex: next-event
     // estimation (s = 1), connections to the vertices of light sub-path aLightPath (VC),
     // and merging with the light vertices within r (VM).
-    void ConnectAndMerge(Sampler& aSampler, int aPixel, int aLightPath, const SubpathState& aCamera,
+    SMALLVCM_ALWAYS_INLINE void ConnectAndMerge(Sampler& aSampler, int aPixel, int aLightPath, const SubpathState& aCamera,
                          const PathSegment& aVertex, const Bsdf& aBsdf) {
         if (mUseVC) {
             if (aCamera.mPathLength + 1 >= mOptions.mMinPathLength) AddToFilm(aPixel, ConnectToLight(aSampler, aCamera, aVertex, aBsdf));
@@ -4826,7 +4824,7 @@ private:
 
     // A light sub-path's first vertex: a light picked, a point and direction emitted, and
     // its MIS quantities [tech. rep. (31)-(33)]. Nothing when the light emits nothing there.
-    std::optional<SubpathState> GenerateLightSample(Sampler& aSampler) {
+    SMALLVCM_ALWAYS_INLINE std::optional<SubpathState> GenerateLightSample(Sampler& aSampler) {
         const LightPick pick = mScene.PickLight(aSampler.Get1D());
         const Light& light = *pick.mLight;
         const Vec2 rndDirection = aSampler.Get2D();
