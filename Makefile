@@ -379,12 +379,12 @@ ENSURE_MATPLOTLIB = dpkg-query -W -f='$${Status}' python3-matplotlib 2>/dev/null
 	  { if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
 	    $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q python3-matplotlib; }
 
-# make figures: every course figure (F01-F19) at publication settings into docs/figures/,
+# make figures: every course figure (F01-F20) at publication settings into docs/figures/,
 # then the charts and the gallery docs/figures.md (docs/figures.md says how long it takes;
 # references missing from docs/figures/references/ are rendered first).
 # make figures QUICK=1: the same programs at tiny settings into build/figures-quick/ (a
 # couple of minutes; the gallery check fails if a file the page shows was not made).
-FIGURE_PROGRAMS := fig_path_tracing fig_mis fig_bidirectional fig_photon_mapping fig_vcm fig_convergence fig_report
+FIGURE_PROGRAMS := fig_path_tracing fig_mis fig_bidirectional fig_photon_mapping fig_vcm fig_volumetric fig_convergence fig_report
 FIGURE_OUT := $(if $(QUICK),$(BUILD)/figures-quick,docs/figures)
 FIGURE_PAGE := $(if $(QUICK),$(BUILD)/figures-quick/figures.md,docs/figures.md)
 figures: deps

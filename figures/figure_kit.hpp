@@ -363,7 +363,7 @@ inline ReferenceSpec StandardReference(const Kit& aKit, const std::string& aScen
     spec.mWidth = aWidth;
     spec.mHeight = aHeight;
     const bool deltaLight = aScene == "cornell_0_sun.gltf" || aScene == "cornell_2_point.gltf" ||
-                            aScene == "sds_glass_sphere.gltf";
+                            aScene == "sds_glass_sphere.gltf" || aScene == "fog_caustic_box.gltf";
     if (aScene == "veach_plates.gltf") {
         spec.mAlgorithm = Algorithm::kPathTracing;
         spec.mIterations = aKit.Pick(4096, 512);

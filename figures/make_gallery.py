@@ -21,7 +21,7 @@ import json
 import os
 import sys
 
-EXPECTED = ["F%02d" % i for i in range(1, 20)]
+EXPECTED = ["F%02d" % i for i in range(1, 21)]
 
 
 def number(value):

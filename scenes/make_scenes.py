@@ -976,6 +976,16 @@ class MediaScene:
         self.quad("left wall", (x0, y0, z0), (0, dy, 0), (0, 0, dz), left)
         self.quad("right wall", (x1, y0, z0), (0, 0, dz), (0, dy, 0), right)
 
+    def spot(self, name, position, travel, intensity, inner, outer):
+        """A KHR_lights_punctual spot light (W/sr on its axis) at position, shining along travel."""
+        self.lights.append({"name": name, "type": "spot", "color": [1.0, 1.0, 1.0], "intensity": intensity,
+                            "spot": {"innerConeAngle": inner, "outerConeAngle": outer}})
+        # The light shines down its local -Z: straight down needs no turn.
+        matrix = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0] \
+            if tuple(travel) == (0.0, 0.0, -1.0) else direction_matrix(travel)
+        matrix[12:15] = f32_vec(position)
+        self.nodes.append({"name": name, "matrix": matrix, "extensions": {"KHR_lights_punctual": {"light": len(self.lights) - 1}}})
+
     def sphere(self, name, centre, radius, material):
         self.nodes.append({"name": name, "translation": f32_vec(centre),
                            "extensions": {"SMALLVCM_sphere": {"radius": f32_json(radius),
@@ -992,6 +1002,8 @@ class MediaScene:
                  "extras": {"smallvcm": {"name": self.name, "figures": figures}}}
         if scene_extensions:
             scene["extensions"] = scene_extensions
+        if self.lights:
+            used.add("KHR_lights_punctual")
         doc = {
             "asset": {"version": "2.0", "generator": "smallvcm scenes/make_scenes.py",
                       "extras": {"note": self.note + " +z up, as the Cornell files. See docs/scene_format.md 4.4."}},
@@ -1002,6 +1014,8 @@ class MediaScene:
             "buffers": [{"byteLength": len(self.data),
                          "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(self.data)).decode("ascii")}],
             "extensionsUsed": sorted(used)}
+        if self.lights:
+            doc["extensions"] = {"KHR_lights_punctual": {"lights": self.lights}}
         if "SMALLVCM_sphere" in used:
             doc["extensionsRequired"] = ["SMALLVCM_sphere"]
         return doc
@@ -1043,15 +1057,17 @@ FOG = {"sigmaA": [0.01, 0.01, 0.01], "sigmaS": [0.1, 0.1, 0.1], "g": 0.3}
 
 def build_fog_caustic_box():
     """F20, the volumetric twin of F08/F13: a closed room filled with fog (the scene
-    medium), a small bright lamp under the ceiling above a floating glass sphere (r 0.25,
-    ior 1.5) that focuses its light into a cone converging about 0.65 below the sphere's
-    centre, in the fog: a volumetric caustic (light -> glass -> glass -> fog -> eye). A
-    mirror panel standing by the left wall, turned towards the camera, shows the cone from
-    its side."""
+    medium), a spot light under the ceiling whose beam falls wholly on a floating glass
+    sphere (r 0.25, ior 1.5, 0.85 below the spot: the sphere spans 17.1 degrees, the beam
+    16) that focuses it into a cone converging about 0.65 below the sphere's centre, in
+    the fog: a volumetric caustic (light -> glass -> glass -> fog -> eye). A mirror panel
+    standing by the left wall, turned towards the camera, shows the cone from its side.
+    The spot is a delta light: no camera path can hit it, so the cone seen in the mirror
+    (light -> S -> S -> fog -> mirror -> eye) is out of reach of every technique but
+    merging in the medium."""
     scene = MediaScene("fog caustic box: a glass sphere focuses a lamp into a cone of light in fog",
                        "F20: fog (scene-wide SMALLVCM_medium), a glass sphere under a small lamp, a mirror.")
     walls = room_materials(scene)
-    scene.material("lamp", emitter("lamp (emitter)", 400.0))
     scene.material("glass", {"name": "glass", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
                                                                        "metallicFactor": 0.0, "roughnessFactor": 0.0},
                              "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
@@ -1059,8 +1075,8 @@ def build_fog_caustic_box():
     scene.material("mirror", {"name": "mirror", "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0],
                                                                          "metallicFactor": 1.0, "roughnessFactor": 0.0}})
     scene.room((-1.0, 1.0), (-3.5, 1.0), (0.0, 2.0), walls)
-    lamp = 0.1
-    scene.quad("lamp (emitter, 0.1 x 0.1, facing down)", (-lamp / 2, -lamp / 2, 1.95), (0.0, lamp, 0.0), (lamp, 0.0, 0.0), "lamp")
+    scene.spot("spot light (down onto the glass sphere)", (0.0, 0.0, 1.95), (0.0, 0.0, -1.0), 30.0,
+               math.radians(13.0), math.radians(16.0))
     scene.sphere("glass sphere", (0.0, 0.0, 1.1), 0.25, "glass")
     # The mirror: 0.7 wide, 1.3 high, its normal halfway between the camera and the cone.
     eye, cone, centre = (0.3, -3.3, 1.0), (0.0, 0.0, 0.6), (-0.62, 0.25, 0.85)
