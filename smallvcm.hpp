@@ -2000,6 +2000,7 @@ public:
         };
         if (mMaterialConstants.size() != mMaterials.size()) throw changed("the number of materials");
         if (mTriangleHitRecords.size() != mTriangles.size()) throw changed("the number of triangles");
+        if (MediaOfScene() != mMediaAtFinalize) throw changed("a medium, the scene medium or a material's medium");
         for (size_t m = 0; m < mMaterials.size(); m++)
             if (!SameMaterialConstants(ComputeMaterialConstants(mMaterials[m]), mMaterialConstants[m]))
                 throw changed("material " + std::to_string(m) + " '" + mMaterials[m].mName + "'");
@@ -2375,6 +2376,7 @@ private:
     // components and the medium outside each; the media of the camera and the lights.
     void FinalizeMedia(const std::string& aWhere) {
         ValidateMedia(aWhere);
+        mMediaAtFinalize = MediaOfScene();
         mHasMedia = mSceneMedium >= 0;
         for (const Material& material : mMaterials) mHasMedia = mHasMedia || material.mMedium >= 0;
         mBoundaryOutside.clear();
@@ -2403,6 +2405,13 @@ private:
             const std::optional<Vec3> point = LightPoint(int(id));
             mLightMedia.push_back(point ? MediumAt(*point, -1, component, outside) : mSceneMedium);
         }
+    }
+    // What FinalizeMedia resolved media from: the media, the scene medium, each material's.
+    std::vector<float> MediaOfScene() const {
+        std::vector<float> media{float(mSceneMedium)};
+        for (const Medium& m : mMedia) media.insert(media.end(), {m.mSigmaA.x, m.mSigmaA.y, m.mSigmaA.z, m.mSigmaS.x, m.mSigmaS.y, m.mSigmaS.z, m.mG});
+        for (const Material& material : mMaterials) media.push_back(float(material.mMedium));
+        return media;
     }
     void ValidateMedia(const std::string& aWhere) const {
         for (size_t m = 0; m < mMedia.size(); m++) {
@@ -2630,6 +2639,7 @@ private:
     int mCameraMedium = -1;
     std::vector<int> mBoundaryOutside;
     std::vector<int> mLightMedia;
+    std::vector<float> mMediaAtFinalize;  // MediaOfScene() when they were resolved
     Bvh mBvh;
     std::vector<MaterialConstants> mMaterialConstants;  // one per material, by Finalize
     std::vector<TriangleKind> mTriangleKinds;             // by Finalize (BuildTriangleHitRecords)
@@ -3705,6 +3715,10 @@ struct Integrator {
     std::string mDescription;
     CreateRendererFn mCreateRenderer;
     BytesPerRendererFn mBytesPerRenderer;
+    // Whether its renderers trace through participating media (TraceSegment,
+    // TraceConnection): Render() refuses a scene with media for one that does not say so,
+    // rather than render it as if the media were not there.
+    bool mHandlesMedia = false;
 };
 
 // The Integrator of a renderer class constructible from (scene, options), the usual case:
@@ -6795,13 +6809,14 @@ namespace detail {
 template <class Renderer>
 Integrator MakeBuiltIn(Algorithm aAlgorithm, const char* aDescription,
                        Integrator::BytesPerRendererFn aBytesPerRenderer = nullptr) {
+    // Every built-in handles media (pm and pmfg by refusing them with their own message).
     return Integrator{AlgorithmShortName(aAlgorithm), aDescription,
                       [aAlgorithm](const Scene& aScene, const RenderOptions& aOptions) -> std::unique_ptr<AbstractRenderer> {
                           RenderOptions options = aOptions;
                           options.mAlgorithm = aAlgorithm;
                           return std::make_unique<Renderer>(aScene, options);
                       },
-                      std::move(aBytesPerRenderer)};
+                      std::move(aBytesPerRenderer), true};
 }
 
 // What a renderer allocates beyond its film, roughly from above: the photon maps (4
@@ -7159,6 +7174,9 @@ inline RenderResult Render(const Scene& aScene, const RenderOptions& aOptions, c
     if (!aIntegrator.mCreateRenderer) throw Error("integrator '" + aIntegrator.mName + "': has no mCreateRenderer");
     if (!aScene.IsFinalized()) throw Error("scene: Finalize() was not called");
     aScene.CheckUnchangedSinceFinalize();
+    if (aScene.HasMedia() && !aIntegrator.mHandlesMedia)
+        throw Error("integrator '" + aIntegrator.mName + "': the scene has participating media, which this integrator does not "
+                    "trace (Integrator::mHandlesMedia is false); render it with pt, lt, ppm, bpm, bpt or vcm");
     const auto start = detail::IterationSchedule::Clock::now();
 
     int threadCount = aOptions.mThreads > 0 ? aOptions.mThreads : int(std::max(1u, std::thread::hardware_concurrency()));

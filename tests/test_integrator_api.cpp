@@ -138,7 +138,7 @@ TEST_CASE("RegisterIntegrator refuses bad names, taken names and a missing facto
     CHECK_THROWS_WITH(RegisterIntegrator(MakeIntegrator<SlowRenderer>("", "")), "integrator '': a name must be letters, digits, '_' and '-'");
     CHECK_THROWS_WITH(RegisterIntegrator(MakeIntegrator<SlowRenderer>("my pt", "")),
                       "integrator 'my pt': a name must be letters, digits, '_' and '-'");
-    CHECK_THROWS_WITH(RegisterIntegrator(Integrator{"nofactory", "", nullptr, nullptr}), "integrator 'nofactory': has no mCreateRenderer");
+    CHECK_THROWS_WITH(RegisterIntegrator(Integrator{"nofactory", "", nullptr, nullptr, false}), "integrator 'nofactory': has no mCreateRenderer");
     // A lookup stays valid while more integrators are registered.
     for (int i = 0; i < 100; i++) RegisterIntegrator(MakeIntegrator<SlowRenderer>("api-test_many" + std::to_string(i), ""));
     CHECK(registered.mName == "api-test_slow1");
@@ -213,7 +213,7 @@ TEST_CASE("A user's integrator's failures become one Error naming it", "[integra
     CHECK_THROWS_WITH(Render(scene, options, MakeIntegrator<ThrowingRenderer>("throwing", "")), "my integrator: iteration 3 failed");
     CHECK_THROWS_WITH(Render(scene, options, MakeIntegrator<WrongFilmRenderer>("wrongfilm", "")),
                       "integrator 'wrongfilm': a renderer's film is 3x3, not the camera's 12x8");
-    CHECK_THROWS_WITH(Render(scene, options, Integrator{"nofactory", "", nullptr, nullptr}), "integrator 'nofactory': has no mCreateRenderer");
+    CHECK_THROWS_WITH(Render(scene, options, Integrator{"nofactory", "", nullptr, nullptr, false}), "integrator 'nofactory': has no mCreateRenderer");
     const Integrator none{"none", "", [](const Scene&, const RenderOptions&) { return std::unique_ptr<AbstractRenderer>(); }, nullptr};
     CHECK_THROWS_WITH(Render(scene, options, none), "integrator 'none': mCreateRenderer returned no renderer");
 }

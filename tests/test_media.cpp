@@ -408,3 +408,19 @@ TEST_CASE("A medium that neither absorbs nor scatters renders as empty space, wi
         CHECK(std::abs(d.mean) <= 4.0 * d.standardError + 1e-6);
     }
 }
+
+TEST_CASE("An integrator that does not say it traces media refuses a scene with media, and media changed after Finalize are an error", "[media]") {
+    Scene scene = MakeMediumFurnace(0.5f, 1.f, 1.f, 0.f, 4, 4);
+    RenderOptions options;
+    options.mProgress = false;
+    // A user's integrator (here the built-in path tracer's class under another name)
+    // has mHandlesMedia false unless it sets it.
+    Integrator mine = MakeIntegrator<PathTracer>("mine", "a path tracer that never heard of media");
+    CHECK_THROWS_WITH(Render(scene, options, mine), Catch::Contains("participating media"));
+    mine.mHandlesMedia = true;
+    CHECK_NOTHROW(Render(scene, options, mine));
+    scene.mMedia[0].mSigmaS = Vec3(2.f);
+    CHECK_THROWS_WITH(Render(scene, options), Catch::Contains("changed after Finalize()"));
+    scene.Finalize();
+    CHECK_NOTHROW(Render(scene, options));
+}
