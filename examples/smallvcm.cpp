@@ -105,6 +105,8 @@ void PrintHelp() {
         "  --min-path-length N shortest path length rendered, in segments (default 0)\n"
         "  --max-path-length N longest path length rendered, in segments (default 10)\n"
         "  --radius-factor F   merging radius as a fraction of the scene radius (default 0.003, at most 0.25)\n"
+        "  --medium-radius-factor F\n"
+        "                      the radius of merging photon points in media, likewise (default 0.03)\n"
         "  --radius-alpha A    radius shrinking exponent in (0, 1] (default 0.75)\n"
         "  --mis balance|power MIS heuristic (default balance)\n"
         "  --photons N         pm, pmfg: photons traced per iteration (default 200000)\n"
@@ -320,6 +322,9 @@ CommandLine Parse(int argc, char** argv) {
             cl.mOptions.mRadiusFactor = ParseNumber<float>(arg, value(i), 1e-7f, smallvcm::kMaxRadiusFactor,
                 "a number in [1e-7, 0.25] (a larger merging radius blurs light across whole surfaces and makes every lookup "
                 "visit most light vertices: hundreds of times slower)");
+        else if (arg == "--medium-radius-factor")
+            cl.mOptions.mMediumRadiusFactor = ParseNumber<float>(arg, value(i), 1e-7f, smallvcm::kMaxRadiusFactor,
+                "a number in [1e-7, 0.25]");
         else if (arg == "--radius-alpha") {
             cl.mOptions.mRadiusAlpha = ParseNumber<float>(arg, value(i), 0.f, 1.f, "a number in (0, 1]");
             if (!(cl.mOptions.mRadiusAlpha > 0.f)) throw Error("--radius-alpha: '0' is not a number in (0, 1]");
@@ -422,6 +427,7 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
     }
     if (merges) {
         estimator["radius_factor"] = Shortest(o.mRadiusFactor);
+        estimator["medium_radius_factor"] = Shortest(o.mMediumRadiusFactor);
         estimator["radius_alpha"] = Shortest(o.mRadiusAlpha);
     }
     if (photonMaps) {
