@@ -264,9 +264,11 @@ def mitsuba_material(material, where):
     elif medium is not None:
         raise ConversionError(f"{where}: a medium behind a surface that neither refracts nor is index-matched")
     elif any(mirror):
-        # An IOR below 0 means no Fresnel term: a perfect mirror tinted by `mirror`.
-        bsdf = {"type": "conductor", "material": "none",
-                "specular_reflectance": {"type": "rgb", "value": mirror}}
+        # An IOR below 0 means no Fresnel term: a perfect mirror tinted by `mirror`. It
+        # reflects on both sides in smallvcm (docs/scene_format.md, "one-sided"), so on
+        # both in Mitsuba too (`twosided`; a bare conductor is black from behind).
+        bsdf = {"type": "twosided", "bsdf": {"type": "conductor", "material": "none",
+                                             "specular_reflectance": {"type": "rgb", "value": mirror}}}
     else:
         bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": diffuse}}
     return bsdf, emitter, medium
