@@ -27,9 +27,10 @@ Pairs (SmallUPBP algorithm : smallvcm algorithm), default
   vptmis : pt    volumetric path tracers, both with MIS of light and phase/BSDF sampling
   vbpt   : bpt   volumetric bidirectional path tracing
   upbp_vcm : vcm SmallUPBP's VCM inside UPBP (BPT + merging of surface photons); ours also
-                 merges photons in media (its own medium radius), so the two differ in
-                 which techniques they combine. --pairs upbp_bpt+surf+pp3d:vcm adds the
-                 UPBP combination with volumetric photon points (pp3d), the closest to ours.
+                 merges photons in media (its own medium radius). upbp_vcm renders the same
+                 image as upbp_bpt+surf+pp3d (volumetric photon points too) seed for seed
+                 (checked on scene 1), so it is the same combination as ours; the radii
+                 differ (each program's defaults).
 Both are run at the same resolution, iterations and maximum path length (-l 10 /
 --max-path-length 10: both count segments from the camera, a medium scattering vertex
 is a vertex, crossing the index-matched sphere is not). One iteration is one camera path
@@ -195,14 +196,14 @@ def main():
     runs = {}  # (program, algorithm, threads) -> list of (image, cpu, wall)
     for r in range(args.rounds):
         for t in threads:
-            for theirs, ours in pairs:
-                seed = 1000 * r + 10 * t + 1
+            for p, (theirs, ours) in enumerate(pairs):
+                seed = 1000 * r + 100 * p + 10 * t + 1  # every run its own seed
                 image, cpu, wall = run_smallupbp(args.smallupbp, exrtool, theirs, args.resolution, args.iterations, t,
                                                  seed, args.out)
                 runs.setdefault(("smallupbp", theirs, t), []).append((image, cpu, wall))
                 log(f"round {r} threads {t}: smallupbp {theirs}: {cpu:.2f} CPU s, {wall:.2f} s, mean {image.mean():.5f}")
                 image, cpu, wall = run_smallvcm(gltf, ours, args.resolution, args.iterations, t, seed + 5, args.out)
-                runs.setdefault(("smallvcm", ours, t), []).append((image, cpu, wall))
+                runs.setdefault(("smallvcm", ours, t), []).append((image, cpu, wall))  # pooled if two pairs share it
                 log(f"round {r} threads {t}: smallvcm {ours}: {cpu:.2f} CPU s, {wall:.2f} s, mean {image.mean():.5f}")
     # Reference: every run of the two path tracers (first pair), all thread counts.
     first_theirs, first_ours = pairs[0]
