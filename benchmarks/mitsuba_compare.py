@@ -5,7 +5,7 @@
 
 (`make bench-mitsuba` makes that virtual environment and runs this.) STEP is any of
 `convert`, `agree`, `efficiency` (default: all three, in that order) and `media` (only
-when asked: `... mitsuba_compare.py media [--media-batches 12 --media-spp 32]`).
+when asked: `... mitsuba_compare.py media [--media-batches 8 --media-spp 16]`, the defaults).
 
 convert     Converts two smallvcm glTF scenes to Mitsuba 3 scene dictionaries (the meshes
             as PLY files in DIR): scene 4 (`scenes/cornell_4_default.gltf`) and a mesh
