@@ -4,7 +4,8 @@
     build/mitsuba-venv/bin/python benchmarks/mitsuba_compare.py [--out DIR] [--quick] [--repeats N] [STEP ...]
 
 (`make bench-mitsuba` makes that virtual environment and runs this.) STEP is any of
-`convert`, `agree`, `efficiency` (default: all three, in that order).
+`convert`, `agree`, `efficiency` (default: all three, in that order) and `media` (only
+when asked: `... mitsuba_compare.py media [--media-batches 8 --media-spp 16]`, the defaults).
 
 convert     Converts two smallvcm glTF scenes to Mitsuba 3 scene dictionaries (the meshes
             as PLY files in DIR): scene 4 (`scenes/cornell_4_default.gltf`) and a mesh
@@ -21,6 +22,26 @@ efficiency  One core each, several sample budgets, CPU seconds of the render and
             against one reference (the mean of the two long renders of `agree`, equal in
             samples, with whose seeds the timed runs share none); efficiency =
             1/(time x MSE).
+media       Participating media (docs/scene_format.md 4.4) against Mitsuba's `volpath`
+            (`scalar_rgb`, no LLVM needed), one core each: scenes/dense_scattering_sphere
+            (a dense medium behind an index-matched boundary: `null` BSDF with an
+            `interior` medium; path length 64 in both), scenes/absorbing_glass
+            (KHR_materials_volume: `dielectric` with an absorbing `interior`; 20) and
+            scenes/fog_caustic_box (the scene medium: the sensor's `medium`, and the
+            `exterior` of the glass sphere, whose `interior` is a clear medium; 20).
+            At half the resolution of `agree`, independent batches of smallvcm's pt, bpt
+            and vcm and of volpath: per-channel image means, 8 x 8 regions' z per channel
+            (difference over its standard error from the batches' spread), CPU time per
+            sample. Writes DIR/media.md (appended) and the log. The medium conversion:
+            sigma_t = sigma_a + sigma_s and albedo = sigma_s / sigma_t per channel, phase
+            `hg` with the same g. Mitsuba's volpath counts depth as smallvcm counts path
+            length: a medium scattering vertex increments it, a `null` crossing does not
+            (smallvcm's index-matched boundaries are no vertex either), and direct light
+            from a vertex at depth d needs d + 1 <= max_depth in both. Mitsuba keeps the
+            current medium across a surface that names none, so a glass in a scene medium
+            gets a clear medium (sigma_t 0) as interior, as smallvcm's glass is empty
+            inside. A homogeneous medium in Mitsuba has no bounds: as the sensor's medium it
+            fills all space outside the shapes' interiors, smallvcm's scene-medium rule.
 
 What makes the two compute the same quantity (each item is checked by `agree`):
 - camera: smallvcm keeps the horizontal field of view 2 atan(tan(yfov/2) aspect) and
@@ -140,26 +161,94 @@ def world_nodes(gltf):
 
 KNOWN_MATERIAL_KEYS = {"name", "pbrMetallicRoughness", "emissiveFactor", "extensions"}
 KNOWN_MATERIAL_EXTENSIONS = {"SMALLVCM_material", "KHR_materials_emissive_strength",
-                             "KHR_materials_transmission", "KHR_materials_ior"}
+                             "KHR_materials_transmission", "KHR_materials_ior",
+                             "SMALLVCM_medium", "KHR_materials_volume"}
+
+
+def medium_coefficients(m, where):
+    """(sigma_a, sigma_s, g) of a SMALLVCM_medium object (docs/scene_format.md 4.4)."""
+    if set(m) - {"sigmaA", "sigmaS", "g"}:
+        raise ConversionError(f"{where}: SMALLVCM_medium member {sorted(set(m) - {'sigmaA', 'sigmaS', 'g'})}")
+    return [float(x) for x in m.get("sigmaA", [0, 0, 0])], [float(x) for x in m.get("sigmaS", [0, 0, 0])], float(m.get("g", 0.0))
+
+
+def mitsuba_medium(coefficients):
+    """Mitsuba's `homogeneous` medium for (sigma_a, sigma_s, g): per RGB channel
+    sigma_t = sigma_a + sigma_s and albedo = sigma_s / sigma_t (0 where sigma_t is 0), an
+    `hg` phase function with the same g (Mitsuba's HG is the same function of the angle
+    between the directions of travel: g > 0 scatters forwards in both)."""
+    sigma_a, sigma_s, g = coefficients
+    sigma_t = [a + s for a, s in zip(sigma_a, sigma_s)]
+    albedo = [s / t if t > 0 else 0.0 for s, t in zip(sigma_s, sigma_t)]
+    # An "rgb" value must lie in [0, 1]: sigma_t goes in as its largest channel (`scale`)
+    # times the channels divided by it.
+    scale = max(sigma_t) if max(sigma_t) > 0 else 1.0
+    return {"type": "homogeneous", "sigma_t": {"type": "rgb", "value": [t / scale for t in sigma_t]}, "scale": scale,
+            "albedo": {"type": "rgb", "value": albedo}, "phase": {"type": "hg", "g": g}}
+
+
+# Empty space inside a glass in a scene medium (smallvcm: "its inside is empty space unless
+# its material names a medium"). Mitsuba keeps the current medium across a surface that
+# names none, so such a glass gets this clear medium as its interior.
+CLEAR_MEDIUM = ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 0.0)
 
 
 def mitsuba_material(material, where):
-    """(bsdf dict, emitter dict or None) for a material Mitsuba represents exactly."""
+    """(bsdf dict, emitter dict or None, medium inside or None) for a material Mitsuba
+    represents exactly. The medium is (sigma_a, sigma_s, g); with it a material that does not
+    refract is an index-matched boundary: Mitsuba's `null` BSDF."""
     unknown = set(material) - KNOWN_MATERIAL_KEYS
     if unknown:
         raise ConversionError(f"{where}: {sorted(unknown)} has no exact Mitsuba equivalent here")
     extensions = material.get("extensions", {})
     if set(extensions) - KNOWN_MATERIAL_EXTENSIONS:
         raise ConversionError(f"{where}: extension {sorted(set(extensions) - KNOWN_MATERIAL_EXTENSIONS)} not converted")
-    if "SMALLVCM_material" not in extensions:
-        raise ConversionError(f"{where}: needs SMALLVCM_material (the pbrMetallicRoughness mapping adds a Phong lobe)")
     if "baseColorTexture" in material.get("pbrMetallicRoughness", {}):
         raise ConversionError(f"{where}: textures are not converted")
-    m = extensions["SMALLVCM_material"]
-    diffuse = list(m.get("diffuse", [0, 0, 0]))
-    phong = m.get("phong", [0, 0, 0])
-    mirror = list(m.get("mirror", [0, 0, 0]))
-    ior = m.get("ior", -1.0)
+    factor = material.get("emissiveFactor", [0, 0, 0])
+    emitter = None
+    if any(factor):
+        strength = extensions.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
+        emitter = {"type": "area", "radiance": {"type": "rgb", "value": [f * strength for f in factor]}}
+    if "SMALLVCM_material" in extensions:
+        m = extensions["SMALLVCM_material"]
+        diffuse = list(m.get("diffuse", [0, 0, 0]))
+        phong = m.get("phong", [0, 0, 0])
+        mirror = list(m.get("mirror", [0, 0, 0]))
+        ior = m.get("ior", -1.0)
+        transmittance = [1.0, 1.0, 1.0]
+    else:
+        # docs/scene_format.md 4.2 and 4.3, only where the result has an exact Mitsuba
+        # equivalent: an emitter (black without SMALLVCM_material), a perfect mirror
+        # (metallic 1, roughness 0), clear or tinted glass (transmission 1, metallic 0).
+        pbr = material.get("pbrMetallicRoughness", {})
+        b = [float(x) for x in pbr.get("baseColorFactor", [1, 1, 1, 1])[:3]]
+        metallic, roughness = float(pbr.get("metallicFactor", 1.0)), float(pbr.get("roughnessFactor", 1.0))
+        t = float(extensions.get("KHR_materials_transmission", {}).get("transmissionFactor", 0.0))
+        diffuse, phong, mirror, ior, transmittance = [0, 0, 0], [0, 0, 0], [0, 0, 0], -1.0, [1.0, 1.0, 1.0]
+        if emitter is not None:
+            pass  # an emissive material without SMALLVCM_material is black (5.1)
+        elif "SMALLVCM_medium" in extensions and not (t > 0 and metallic < 1):
+            pass  # an index-matched boundary: no component at all (4.4)
+        elif metallic == 1.0 and roughness == 0.0:
+            mirror = b
+        elif t == 1.0 and metallic == 0.0:
+            ior = float(extensions.get("KHR_materials_ior", {}).get("ior", 1.5))
+            mirror, transmittance = [1.0, 1.0, 1.0], b
+            # (roughness shapes only the opaque share, which is 0 here: smooth glass)
+        else:
+            raise ConversionError(f"{where}: this pbrMetallicRoughness mapping has no exact Mitsuba equivalent"
+                                  " (only emitters, perfect mirrors and glass of transmission 1 are converted)")
+    # The medium inside (4.4): SMALLVCM_medium wins; KHR_materials_volume only on glass.
+    medium = None
+    if "SMALLVCM_medium" in extensions:
+        medium = medium_coefficients(extensions["SMALLVCM_medium"], where)
+    elif "KHR_materials_volume" in extensions and ior > 0:
+        v = extensions["KHR_materials_volume"]
+        distance = float(v.get("attenuationDistance", math.inf))
+        colour = [float(c) for c in v.get("attenuationColor", [1, 1, 1])]
+        if math.isfinite(distance) and any(c < 1 for c in colour):
+            medium = ([-math.log(max(c, 1e-38)) / distance for c in colour], [0.0, 0.0, 0.0], 0.0)
     if any(phong):
         raise ConversionError(f"{where}: a Phong lobe has no exact Mitsuba equivalent")
     if any(diffuse) and (any(mirror) or ior > 0):
@@ -168,18 +257,21 @@ def mitsuba_material(material, where):
         if mirror != [1.0, 1.0, 1.0]:
             raise ConversionError(f"{where}: tinted glass is not converted")
         bsdf = {"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0}
+        if transmittance != [1.0, 1.0, 1.0]:  # applied at each crossing, as smallvcm's (4.3)
+            bsdf["specular_transmittance"] = {"type": "rgb", "value": transmittance}
+    elif medium is not None and not any(diffuse) and not any(mirror):
+        bsdf = {"type": "null"}
+    elif medium is not None:
+        raise ConversionError(f"{where}: a medium behind a surface that neither refracts nor is index-matched")
     elif any(mirror):
-        # An IOR below 0 means no Fresnel term: a perfect mirror tinted by `mirror`.
-        bsdf = {"type": "conductor", "material": "none",
-                "specular_reflectance": {"type": "rgb", "value": mirror}}
+        # An IOR below 0 means no Fresnel term: a perfect mirror tinted by `mirror`. It
+        # reflects on both sides in smallvcm (docs/scene_format.md, "one-sided"), so on
+        # both in Mitsuba too (`twosided`; a bare conductor is black from behind).
+        bsdf = {"type": "twosided", "bsdf": {"type": "conductor", "material": "none",
+                                             "specular_reflectance": {"type": "rgb", "value": mirror}}}
     else:
         bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": diffuse}}
-    emitter = None
-    factor = material.get("emissiveFactor", [0, 0, 0])
-    if any(factor):
-        strength = extensions.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
-        emitter = {"type": "area", "radiance": {"type": "rgb", "value": [f * strength for f in factor]}}
-    return bsdf, emitter
+    return bsdf, emitter, medium
 
 
 def camera_pose(gltf, camera):
@@ -194,21 +286,35 @@ def camera_pose(gltf, camera):
     return fov_x, position, forward, world[:3, 1]
 
 
-def write_ply(path, positions, faces):
+def write_ply(path, positions, faces, normals=None):
     with open(path, "wb") as f:
         f.write((f"ply\nformat binary_little_endian 1.0\nelement vertex {len(positions)}\n"
                  "property float x\nproperty float y\nproperty float z\n"
-                 f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n").encode())
-        f.write(np.ascontiguousarray(positions, dtype="<f4").tobytes())
+                 + ("property float nx\nproperty float ny\nproperty float nz\n" if normals is not None else "")
+                 + f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n").encode())
+        vertices = positions if normals is None else np.c_[positions, normals]
+        f.write(np.ascontiguousarray(vertices, dtype="<f4").tobytes())
         rows = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", 3)])
         rows["n"] = 3
         rows["i"] = faces
         f.write(rows.tobytes())
 
 
-def convert(gltf_path, out_dir, width, height):
-    """A Mitsuba 3 scene dictionary (path tracer, max_depth as smallvcm's default) and the
-    number of triangles; PLY files go to out_dir."""
+def read_normals(gltf, buffers, primitive, world):
+    """The primitive's vertex normals in world space (inverse transpose), or None."""
+    if "NORMAL" not in primitive["attributes"]:
+        return None
+    normals = read_accessor(gltf, buffers, primitive["attributes"]["NORMAL"]).astype(np.float64)
+    normals = normals @ np.linalg.inv(world[:3, :3])
+    return normals / np.linalg.norm(normals, axis=1)[:, None]
+
+
+def convert(gltf_path, out_dir, width, height, max_depth=MAX_PATH_LENGTH):
+    """A Mitsuba 3 scene dictionary and the number of triangles; PLY files go to out_dir.
+    The integrator is `path`, or `volpath` when the scene has a medium (4.4 of
+    docs/scene_format.md): a material's medium becomes the `interior` of its shapes (their
+    `exterior` the scene medium, if any), the scene medium the sensor's medium. max_depth
+    counts as smallvcm's --max-path-length (the module's opening comment)."""
     with open(gltf_path) as f:
         gltf = json.load(f)
     name = os.path.splitext(os.path.basename(gltf_path))[0]
@@ -217,8 +323,35 @@ def convert(gltf_path, out_dir, width, height):
         raise ConversionError(f"{gltf_path}: extension {sorted(unknown)} is not converted")
     buffers = read_buffers(gltf, os.path.dirname(gltf_path))
     materials = [mitsuba_material(m, f"{gltf_path}: material {i}") for i, m in enumerate(gltf["materials"])]
+    scene_extensions = gltf["scenes"][gltf.get("scene", 0)].get("extensions", {})
+    scene_medium = None
+    if "SMALLVCM_medium" in scene_extensions:
+        scene_medium = medium_coefficients(scene_extensions["SMALLVCM_medium"], f"{gltf_path}: scene")
+    has_media = scene_medium is not None or any(medium is not None for _, _, medium in materials)
+    integrator = "volpath" if has_media else "path"
     scene = {"type": "scene",
-             "integrator": {"type": "path", "max_depth": MAX_PATH_LENGTH, "rr_depth": 5, "hide_emitters": False}}
+             "integrator": {"type": integrator, "max_depth": max_depth, "rr_depth": 5, "hide_emitters": False}}
+    if scene_medium is not None:
+        scene["scene_medium"] = mitsuba_medium(scene_medium)
+    media = {}  # material index -> the id of its interior medium
+
+    def attach(shape, material_index):
+        bsdf, emitter, medium = materials[material_index]
+        shape["bsdf"] = bsdf
+        if emitter:
+            shape["emitter"] = emitter
+        refracts = bsdf["type"] == "dielectric"
+        if medium is None and refracts and scene_medium is not None:
+            medium = CLEAR_MEDIUM  # glass around empty space, in the scene medium
+        if medium is not None:
+            if material_index not in media:
+                media[material_index] = f"medium_{material_index}"
+                scene[media[material_index]] = mitsuba_medium(medium)
+            shape["interior"] = {"type": "ref", "id": media[material_index]}
+            if scene_medium is not None:
+                shape["exterior"] = {"type": "ref", "id": "scene_medium"}
+        return shape
+
     triangles = 0
     camera = None
     for node, world in world_nodes(gltf):
@@ -226,26 +359,23 @@ def convert(gltf_path, out_dir, width, height):
             camera = (node, world)
         sphere = node.get("extensions", {}).get("SMALLVCM_sphere")
         if sphere:
-            bsdf, emitter = materials[sphere["material"]]
             scale = np.linalg.norm(world[:3, 0])
-            shape = {"type": "sphere", "center": world[:3, 3].tolist(), "radius": sphere["radius"] * scale, "bsdf": bsdf}
-            if emitter:
-                shape["emitter"] = emitter
-            scene[f"sphere_{len(scene)}"] = shape
+            shape = {"type": "sphere", "center": world[:3, 3].tolist(), "radius": sphere["radius"] * scale}
+            scene[f"sphere_{len(scene)}"] = attach(shape, sphere["material"])
         if "mesh" in node:
             for p, primitive in enumerate(gltf["meshes"][node["mesh"]]["primitives"]):
-                if primitive.get("mode", 4) != 4 or set(primitive["attributes"]) != {"POSITION"}:
-                    raise ConversionError(f"{gltf_path}: mesh {node['mesh']} primitive {p}: only flat triangles are converted")
+                if primitive.get("mode", 4) != 4 or set(primitive["attributes"]) - {"POSITION", "NORMAL"}:
+                    raise ConversionError(f"{gltf_path}: mesh {node['mesh']} primitive {p}: only triangles"
+                                          " with positions and normals are converted")
                 positions = read_accessor(gltf, buffers, primitive["attributes"]["POSITION"]).astype(np.float64)
                 positions = (np.c_[positions, np.ones(len(positions))] @ world.T)[:, :3]
+                normals = read_normals(gltf, buffers, primitive, world)
                 faces = read_accessor(gltf, buffers, primitive["indices"]).reshape(-1, 3).astype(np.int32)
                 ply = os.path.join(out_dir, f"{name}_mesh{node['mesh']}_{p}.ply")
-                write_ply(ply, positions, faces)
-                bsdf, emitter = materials[primitive["material"]]
-                shape = {"type": "ply", "filename": ply, "face_normals": True, "bsdf": bsdf}
-                if emitter:
-                    shape["emitter"] = emitter
-                scene[f"mesh_{len(scene)}"] = shape
+                write_ply(ply, positions, faces, normals)
+                # Flat faces unless the glTF gives normals (smooth shading normals then).
+                shape = {"type": "ply", "filename": ply, "face_normals": normals is None}
+                scene[f"mesh_{len(scene)}"] = attach(shape, primitive["material"])
                 triangles += len(faces)
     if not any("emitter" in shape for shape in scene.values() if isinstance(shape, dict)):
         raise ConversionError(f"{gltf_path}: no light (the default sky and sun are not converted)")
@@ -258,6 +388,11 @@ def convert(gltf_path, out_dir, width, height):
         "sampler": {"type": "independent", "sample_count": 1},
         "film": {"type": "hdrfilm", "width": width, "height": height, "pixel_format": "rgb",
                  "sample_border": False, "rfilter": {"type": "box"}}}
+    if scene_medium is not None:
+        # The camera is in the scene medium. Mitsuba's homogeneous medium has no bounds: a
+        # sensor's medium fills all space not claimed by a shape's interior, so, as in
+        # smallvcm, nothing from infinity gets through it.
+        scene["sensor"]["medium"] = {"type": "ref", "id": "scene_medium"}
     return scene, triangles
 
 
@@ -349,15 +484,15 @@ def children_cpu():
     return usage.ru_utime + usage.ru_stime
 
 
-def render_smallvcm(gltf, width, height, iterations, seed, out_dir):
+def render_smallvcm(gltf, width, height, iterations, seed, out_dir, algorithm="pt", max_path_length=MAX_PATH_LENGTH):
     """(image, CPU seconds of the whole process: loading and BVH build included, wall,
     seconds of the render alone). The last is the render loop's own clock from the image's
     sidecar (wall time of the one thread; at least its CPU time): what Mitsuba's time
     counts, which leaves out its scene loading."""
     path = os.path.join(out_dir, "smallvcm_run.pfm")
     # Independent numbers, as Mitsuba's "independent" sampler: like against like.
-    command = [SMALLVCM, "-q", "-s", gltf, "-a", "pt", "--sampler", "independent", "-j", "1", "-r", f"{width}x{height}",
-               "-i", str(iterations), "--seed", str(seed), "--max-path-length", str(MAX_PATH_LENGTH), "-o", path]
+    command = [SMALLVCM, "-q", "-s", gltf, "-a", algorithm, "--sampler", "independent", "-j", "1", "-r", f"{width}x{height}",
+               "-i", str(iterations), "--seed", str(seed), "--max-path-length", str(max_path_length), "-o", path]
     cpu, wall = children_cpu(), time.perf_counter()
     subprocess.run(command, check=True)
     cpu, wall = children_cpu() - cpu, time.perf_counter() - wall
@@ -527,17 +662,114 @@ def efficiency(mi, dr, out_dir, scene_list, references, width, height, budgets, 
         log(line)
 
 
+# The media scenes (docs/scene_format.md 4.4) and the path length both programs get: a
+# dense medium needs many more vertices than smallvcm's default 10.
+MEDIA_SCENES = (("dense_scattering_sphere", 64), ("absorbing_glass", 20), ("fog_caustic_box", 20))
+MEDIA_ALGORITHMS = ("pt", "bpt", "vcm")
+
+
+def region_z(ours, theirs, block):
+    """Per block x block region and channel: (difference of the means) / its standard
+    error, from the spread of each program's independent batches."""
+    height, width = ours[0].shape[:2]
+    shape = (height // block, block, width // block, block, 3)
+    ba, bb = [np.stack([x.reshape(shape).mean(axis=(1, 3)) for x in images]) for images in (ours, theirs)]
+    se = np.sqrt(ba.var(0, ddof=1) / len(ours) + bb.var(0, ddof=1) / len(theirs))
+    return (ba.mean(0) - bb.mean(0)) / np.maximum(se, 1e-30)
+
+
+def media(mi, dr, out_dir, width, height, batches, spp, log, only=None):
+    """smallvcm's pt, bpt and vcm beside Mitsuba 3's `volpath` (scalar_rgb, one thread) on
+    the media scenes, in independent batches: image means per channel, the 8 x 8 regions'
+    z (difference over its standard error, per channel), and CPU time per sample of our pt
+    and of volpath at equal path length. Returns the rows of the table."""
+    rows = []
+    block = width // 8
+    for name, max_length in MEDIA_SCENES:
+        if only and name not in only:
+            continue
+        gltf = os.path.join(ROOT, "scenes", name + ".gltf")
+        scene_dict, _ = convert(gltf, out_dir, width, height, max_depth=max_length)
+        mitsuba = Mitsuba(mi, dr, "scalar_rgb", scene_dict)
+        ours = {a: [] for a in MEDIA_ALGORITHMS}
+        cpu = {a: [] for a in MEDIA_ALGORITHMS + ("volpath",)}
+        theirs = []
+        for k in range(batches):  # interleaved; every batch its own seed
+            for algorithm in MEDIA_ALGORITHMS:
+                image, seconds, _, _ = render_smallvcm(gltf, width, height, spp, 40_000 + k, out_dir, algorithm, max_length)
+                ours[algorithm].append(image)
+                cpu[algorithm].append(seconds)
+            image, seconds, _ = mitsuba.render(spp, 50_000 + k)
+            theirs.append(image)
+            cpu["volpath"].append(seconds)
+        samples = spp * width * height
+        b, b_se = batches_stats(theirs)
+        np.save(os.path.join(out_dir, f"{name}_volpath.npy"), b)
+        log(f"{name} ({width}x{height}, {batches} batches x {spp} spp, max path length {max_length} in both;"
+            f" load {os.getloadavg()[0]:.1f}):")
+
+        def channel_means(images):
+            per_batch = np.array([x.mean(axis=(0, 1)) for x in images])
+            return per_batch.mean(0), per_batch.std(0, ddof=1) / math.sqrt(len(images))
+
+        mean_b, se_b = channel_means(theirs)
+        t_b = np.median(cpu["volpath"]) / samples * 1e6
+        log(f"  mitsuba volpath: mean r g b {mean_b[0]:.5f} {mean_b[1]:.5f} {mean_b[2]:.5f}"
+            f" (+- {se_b[0]:.5f} {se_b[1]:.5f} {se_b[2]:.5f}); {t_b:.3f} CPU us per sample (median of {batches})")
+        rows.append((name, max_length, "mitsuba volpath", mean_b, se_b, None, None, t_b))
+        for algorithm in MEDIA_ALGORITHMS:
+            a = np.mean(ours[algorithm], axis=0)
+            np.save(os.path.join(out_dir, f"{name}_{algorithm}.npy"), a)
+            mean_a, se_a = channel_means(ours[algorithm])
+            z_image = (mean_a - mean_b) / np.sqrt(se_a ** 2 + se_b ** 2)
+            z = region_z(ours[algorithm], theirs, block)
+            t_a = np.median(cpu[algorithm]) / samples * 1e6
+            log(f"  smallvcm {algorithm}: mean r g b {mean_a[0]:.5f} {mean_a[1]:.5f} {mean_a[2]:.5f}"
+                f" (+- {se_a[0]:.5f} {se_a[1]:.5f} {se_a[2]:.5f}); ratio to volpath"
+                f" {mean_a[0] / mean_b[0]:.4f} {mean_a[1] / mean_b[1]:.4f} {mean_a[2] / mean_b[2]:.4f};"
+                f" image z {z_image[0]:+.2f} {z_image[1]:+.2f} {z_image[2]:+.2f}")
+            worst = np.unravel_index(np.abs(z).argmax(), z.shape)
+            log(f"    {z.size} region values ({block}x{block} px, per channel): mean z {z.mean():+.3f}, std z {z.std():.3f},"
+                f" worst |z| {np.abs(z).max():.2f} (region row {worst[0]}, column {worst[1]}, channel {'rgb'[worst[2]]}),"
+                f" |z| > 3: {int(np.sum(np.abs(z) > 3))} (expected {z.size * t_tail(3, 2 * batches - 2):.1f});"
+                f" {t_a:.3f} CPU us per sample (whole process, median of {batches})")
+            rows.append((name, max_length, f"smallvcm {algorithm}", mean_a, se_a, z_image, z, t_a))
+    table = ["| scene | max path length | program | mean R | mean G | mean B | ÷ volpath (R, G, B) |"
+             " image z (R, G, B) | regions: std z, worst abs z, abs z > 3 | CPU µs per sample |",
+             "|---|---:|---|---:|---:|---:|---|---|---|---:|"]
+    reference = {}
+    for name, max_length, program, mean, se, z_image, z, t in rows:
+        if z is None:
+            reference[name] = mean
+            table.append(f"| {name} | {max_length} | {program} | {mean[0]:.4f} ± {se[0]:.4f} | {mean[1]:.4f} ± {se[1]:.4f} |"
+                         f" {mean[2]:.4f} ± {se[2]:.4f} | | | | {t:.2f} |")
+        else:
+            ratio = mean / reference[name]
+            table.append(f"| {name} | {max_length} | {program} | {mean[0]:.4f} ± {se[0]:.4f} | {mean[1]:.4f} ± {se[1]:.4f} |"
+                         f" {mean[2]:.4f} ± {se[2]:.4f} | {ratio[0]:.3f}, {ratio[1]:.3f}, {ratio[2]:.3f} |"
+                         f" {z_image[0]:+.1f}, {z_image[1]:+.1f}, {z_image[2]:+.1f} |"
+                         f" {z.std():.2f}, {np.abs(z).max():.1f}, {int(np.sum(np.abs(z) > 3))}/{z.size} | {t:.2f} |")
+    with open(os.path.join(out_dir, "media.md"), "a") as f:
+        f.write("\n".join(table) + "\n")
+    for line in table:
+        log(line)
+    return rows
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("steps", nargs="*", metavar="STEP", help="convert, agree, efficiency (default: all)")
+    parser.add_argument("steps", nargs="*", metavar="STEP", help="convert, agree, efficiency (default: all), media")
+    parser.add_argument("--media-batches", type=int, default=8, help="media: independent batches (default 8)")
+    parser.add_argument("--media-spp", type=int, default=16, help="media: samples per pixel per batch (default 16)")
+    parser.add_argument("--media-scenes", default="", help="media: comma-separated scene names (default: all)")
     parser.add_argument("--out", default=os.path.join(ROOT, "build", "mitsuba"))
     parser.add_argument("--quick", action="store_true", help="tiny settings: checks that everything runs")
     parser.add_argument("--repeats", type=int, default=3, help="timed runs per program and budget (default 3)")
     args = parser.parse_args()
     args.steps = args.steps or ["convert", "agree", "efficiency"]
     for step in args.steps:
-        if step not in ("convert", "agree", "efficiency"):
-            sys.exit(f"mitsuba_compare: unknown step '{step}' (convert, agree or efficiency)")
+        if step not in ("convert", "agree", "efficiency", "media"):
+            sys.exit(f"mitsuba_compare: unknown step '{step}' (convert, agree, efficiency or media)")
     width = height = 128 if args.quick else 256
     batches, agree_spp = (4, 8) if args.quick else (16, 64)
     budgets, repeats = ((1, 4), 1) if args.quick else ((4, 16, 64), args.repeats)
@@ -564,6 +796,11 @@ def main():
             with open(os.path.join(args.out, name + ".mitsuba.json"), "w") as f:
                 json.dump(scene_dict, f, indent=1)
             log(f"{name}: {os.path.join(args.out, name + '.mitsuba.json')}")
+        for name, max_length in MEDIA_SCENES:
+            scene_dict, _ = convert(os.path.join(ROOT, "scenes", name + ".gltf"), args.out, 128, 128, max_length)
+            with open(os.path.join(args.out, name + ".mitsuba.json"), "w") as f:
+                json.dump(scene_dict, f, indent=1)
+            log(f"{name}: {os.path.join(args.out, name + '.mitsuba.json')}")
         return
     import drjit as dr
     import mitsuba as mi
@@ -574,12 +811,15 @@ def main():
                 log(line)
                 agreement.write(line + "\n")
             references = agree(mi, dr, args.out, scene_list, width, height, batches, agree_spp, log_agreement)
-    else:
+    elif "efficiency" in args.steps:
         references = {name: (np.load(os.path.join(args.out, f"{name}_reference.npy")),
                              np.load(os.path.join(args.out, f"{name}_reference_variance.npy")))
                       for name, *_ in scene_list}
     if "efficiency" in args.steps:
         efficiency(mi, dr, args.out, scene_list, references, width, height, budgets, repeats, log)
+    if "media" in args.steps:
+        media(mi, dr, args.out, width // 2, height // 2, args.media_batches, args.media_spp, log,
+              [n for n in args.media_scenes.split(",") if n])
     log(f"end {time.strftime('%Y-%m-%d %H:%M:%S')}  load {os.getloadavg()}")
 
 
