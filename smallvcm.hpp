@@ -2798,10 +2798,20 @@ inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int a
         aMedium = segment.mMedium = aScene.MediumAfter(segment.mHit, aRay.mDirection, aMedium);
         aRay = aScene.SpawnRay(segment.mHit.mPosition, aRay.mDirection);
         length += aScene.RayEpsilon();
+        // The ray epsilon beyond the boundary is flown through, not sampled: it attenuates.
+        if (aMedium >= 0) segment.mWeight *= MediumTransmittance(aScene.GetMedium(aMedium), aScene.RayEpsilon());
     }
     segment.mHit.mDist = length;
     return segment;
 }
+
+// The ray that leaves a vertex along aDirection: off a surface by the ray epsilon
+// (SpawnRay), from a point in a medium exactly there (no surface to leave, and a gap
+// would be flown through for free). Its gap is what TraceSegment's aGap takes.
+inline Ray LeaveVertex(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, bool aInMedium) {
+    return aInMedium ? Ray{aPoint, aDirection} : aScene.SpawnRay(aPoint, aDirection);
+}
+inline float GapOfVertex(const Scene& aScene, bool aInMedium) { return aInMedium ? 0.f : aScene.RayEpsilon(); }
 
 // The medium a connection from the vertex a segment ended at starts in, towards aDirection.
 inline int MediumTowards(const Scene& aScene, const PathSegment& aVertex, const Vec3& aDirection) {
@@ -3811,6 +3821,7 @@ private:
         float mLastPdfW = 1.f;      // BSDF pdf (roulette included) of the last direction
         bool mLastSpecular = true;  // the camera counts as specular: no MIS at length 1
         bool mFirstSpecular = false;// the component sampled at the first vertex (layers)
+        float mGap = 0.f;           // how far the ray starts off its vertex (LeaveVertex)
     };
 
     // One camera path, the estimator's steps at each vertex: the light it hits (BSDF
@@ -3823,7 +3834,7 @@ private:
         int medium = mScene.CameraMedium();
         Bsdf bsdf;
         for (PathState path;; path.mPathLength++) {
-            const PathSegment segment = TraceSegment(mScene, ray, medium, false, aSampler, path.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
+            const PathSegment segment = TraceSegment(mScene, ray, medium, false, aSampler, path.mGap);
             const SurfacePoint& hit = segment.mHit;
             path.mThroughput *= segment.mWeight;
             medium = segment.mMedium;
@@ -3850,7 +3861,8 @@ private:
             path.mLastSpecular = scatter->IsSpecular();
             if (path.mPathLength == 1) path.mFirstSpecular = path.mLastSpecular;
             if (!segment.mInMedium) medium = mScene.MediumAfter(hit, scatter->mDirection, medium);
-            ray = mScene.SpawnRay(segment.Position(), scatter->mDirection);
+            ray = LeaveVertex(mScene, segment.Position(), scatter->mDirection, segment.mInMedium);
+            path.mGap = GapOfVertex(mScene, segment.mInMedium);
         }
     }
 
@@ -3875,7 +3887,7 @@ private:
         float weight = 1.f;
         if (!aPath.mLastSpecular) {
             const float cosAtLight = glm::dot(hit.GeometricNormal(), -aRay.mDirection);
-            const float distance = aSegment.Length() + mScene.RayEpsilon();
+            const float distance = aSegment.Length() + aPath.mGap;
             const float directPdfW = PdfAtoW(received.mDirectPdfA, distance, cosAtLight) * mScene.LightPickProb();
             weight = BsdfHitWeight(aPath.mLastPdfW * aSegment.mPdfs.mForward, directPdfW);
         }
@@ -4700,8 +4712,9 @@ private:
         SubpathState& light = *start;
         Bsdf bsdf;
         for (;;) {
-            const Ray ray = mScene.SpawnRay(light.mOrigin, light.mDirection);
-            const PathSegment segment = TraceSegment(mScene, ray, light.mMedium, light.mInMedium, aSampler, mScene.RayEpsilon());
+            const Ray ray = LeaveVertex(mScene, light.mOrigin, light.mDirection, light.mInMedium);
+            const float gap = GapOfVertex(mScene, light.mInMedium);
+            const PathSegment segment = TraceSegment(mScene, ray, light.mMedium, light.mInMedium, aSampler, gap);
             if (segment.Escaped()) return;
             light.mThroughput *= segment.mWeight;
             if (segment.mInMedium) bsdf.SetupInMedium(-ray.mDirection, mScene.GetMedium(segment.mMedium), Transport::kImportance);
@@ -4709,7 +4722,7 @@ private:
             if (!bsdf.IsValid()) return;
             // The area (in a medium: volume) pdf of this vertex: a change of measure, by the
             // geometric cosine (1 in a medium), and the segment's free-flight pdfs.
-            VcmMis::AfterSegment(mMisConstants, light.mMis, segment.Length() + mScene.RayEpsilon(), bsdf.CosThetaFixGeometric(),
+            VcmMis::AfterSegment(mMisConstants, light.mMis, segment.Length() + gap, bsdf.CosThetaFixGeometric(),
                                  light.mPathLength > 1 || light.mIsFiniteLight);
             if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, light.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
             if (mPathRecords) mLightHistories.back().push_back(RecordedVertex(segment));
@@ -4779,7 +4792,7 @@ private:
         Bsdf bsdf;
         for (;;) {
             const PathSegment segment = TraceSegment(mScene, ray, cam.mMedium, cam.mInMedium, aSampler,
-                                                     cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
+                                                     cam.mPathLength > 1 ? GapOfVertex(mScene, cam.mInMedium) : 0.f);
             const SurfacePoint& hit = segment.mHit;
             cam.mThroughput *= segment.mWeight;
             if (segment.Escaped()) {
@@ -4787,7 +4800,7 @@ private:
                 return;
             }
             const float cosAtHit = segment.mInMedium ? 1.f : glm::dot(hit.GeometricNormal(), -ray.mDirection);
-            const float distance = segment.Length() + (cam.mPathLength > 1 ? mScene.RayEpsilon() : 0.f);
+            const float distance = segment.Length() + (cam.mPathLength > 1 ? GapOfVertex(mScene, cam.mInMedium) : 0.f);
             VcmMis::AfterSegment(mMisConstants, cam.mMis, distance, cosAtHit, true);
             if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, cam.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
             if (mPathRecords) mCameraHistory.push_back(RecordedVertex(segment, true));
@@ -4811,7 +4824,7 @@ private:
             // PPM's camera path ends where it merged; only a specular component (of a
             // mixed material) carries it on, to find the next non-specular vertex.
             if (mPpm && !bsdf.IsDelta() && !scatter->IsSpecular()) return;
-            ray = mScene.SpawnRay(cam.mOrigin, cam.mDirection);
+            ray = LeaveVertex(mScene, cam.mOrigin, cam.mDirection, cam.mInMedium);
         }
     }
 

@@ -1083,10 +1083,10 @@ def build_fog_caustic_box():
     to_eye = normalize(tuple(eye[i] - centre[i] for i in range(3)))
     to_cone = normalize(tuple(cone[i] - centre[i] for i in range(3)))
     n = normalize((to_eye[0] + to_cone[0], to_eye[1] + to_cone[1], 0.0))  # upright
-    u = normalize(cross(n, (0.0, 0.0, 1.0)))   # cross(u, up) = n: the front faces n
+    u = normalize(cross(n, (0.0, 0.0, 1.0)))   # cross(up, u) = n: the front faces n
     half_w, half_h = 0.35, 0.65
     corner = tuple(centre[i] - half_w * u[i] - half_h * (0.0, 0.0, 1.0)[i] for i in range(3))
-    scene.quad("mirror panel (facing the room)", corner, tuple(2 * half_w * c for c in u), (0.0, 0.0, 2 * half_h), "mirror")
+    scene.quad("mirror panel (facing the room)", corner, (0.0, 0.0, 2 * half_h), tuple(2 * half_w * c for c in u), "mirror")
     doc = scene.finish(look_at_camera(eye, (0.0, 0.0, 0.75), 45.0), ["F20"], {"SMALLVCM_medium": FOG})
     return doc
 
