@@ -1162,6 +1162,15 @@ struct Material {
     float mAlphaCutoff = 0.5f;  // glTF's default
     float mBaseColorAlpha = 1.f;
     int mAlphaTexture = -1;
+    // glTF's metallicRoughnessTexture (index into Scene::mTextures, -1 for none; linear
+    // RGB): metal is its blue channel times mMetallic, roughness its green one times
+    // mRoughness, so that they vary across the surface. The reflectances above are then
+    // those of the factors, and a Bsdf applies MetallicRoughnessRule (below) at each hit
+    // to the texel's metal and roughness, the base colour mBaseColor (times the
+    // base-colour texel), mTransmission and mRuleIor.
+    int mMetallicRoughnessTexture = -1;
+    Vec3 mBaseColor{1.f};
+    float mMetallic = 0.f, mRoughness = 0.f, mTransmission = 0.f, mRuleIor = 1.5f;
 
     bool HasCutOut() const { return mAlphaMode != AlphaMode::kOpaque; }
     // The threshold of the coverage test. BLEND has no cutoff in glTF; a threshold at
@@ -1183,6 +1192,48 @@ struct Material {
         return std::min(1.f, reflect + refract);
     }
 };
+
+// The written rule that maps glTF's metallic-roughness material onto the components
+// above (docs/scene_format.md section 4.2), for base colour b, metallic m, roughness r,
+// transmission t (KHR_materials_transmission) and ior. The dielectric's share t is glass,
+// g = (1 - m) t, which refracts (tinted by b; its Fresnel reflection untinted), and the
+// rest is opaque: d = (1 - m)(1 - t) of dielectric, diffuse 0.96 d b and specular 0.04 d
+// untinted, beside the metal's m b. The specular is a Phong lobe of exponent 2 / r^4 - 2
+// (within [0, 10000]) when r > 0, else a mirror (beside glass, one that F does not
+// weight). With ior 0 (F = 1) the glass share reflects all it receives, untinted: it
+// joins that specular. The loader applies it once per material, to the factors; a Bsdf
+// at each hit of a material with a metallicRoughnessTexture, to the texel's values.
+struct MetallicRoughnessMaterial {
+    Vec3 mDiffuse{0.f}, mPhong{0.f}, mMirror{0.f}, mOpaqueMirror{0.f}, mTransmittance{1.f};
+    float mPhongExponent = 1.f;
+    float mIor = -1.f;            // > 0: the glass share refracts (Material::mIor)
+    Vec3 mSpecularUntinted{0.f};  // the specular share no base colour reaches
+};
+inline MetallicRoughnessMaterial MetallicRoughnessRule(const Vec3& aBaseColor, float aMetallic, float aRoughness,
+                                                       float aTransmission, float aIor) {
+    MetallicRoughnessMaterial result;
+    const float glass = (1.f - aMetallic) * aTransmission;
+    const float dielectric = (1.f - aMetallic) * (1.f - aTransmission);
+    const bool refracts = glass > 0.f && aIor > 0.f;
+    const float untinted = 0.04f * dielectric + (refracts ? 0.f : glass);
+    const Vec3 specular = Vec3(untinted) + aMetallic * aBaseColor;
+    result.mDiffuse = dielectric * 0.96f * aBaseColor;
+    result.mSpecularUntinted = Vec3(untinted);
+    if (aRoughness > 0.f) {
+        result.mPhong = specular;
+        result.mPhongExponent = std::min(10000.f, std::max(0.f, 2.f / std::pow(aRoughness, 4.f) - 2.f));
+    } else if (refracts) {
+        result.mOpaqueMirror = specular;
+    } else {
+        result.mMirror = specular;
+    }
+    if (refracts) {
+        result.mIor = aIor;
+        result.mMirror = Vec3(glass);
+        result.mTransmittance = glass * aBaseColor;
+    }
+    return result;
+}
 
 // What a Bsdf (below) needs of a material that does not depend on the point it is seen
 // at: Scene::Finalize computes it once per material (Bsdf::ConstantsOf) so that
@@ -2339,6 +2390,7 @@ private:
         kind.mMaterialId = aTriangle.mMaterialId;
         kind.mLightId = aTriangle.mLightId;
         kind.mTextured = mMaterials[size_t(aTriangle.mMaterialId)].mBaseColorTexture >= 0 ||
+                         mMaterials[size_t(aTriangle.mMaterialId)].mMetallicRoughnessTexture >= 0 ||
                          (aTriangle.mLightId >= 0 && mLights[size_t(aTriangle.mLightId)].mEmissionTexture >= 0);
         kind.mHasVertexNormals = aTriangle.mHasVertexNormals;
         kind.mNormalMapped = aTriangle.mHasTangents && mMaterials[size_t(aTriangle.mMaterialId)].mNormalTexture >= 0;
@@ -2399,7 +2451,7 @@ private:
     void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
         if (aMaterialId >= 0 && size_t(aMaterialId) < mMaterials.size()) {
             const Material& material = mMaterials[size_t(aMaterialId)];
-            for (const int texture : {material.mBaseColorTexture, material.mNormalTexture})
+            for (const int texture : {material.mBaseColorTexture, material.mNormalTexture, material.mMetallicRoughnessTexture})
                 if (texture >= 0 && !IsUsableTexture(texture))
                     throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " refers to a missing or empty texture");
             if (!std::isfinite(material.mNormalScale))
@@ -2547,6 +2599,10 @@ public:
     // stored light vertex has it. The material's constants come from the scene.
     void Setup(const Vec3& aWorldDirFix, const SurfacePoint& aHit, const Scene& aScene, Transport aTransport) {
         const Material& material = aScene.GetMaterial(aHit.mMaterialId);
+        if (material.mMetallicRoughnessTexture >= 0) {
+            SetupAtTexel(aWorldDirFix, aHit, aScene, material, aTransport);
+            return;
+        }
         const MaterialConstants* constants = aScene.FindMaterialConstants(aHit.mMaterialId);
         if (material.mBaseColorTexture < 0)
             SetupWith(aWorldDirFix, aHit.GeometricNormal(), aHit.ShadingNormal(), material, constants, aTransport, nullptr);
@@ -2554,6 +2610,31 @@ public:
             const Vec3 texel = aScene.BaseColorTexel(aHit);
             SetupWith(aWorldDirFix, aHit.GeometricNormal(), aHit.ShadingNormal(), material, constants, aTransport, &texel);
         }
+    }
+    // A material with a metallicRoughnessTexture: the components MetallicRoughnessRule
+    // gives for this point's metal and roughness (the texel's blue and green times the
+    // factors) and base colour (the factor times the base-colour texel) stand in for the
+    // material's constants. Where a glass material has no glass share (metal 1), its
+    // specular is the opaque mirror (the rule's when the material refracts).
+    void SetupAtTexel(const Vec3& aWorldDirFix, const SurfacePoint& aHit, const Scene& aScene, const Material& aMaterial,
+                      Transport aTransport) {
+        const Vec3 texel = aScene.mTextures[size_t(aMaterial.mMetallicRoughnessTexture)].Lookup(aHit.mUv);
+        const bool glass = aMaterial.mIor > 0.f;
+        const MetallicRoughnessMaterial rule =
+            MetallicRoughnessRule(aMaterial.mBaseColor * aScene.BaseColorTexel(aHit), aMaterial.mMetallic * texel.z,
+                                  aMaterial.mRoughness * texel.y, glass ? aMaterial.mTransmission : 0.f, aMaterial.mRuleIor);
+        MaterialConstants constants;
+        constants.mReflectance = {rule.mDiffuse, rule.mPhong, rule.mMirror, rule.mOpaqueMirror, rule.mTransmittance};
+        if (glass && rule.mIor < 0.f) {
+            constants.mReflectance.mOpaqueMirror += rule.mMirror;
+            constants.mReflectance.mMirror = Vec3(0.f);
+            constants.mReflectance.mTransmittance = Vec3(0.f);
+        }
+        const MaterialConstants::Reflectances& r = constants.mReflectance;  // as Material::ContinuationProbability
+        constants.mContinuationProb = std::min(1.f, MaxComponent(r.mDiffuse + r.mPhong + r.mMirror + r.mOpaqueMirror) +
+                                                        (glass ? MaxComponent(r.mTransmittance) : 0.f));
+        SetupWith(aWorldDirFix, aHit.GeometricNormal(), aHit.ShadingNormal(), aMaterial, &constants, aTransport, nullptr);
+        mPhongExponent = rule.mPhongExponent;
     }
     // The same from explicit data (what tests use): aWorldDirFix points away from the
     // surface.
@@ -2581,6 +2662,7 @@ public:
                    const Vec3* aBaseColorTexel) {
         mMaterial = &aMaterial;
         mTransport = aTransport;
+        mPhongExponent = aMaterial.mPhongExponent;
         if (aConstants)
             mReflectance = aConstants->mReflectance;
         else
@@ -2777,7 +2859,7 @@ private:
         } else if (aRnd.z < p[kDiffuse] + p[kPhong]) {
             s.mEvent = kEventPhong;
             // BEGIN EXERCISE phong_bsdf/sample
-            const Vec3 lobe = SamplePowerCosHemisphereW(Vec2(aRnd), mMaterial->mPhongExponent);
+            const Vec3 lobe = SamplePowerCosHemisphereW(Vec2(aRnd), mPhongExponent);
             localDirGen = Frame(ReflectLocal(mLocalDirFix)).ToWorld(lobe);
             // END EXERCISE phong_bsdf/sample
         } else if (aRnd.z < p[kDiffuse] + p[kPhong] + p[kReflect]) {
@@ -2914,7 +2996,7 @@ private:
             // both directions.
             const float cosR = glm::dot(ReflectLocal(mLocalDirFix), aLocalDirGen);
             if (cosR > kEpsPhong) {
-                const float n = mMaterial->mPhongExponent;
+                const float n = mPhongExponent;
                 const float lobe = std::pow(cosR, n);
                 eval.mValue += mReflectance.mPhong * ((n + 2.f) * 0.5f * kInvPi * lobe);
                 const float lobePdfW = (n + 1.f) * 0.5f * kInvPi * lobe;
@@ -2933,6 +3015,7 @@ private:
     bool mShaded = false;         // the shading normal differs from the geometric one
     const Material* mMaterial = nullptr;
     Reflectances mReflectance;  // the material's, textured at this point
+    float mPhongExponent = 1.f;  // the material's, or the rule's at this point (SetupAtTexel)
     std::array<float, 4> mProbabilities{};
     float mFresnel = 1.f;
     float mContinuationProb = 0.f;
@@ -8195,7 +8278,6 @@ private:
             const auto& pbr = source.pbrMetallicRoughness;
             std::vector<std::pair<const char*, int>> texCoordSets;  // the textures read, and their sets
             // What the header does not model is approximated and listed in one note.
-            if (pbr.metallicRoughnessTexture.index >= 0) Approximated("metallicRoughnessTexture (the factors are used)");
             if (source.occlusionTexture.index >= 0) Approximated("occlusionTexture (occlusion is computed, not baked)");
             if (source.alphaMode == "BLEND") Approximated("alphaMode BLEND (thresholded: a hole where alpha < 0.5)");
 
@@ -8228,6 +8310,8 @@ private:
                 material.mPhongExponent = float(NumberOr(e, "phongExponent", 1.0));
                 material.mIor = float(NumberOr(e, "ior", -1.0));
                 if (pbr.baseColorTexture.index >= 0) Approximated("baseColorTexture with SMALLVCM_material (its colours are used)");
+                if (pbr.metallicRoughnessTexture.index >= 0)
+                    Approximated("metallicRoughnessTexture with SMALLVCM_material (its colours are used)");
             } else {
                 // The documented mapping of pbrMetallicRoughness (docs/scene_format.md).
                 Vec3 baseColor(1.f);
@@ -8253,7 +8337,6 @@ private:
                 const float glass = (1.f - metallic) * t;
                 if (t > 0.f && glass == 0.f)  // glTF's metallicFactor defaults to 1: a metal
                     Approximated("KHR_materials_transmission on a fully metallic material (no glass: metallicFactor is 1; set it to 0 for glass)");
-                const float dielectric = (1.f - metallic) * (1.f - t);  // the opaque dielectric share
                 float ior = 1.5f;
                 if (glass > 0.f) {
                     auto iorExtension = source.extensions.find("KHR_materials_ior");
@@ -8264,31 +8347,34 @@ private:
                     if (source.extensions.count("KHR_materials_volume"))
                         Approximated("KHR_materials_volume (no absorption in the volume: the tint applies at each crossing)");
                 }
-                // The opaque rest, as without transmission when t = 0. With ior 0 (F = 1) the
-                // glass share reflects all it receives, untinted: it joins that specular.
-                const bool refracts = glass > 0.f && ior > 0.f;
-                const float untinted = 0.04f * dielectric + (refracts ? 0.f : glass);
-                const Vec3 specular = Vec3(untinted) + metallic * baseColor;
-                material.mDiffuseReflectance = dielectric * 0.96f * baseColor;
+                // The written rule (MetallicRoughnessRule), once for the factors.
+                const MetallicRoughnessMaterial rule = MetallicRoughnessRule(baseColor, metallic, roughness, t, ior);
+                material.mDiffuseReflectance = rule.mDiffuse;
+                material.mPhongReflectance = rule.mPhong;
+                material.mPhongExponent = rule.mPhongExponent;
+                material.mMirrorReflectance = rule.mMirror;
+                material.mOpaqueMirror = rule.mOpaqueMirror;
+                material.mTransmittance = rule.mTransmittance;
+                material.mIor = rule.mIor;
                 if (pbr.baseColorTexture.index >= 0) {
                     const TextureUse use = UseTexture(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
                                                       pbr.baseColorTexture.extensions, true, "baseColorTexture", what, cutOut);
                     material.mBaseColorTexture = use.mTexture;
                     texCoordSets.push_back({"baseColorTexture", use.mTexCoord});
-                    material.mSpecularUntinted = Vec3(untinted);
+                    material.mSpecularUntinted = rule.mSpecularUntinted;
                 }
-                if (roughness > 0.f) {
-                    material.mPhongReflectance = specular;
-                    material.mPhongExponent = std::min(10000.f, std::max(0.f, 2.f / std::pow(roughness, 4.f) - 2.f));
-                } else if (refracts) {
-                    material.mOpaqueMirror = specular;
-                } else {
-                    material.mMirrorReflectance = specular;
-                }
-                if (refracts) {
-                    material.mIor = ior;
-                    material.mMirrorReflectance = Vec3(glass);
-                    material.mTransmittance = glass * baseColor;
+                // Metal and roughness per texel: the Bsdf applies the rule at each hit
+                // (Material::mMetallicRoughnessTexture); the texture is linear, not sRGB.
+                if (pbr.metallicRoughnessTexture.index >= 0) {
+                    const TextureUse use = UseTexture(pbr.metallicRoughnessTexture.index, pbr.metallicRoughnessTexture.texCoord,
+                                                      pbr.metallicRoughnessTexture.extensions, false, "metallicRoughnessTexture", what);
+                    material.mMetallicRoughnessTexture = use.mTexture;
+                    texCoordSets.push_back({"metallicRoughnessTexture", use.mTexCoord});
+                    material.mBaseColor = baseColor;
+                    material.mMetallic = metallic;
+                    material.mRoughness = roughness;
+                    material.mTransmission = t;
+                    material.mRuleIor = ior;
                 }
             }
             CheckColor(material.mDiffuseReflectance, what + ": the diffuse reflectance", true);
@@ -8816,6 +8902,7 @@ private:
             const char* texture = sceneMaterial.mBaseColorTexture >= 0 || sceneMaterial.mAlphaTexture >= 0 ? "a baseColorTexture"
                                   : mMaterialEmissionTexture[size_t(material)] >= 0       ? "an emissiveTexture"
                                   : normalMapped                                           ? "a normalTexture"
+                                  : sceneMaterial.mMetallicRoughnessTexture >= 0           ? "a metallicRoughnessTexture"
                                                                                            : nullptr;
             if (texture) {
                 const std::string set = "TEXCOORD_" + std::to_string(mMaterialTexCoord[size_t(material)]);

@@ -1992,3 +1992,57 @@ TEST_CASE("A base-colour texture on glass tints the refraction and the opaque sh
     CHECK_VEC3(mirror.mMirrorReflectance, Vec3(0.52f), 1e-7f);
     CHECK_VEC3(mirror.mSpecularUntinted, Vec3(0.52f), 1e-7f);
 }
+
+TEST_CASE("A metallicRoughnessTexture makes each texel the written rule's material of its metal and roughness", "[gltf]") {
+    // data/gltf/metal_roughness_texture.gltf (make_bad_gltf.py): the floor's texture has 3 x 3
+    // cells of metal 0, 128/255, 1 (columns) and roughness 0, 128/255, 1 (rows), factors 1;
+    // materials 2 to 10 are each cell's factor-only material, which the mapping tests above
+    // check number by number. At each cell's centre the textured floor's Bsdf must be that
+    // material's: the same value and pdfs in every direction, the same sampled directions
+    // and weights, the same continuation probability.
+    const Scene scene = LoadGltfScene("data/gltf/metal_roughness_texture.gltf");
+    REQUIRE(scene.mMaterials.size() >= 11);
+    REQUIRE(scene.GetMaterial(0).mMetallicRoughnessTexture >= 0);
+    const Vec3 directions[] = {glm::normalize(Vec3(0.3f, -0.2f, 1.f)), glm::normalize(Vec3(-0.3f, 0.2f, 1.f)),
+                               glm::normalize(Vec3(-0.35f, 0.25f, 1.f)), glm::normalize(Vec3(0.8f, 0.1f, 0.3f)), Vec3(0.f, 0.f, 1.f)};
+    const auto near = [](float aA, float aB) { return std::abs(aA - aB) <= 1e-5f * std::max(1.f, std::abs(aB)); };
+    for (int row = 0; row < 3; row++)
+        for (int column = 0; column < 3; column++) {
+            INFO("cell: metal column " << column << ", roughness row " << row);
+            // Floor corner 0 (-1, -1) has uv (0, 0) and corner 2 (1, 1) uv (1, 1).
+            const Vec3 point(2.f * (float(column) + 0.5f) / 3.f - 1.f, 2.f * (float(row) + 0.5f) / 3.f - 1.f, 0.f);
+            const Ray ray{point + Vec3(0.3f, -0.2f, 0.5f), glm::normalize(Vec3(-0.3f, 0.2f, -0.5f))};
+            const SurfacePoint hit = scene.Intersect(ray);
+            REQUIRE(hit.IsValid());
+            REQUIRE(hit.mMaterialId == 0);
+            Bsdf textured, reference;
+            textured.Setup(ray, hit, scene, Transport::kRadiance);
+            reference.Setup(-ray.mDirection, hit.GeometricNormal(), scene.GetMaterial(2 + 3 * row + column), Transport::kRadiance);
+            REQUIRE(textured.IsValid() == reference.IsValid());
+            CHECK(textured.IsDelta() == reference.IsDelta());
+            CHECK(near(textured.ContinuationProb(), reference.ContinuationProb()));
+            for (const Vec3& direction : directions) {
+                const BsdfEval a = textured.Evaluate(direction), b = reference.Evaluate(direction);
+                for (int c = 0; c < 3; c++) CHECK(near(a.mValue[c], b.mValue[c]));
+                CHECK(near(a.mDirPdfW, b.mDirPdfW));
+                CHECK(near(a.mRevPdfW, b.mRevPdfW));
+            }
+            for (const Vec3& rnd : {Vec3(0.1f, 0.2f, 0.3f), Vec3(0.5f, 0.7f, 0.9f), Vec3(0.95f, 0.4f, 0.6f)}) {
+                const std::optional<ScatterSample> a = textured.Sample(rnd), b = reference.Sample(rnd);
+                REQUIRE(a.has_value() == b.has_value());
+                if (!a) continue;
+                CHECK(a->mEvent == b->mEvent);
+                for (int c = 0; c < 3; c++) {
+                    CHECK(std::abs(a->mDirection[c] - b->mDirection[c]) <= 1e-4f);
+                    CHECK(near(a->mWeight[c], b->mWeight[c]));
+                }
+            }
+        }
+    // The mapping's own numbers at one cell (metal 128/255, roughness 1; base colour
+    // (0.8, 0.5, 0.3)): diffuse (1 - m) 0.96 b, Phong 0.04 (1 - m) + m b of exponent 0.
+    const float m = 128.f / 255.f;
+    const Material& half = scene.GetMaterial(2 + 3 * 2 + 1);
+    CHECK_VEC3(half.mDiffuseReflectance, (1.f - m) * 0.96f * Vec3(0.8f, 0.5f, 0.3f), 1e-6f);
+    CHECK_VEC3(half.mPhongReflectance, Vec3(0.04f * (1.f - m)) + m * Vec3(0.8f, 0.5f, 0.3f), 1e-6f);
+    CHECK(half.mPhongExponent == 0.f);
+}

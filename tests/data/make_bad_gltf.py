@@ -752,7 +752,34 @@ def pbr(base_color, metallic, roughness, **extra):
 
 QUARTER_TURN_Z = [0.0, 0.0, 0.7071067811865476, 0.7071067811865476]   # 90 degrees about +z
 
+# metallicRoughnessTexture: a 12 x 12 texture of 3 x 3 cells of 4 x 4 texels, metal (blue)
+# 0, 128, 255 from left to right and roughness (green) 0, 128, 255 from top to bottom, on
+# the floor (uv (0, 0) at floor corner 0, (1, 1) at corner 2), factors 1 and base colour
+# (0.8, 0.5, 0.3). Materials 2 to 10: the factor-only material of each cell (cell i = 3 *
+# row + column), metallicFactor and roughnessFactor the cell's bytes / 255, that the
+# textured floor must equal at the cell's centre (tests/test_gltf_compressed.cpp).
+MR_BYTES = (0, 128, 255)
+MR_BASE = (0.8, 0.5, 0.3)
+
+
+def metal_roughness_texture():
+    texels = [(0, MR_BYTES[y // 4], MR_BYTES[x // 4]) for y in range(12) for x in range(12)]
+    b = base(floor_material=pbr(MR_BASE, 1.0, 1.0))
+    b.doc["materials"][0]["pbrMetallicRoughness"]["metallicRoughnessTexture"] = {"index": 0}
+    b.doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(png_bytes(12, 12, texels)).decode(),
+                        "mimeType": "image/png"}]
+    b.doc["textures"] = [{"source": 0}]
+    packed = b"".join(struct.pack("<2f", *uv) for uv in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)])
+    b.doc["accessors"].append({"bufferView": b.view(packed), "componentType": FLOAT, "count": 4, "type": "VEC2"})
+    b.doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = len(b.doc["accessors"]) - 1
+    for row in range(3):
+        for column in range(3):
+            b.material(pbr(MR_BASE, float(repr(MR_BYTES[column] / 255)), float(repr(MR_BYTES[row] / 255))))
+    return b.finish()
+
+
 GOOD_CASES = {
+    "metal_roughness_texture.gltf": metal_roughness_texture,
     # pbrMetallicRoughness mapping (docs/scene_format.md 4.2)
     "material_lambert.gltf": lambda: scene(floor_material=pbr((0.5, 0.25, 1.0), 0.0, 1.0)),
     "material_mirror.gltf": lambda: scene(floor_material=pbr((0.9, 0.8, 0.7), 1.0, 0.0)),
