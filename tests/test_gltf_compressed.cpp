@@ -9,6 +9,7 @@
 #include "test_util.hpp"
 
 #include <catch2/catch.hpp>
+#include <meshoptimizer.h>
 
 #include <cstring>
 #include <fstream>
@@ -175,4 +176,41 @@ TEST_CASE("Damaged compressed geometry is refused with an Error naming the file,
         INFO(source << ": " << refused << " of 60 damaged copies refused");
         CHECK(refused > 0);
     }
+}
+
+TEST_CASE("Meshopt index sequences (mode INDICES) decode to the indices they encode", "[gltf][compressed]") {
+    // A square of two triangles whose indices are an EXT_meshopt_compression view of mode
+    // INDICES (gltfpack and gltf-transform write TRIANGLES for triangle lists): written as a
+    // .glb here, with meshoptimizer's own encoder.
+    const float positions[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    const uint32_t indices[6] = {0, 1, 2, 0, 2, 3};
+    std::vector<unsigned char> encoded(meshopt_encodeIndexSequenceBound(6, 4));
+    encoded.resize(meshopt_encodeIndexSequence(encoded.data(), encoded.size(), indices, 6));
+    std::string binary(reinterpret_cast<const char*>(positions), sizeof(positions));
+    const size_t compressedAt = binary.size();
+    binary.append(encoded.begin(), encoded.end());
+    while (binary.size() % 4 != 0) binary += '\0';
+    std::string json = R"({"asset": {"version": "2.0"}, "extensionsUsed": ["EXT_meshopt_compression"],
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+                      {"bufferView": 1, "componentType": 5125, "count": 6, "type": "SCALAR"}],
+        "bufferViews": [{"buffer": 0, "byteLength": 48},
+                        {"buffer": 1, "byteLength": 24, "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": )" +
+                       std::to_string(compressedAt) + R"(, "byteLength": )" + std::to_string(encoded.size()) +
+                       R"(, "byteStride": 4, "count": 6, "mode": "INDICES"}}}],
+        "buffers": [{"byteLength": )" + std::to_string(binary.size()) + R"(},
+                    {"byteLength": 24, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}]})";
+    while (json.size() % 4 != 0) json += ' ';
+    const auto u32 = [](uint32_t aValue) { return std::string(reinterpret_cast<const char*>(&aValue), 4); };
+    const std::string glb = "glTF" + u32(2) + u32(uint32_t(12 + 8 + json.size() + 8 + binary.size())) + u32(uint32_t(json.size())) +
+                            "JSON" + json + u32(uint32_t(binary.size())) + std::string("BIN\0", 4) + binary;
+    testutil::TemporaryFolder folder;
+    const std::string path = (folder.mPath / "indices.glb").string();
+    std::ofstream(path, std::ios::binary) << glb;
+    const Scene scene = LoadGltfScene(path);
+    REQUIRE(scene.mTriangles.size() == 2);
+    CHECK(scene.mTriangles[0].mP2 == Vec3(1.f, 1.f, 0.f));
+    CHECK(scene.mTriangles[1].mP1 == Vec3(1.f, 1.f, 0.f));
+    CHECK(scene.mTriangles[1].mP2 == Vec3(0.f, 1.f, 0.f));
 }
