@@ -30,7 +30,7 @@ TEST_CXXFLAGS ?= $(filter-out -g,$(CXXFLAGS))
 CPPFLAGS += -I.
 # Every program that links the implementation unit links Debian's tinyexr too (the
 # OpenEXR reader and writer; the library brings zlib itself).
-LDFLAGS  += -pthread -ltinyexr
+LDFLAGS  += -pthread -ltinyexr -ldraco -lmeshoptimizer
 BUILD    := build
 # Programs and tests build in parallel, one job per core.
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
@@ -41,7 +41,7 @@ JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 # disagree about it.
 FLAGS_STAMP := $(BUILD)/cxxflags.txt
 
-DEB_PACKAGES := g++ make libglm-dev libtinygltf-dev libstb-dev libtinyexr-dev catch2 nlohmann-json3-dev
+DEB_PACKAGES := g++ make libglm-dev libtinygltf-dev libstb-dev libtinyexr-dev catch2 nlohmann-json3-dev libdraco-dev libmeshoptimizer-dev
 
 HEADER   := smallvcm.hpp
 IMPL_OBJ := $(BUILD)/smallvcm_impl.o

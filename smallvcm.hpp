@@ -30,8 +30,10 @@
 //      #define SMALLVCM_IMPLEMENTATION
 //      #include "smallvcm.hpp"
 //  That unit compiles the parts with heavy dependencies: the glTF loader (tinygltf,
-//  nlohmann-json) and the image writers and readers (stb_image_write; OpenEXR through
-//  Debian's compiled tinyexr library: link with -ltinyexr). Everything else is inline.
+//  nlohmann-json; compressed geometry through Debian's compiled Draco and meshoptimizer
+//  libraries: link with -ldraco -lmeshoptimizer) and the image writers and readers
+//  (stb_image_write; OpenEXR through Debian's compiled tinyexr library: link with
+//  -ltinyexr). Everything else is inline.
 //
 //  Link errors you may meet:
 //    "undefined reference to smallvcm::LoadGltfScene / WriteImage"
@@ -41,6 +43,8 @@
 //    "undefined reference to pthread_create"  -> link with -pthread.
 //    "undefined reference to SaveEXRImageToMemory / LoadEXRImageFromMemory"
 //        -> link with -ltinyexr (after the objects).
+//    "undefined reference to draco::... / meshopt_decode..."
+//        -> link with -ldraco -lmeshoptimizer (after the objects).
 //
 //  A minimal program (examples/minimal.cpp is this, character for character; a test
 //  keeps the two the same, and `make` builds it: run it from the repository's folder):
@@ -1192,6 +1196,15 @@ struct Material {
     float mAlphaCutoff = 0.5f;  // glTF's default
     float mBaseColorAlpha = 1.f;
     int mAlphaTexture = -1;
+    // glTF's metallicRoughnessTexture (index into Scene::mTextures, -1 for none; linear
+    // RGB): metal is its blue channel times mMetallic, roughness its green one times
+    // mRoughness, so that they vary across the surface. The reflectances above are then
+    // those of the factors, and a Bsdf applies MetallicRoughnessRule (below) at each hit
+    // to the texel's metal and roughness, the base colour mBaseColor (times the
+    // base-colour texel), mTransmission and mRuleIor.
+    int mMetallicRoughnessTexture = -1;
+    Vec3 mBaseColor{1.f};
+    float mMetallic = 0.f, mRoughness = 0.f, mTransmission = 0.f, mRuleIor = 1.5f;
 
     bool HasCutOut() const { return mAlphaMode != AlphaMode::kOpaque; }
     // The threshold of the coverage test. BLEND has no cutoff in glTF; a threshold at
@@ -1215,6 +1228,48 @@ struct Material {
         return std::min(1.f, reflect + refract);
     }
 };
+
+// The written rule that maps glTF's metallic-roughness material onto the components
+// above (docs/scene_format.md section 4.2), for base colour b, metallic m, roughness r,
+// transmission t (KHR_materials_transmission) and ior. The dielectric's share t is glass,
+// g = (1 - m) t, which refracts (tinted by b; its Fresnel reflection untinted), and the
+// rest is opaque: d = (1 - m)(1 - t) of dielectric, diffuse 0.96 d b and specular 0.04 d
+// untinted, beside the metal's m b. The specular is a Phong lobe of exponent 2 / r^4 - 2
+// (within [0, 10000]) when r > 0, else a mirror (beside glass, one that F does not
+// weight). With ior 0 (F = 1) the glass share reflects all it receives, untinted: it
+// joins that specular. The loader applies it once per material, to the factors; a Bsdf
+// at each hit of a material with a metallicRoughnessTexture, to the texel's values.
+struct MetallicRoughnessMaterial {
+    Vec3 mDiffuse{0.f}, mPhong{0.f}, mMirror{0.f}, mOpaqueMirror{0.f}, mTransmittance{1.f};
+    float mPhongExponent = 1.f;
+    float mIor = -1.f;            // > 0: the glass share refracts (Material::mIor)
+    Vec3 mSpecularUntinted{0.f};  // the specular share no base colour reaches
+};
+inline MetallicRoughnessMaterial MetallicRoughnessRule(const Vec3& aBaseColor, float aMetallic, float aRoughness,
+                                                       float aTransmission, float aIor) {
+    MetallicRoughnessMaterial result;
+    const float glass = (1.f - aMetallic) * aTransmission;
+    const float dielectric = (1.f - aMetallic) * (1.f - aTransmission);
+    const bool refracts = glass > 0.f && aIor > 0.f;
+    const float untinted = 0.04f * dielectric + (refracts ? 0.f : glass);
+    const Vec3 specular = Vec3(untinted) + aMetallic * aBaseColor;
+    result.mDiffuse = dielectric * 0.96f * aBaseColor;
+    result.mSpecularUntinted = Vec3(untinted);
+    if (aRoughness > 0.f) {
+        result.mPhong = specular;
+        result.mPhongExponent = std::min(10000.f, std::max(0.f, 2.f / std::pow(aRoughness, 4.f) - 2.f));
+    } else if (refracts) {
+        result.mOpaqueMirror = specular;
+    } else {
+        result.mMirror = specular;
+    }
+    if (refracts) {
+        result.mIor = aIor;
+        result.mMirror = Vec3(glass);
+        result.mTransmittance = glass * aBaseColor;
+    }
+    return result;
+}
 
 // What a Bsdf (below) needs of a material that does not depend on the point it is seen
 // at: Scene::Finalize computes it once per material (Bsdf::ConstantsOf) so that
@@ -2554,6 +2609,7 @@ private:
         kind.mMaterialId = aTriangle.mMaterialId;
         kind.mLightId = aTriangle.mLightId;
         kind.mTextured = mMaterials[size_t(aTriangle.mMaterialId)].mBaseColorTexture >= 0 ||
+                         mMaterials[size_t(aTriangle.mMaterialId)].mMetallicRoughnessTexture >= 0 ||
                          (aTriangle.mLightId >= 0 && mLights[size_t(aTriangle.mLightId)].mEmissionTexture >= 0);
         kind.mHasVertexNormals = aTriangle.mHasVertexNormals;
         kind.mNormalMapped = aTriangle.mHasTangents && mMaterials[size_t(aTriangle.mMaterialId)].mNormalTexture >= 0;
@@ -2614,7 +2670,7 @@ private:
     void CheckMaterial(const std::string& aWhere, int aMaterialId) const {
         if (aMaterialId >= 0 && size_t(aMaterialId) < mMaterials.size()) {
             const Material& material = mMaterials[size_t(aMaterialId)];
-            for (const int texture : {material.mBaseColorTexture, material.mNormalTexture})
+            for (const int texture : {material.mBaseColorTexture, material.mNormalTexture, material.mMetallicRoughnessTexture})
                 if (texture >= 0 && !IsUsableTexture(texture))
                     throw Error(aWhere + ": material " + std::to_string(aMaterialId) + " refers to a missing or empty texture");
             if (!std::isfinite(material.mNormalScale))
@@ -3008,6 +3064,10 @@ public:
     // stored light vertex has it. The material's constants come from the scene.
     void Setup(const Vec3& aWorldDirFix, const SurfacePoint& aHit, const Scene& aScene, Transport aTransport) {
         const Material& material = aScene.GetMaterial(aHit.mMaterialId);
+        if (material.mMetallicRoughnessTexture >= 0) {
+            SetupAtTexel(aWorldDirFix, aHit, aScene, material, aTransport);
+            return;
+        }
         const MaterialConstants* constants = aScene.FindMaterialConstants(aHit.mMaterialId);
         if (material.mBaseColorTexture < 0)
             SetupWith(aWorldDirFix, aHit.GeometricNormal(), aHit.ShadingNormal(), material, constants, aTransport, nullptr);
@@ -3015,6 +3075,31 @@ public:
             const Vec3 texel = aScene.BaseColorTexel(aHit);
             SetupWith(aWorldDirFix, aHit.GeometricNormal(), aHit.ShadingNormal(), material, constants, aTransport, &texel);
         }
+    }
+    // A material with a metallicRoughnessTexture: the components MetallicRoughnessRule
+    // gives for this point's metal and roughness (the texel's blue and green times the
+    // factors) and base colour (the factor times the base-colour texel) stand in for the
+    // material's constants. Where a glass material has no glass share (metal 1), its
+    // specular is the opaque mirror (the rule's when the material refracts).
+    void SetupAtTexel(const Vec3& aWorldDirFix, const SurfacePoint& aHit, const Scene& aScene, const Material& aMaterial,
+                      Transport aTransport) {
+        const Vec3 texel = aScene.mTextures[size_t(aMaterial.mMetallicRoughnessTexture)].Lookup(aHit.mUv);
+        const bool glass = aMaterial.mIor > 0.f;
+        const MetallicRoughnessMaterial rule =
+            MetallicRoughnessRule(aMaterial.mBaseColor * aScene.BaseColorTexel(aHit), aMaterial.mMetallic * texel.z,
+                                  aMaterial.mRoughness * texel.y, glass ? aMaterial.mTransmission : 0.f, aMaterial.mRuleIor);
+        MaterialConstants constants;
+        constants.mReflectance = {rule.mDiffuse, rule.mPhong, rule.mMirror, rule.mOpaqueMirror, rule.mTransmittance};
+        if (glass && rule.mIor < 0.f) {
+            constants.mReflectance.mOpaqueMirror += rule.mMirror;
+            constants.mReflectance.mMirror = Vec3(0.f);
+            constants.mReflectance.mTransmittance = Vec3(0.f);
+        }
+        const MaterialConstants::Reflectances& r = constants.mReflectance;  // as Material::ContinuationProbability
+        constants.mContinuationProb = std::min(1.f, MaxComponent(r.mDiffuse + r.mPhong + r.mMirror + r.mOpaqueMirror) +
+                                                        (glass ? MaxComponent(r.mTransmittance) : 0.f));
+        SetupWith(aWorldDirFix, aHit.GeometricNormal(), aHit.ShadingNormal(), aMaterial, &constants, aTransport, nullptr);
+        mPhongExponent = rule.mPhongExponent;
     }
     // The same from explicit data (what tests use): aWorldDirFix points away from the
     // surface.
@@ -3043,6 +3128,7 @@ public:
         mMaterial = &aMaterial;
         mMedium = nullptr;
         mTransport = aTransport;
+        mPhongExponent = aMaterial.mPhongExponent;
         if (aConstants)
             mReflectance = aConstants->mReflectance;
         else
@@ -3286,7 +3372,7 @@ private:
         } else if (aRnd.z < p[kDiffuse] + p[kPhong]) {
             s.mEvent = kEventPhong;
             // BEGIN EXERCISE phong_bsdf/sample
-            const Vec3 lobe = SamplePowerCosHemisphereW(Vec2(aRnd), mMaterial->mPhongExponent);
+            const Vec3 lobe = SamplePowerCosHemisphereW(Vec2(aRnd), mPhongExponent);
             localDirGen = Frame(ReflectLocal(mLocalDirFix)).ToWorld(lobe);
             // END EXERCISE phong_bsdf/sample
         } else if (aRnd.z < p[kDiffuse] + p[kPhong] + p[kReflect]) {
@@ -3423,7 +3509,7 @@ private:
             // both directions.
             const float cosR = glm::dot(ReflectLocal(mLocalDirFix), aLocalDirGen);
             if (cosR > kEpsPhong) {
-                const float n = mMaterial->mPhongExponent;
+                const float n = mPhongExponent;
                 const float lobe = std::pow(cosR, n);
                 eval.mValue += mReflectance.mPhong * ((n + 2.f) * 0.5f * kInvPi * lobe);
                 const float lobePdfW = (n + 1.f) * 0.5f * kInvPi * lobe;
@@ -3443,6 +3529,7 @@ private:
     const Material* mMaterial = nullptr;
     const Medium* mMedium = nullptr;  // set for a point in a medium (SetupInMedium)
     Reflectances mReflectance;  // the material's, textured at this point
+    float mPhongExponent = 1.f;  // the material's, or the rule's at this point (SetupAtTexel)
     std::array<float, 4> mProbabilities{};
     float mFresnel = 1.f;
     float mContinuationProb = 0.f;
@@ -7503,6 +7590,10 @@ Scene LoadGltfScene(const std::string& aPath, GltfLoadReport* oReport = nullptr,
 // Debian's libtinyexr-dev is a compiled library (libtinyexr.so, which brings its own zlib):
 // the header only declares it, so no TINYEXR_IMPLEMENTATION here; programs link -ltinyexr.
 #include <tinyexr.h>
+// The decoders of compressed glTF geometry, Debian's compiled libraries (libdraco-dev,
+// libmeshoptimizer-dev): programs link -ldraco -lmeshoptimizer.
+#include <draco/compression/decode.h>
+#include <meshoptimizer.h>
 
 #include <cctype>
 #include <cstring>
@@ -8170,6 +8261,10 @@ public:
     Scene Load(GltfLoadReport* oReport) {
         const auto start = std::chrono::steady_clock::now();
         ParseFile();
+        for (const std::vector<std::string>* list : {&mModel.extensionsUsed, &mModel.extensionsRequired})
+            mQuantized = mQuantized || std::count(list->begin(), list->end(), "KHR_mesh_quantization") > 0;
+        DecodeMeshoptViews();
+        DecodeDracoPrimitives();
         CheckModelFeatures();
         ConvertMaterials();
         NoteApproximations();
@@ -8245,11 +8340,13 @@ private:
                                                           nullptr, false);
         if (json.is_object()) {  // otherwise tinygltf says what is wrong with it
             CheckVersionAndExtensions(json);
-            CheckCompressionFallbacks(json, binary);
+            const std::set<size_t> emptyFallbacks = EmptyFallbackBuffers(json, binary);
             CheckDeclaredBuffers(json);
             CheckSpotAnglesAreNumbers(json);
             CheckAlphaModes(json);
             CheckMediaAreObjects(json);
+            const std::map<size_t, nlohmann::json> dracoAccessors = DracoAccessorsWithoutView(json);
+            if (!emptyFallbacks.empty() || !dracoAccessors.empty()) ForTinygltf(json, emptyFallbacks, dracoAccessors, binary, jsonEnd, bytes);
         }
 
         tinygltf::TinyGLTF gltf;
@@ -8324,7 +8421,8 @@ private:
         static const std::set<std::string> kSupported = {
             "KHR_materials_volume", "SMALLVCM_medium",
             "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
-            "KHR_materials_ior", "KHR_texture_transform", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background"};
+            "KHR_materials_ior", "KHR_texture_transform", "SMALLVCM_material", "SMALLVCM_sphere", "SMALLVCM_background",
+            "KHR_mesh_quantization", "EXT_meshopt_compression", "KHR_draco_mesh_compression"};
         return kSupported;
     }
 
@@ -8332,9 +8430,6 @@ private:
     // for any other.
     static const char* HowToGetAPlainFile(const std::string& aExtension) {
         static const std::pair<const char*, const char*> kHints[] = {
-            {"KHR_draco_mesh_compression", "its meshes are Draco-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
-            {"EXT_meshopt_compression", "its buffers are meshopt-compressed: decompress the file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression)"},
-            {"KHR_mesh_quantization", "its vertex attributes are quantized: dequantize the file first (e.g. `gltf-transform dequantize IN OUT`)"},
             {"KHR_texture_basisu", "its textures are KTX2/Basis: convert them to PNG or JPEG first (e.g. re-export with PNG textures)"},
             {"EXT_texture_webp", "its textures are WebP: convert them to PNG or JPEG first"},
         };
@@ -8408,8 +8503,6 @@ private:
         return aArray[aIndex.get<size_t>()];
     }
 
-    // An accessor whose data is not in any buffer view (a Draco primitive's without a fallback).
-    static bool HasNoBufferView(const nlohmann::json& aAccessor) { return aAccessor.is_object() && !aAccessor.contains("bufferView"); }
     // Buffer aBuffer holds no bytes of its own: it has no URI, and is not the first buffer
     // of a .glb (which stands for the BIN chunk).
     static bool HasNoData(const nlohmann::json& aBuffers, size_t aBuffer, bool aBinary) {
@@ -8417,74 +8510,89 @@ private:
         return aBuffers[aBuffer].is_object() && (uri.is_null() || uri == "") && !(aBinary && aBuffer == 0);
     }
 
-    // A compression extension that a file uses without requiring it promises the data
-    // uncompressed too, for readers without the extension (both specifications):
-    // KHR_draco_mesh_compression keeps each compressed primitive's accessors on buffer
-    // views, EXT_meshopt_compression keeps each compressed buffer view's own buffer filled
-    // (a URI, or a .glb's BIN chunk). A file without that fallback can only be read with
-    // the extension, which is not modelled here: it is refused by the extension's name
-    // before tinygltf stops at a missing bufferView, or copies a .glb's BIN chunk, which
-    // holds the compressed bytes, into a buffer that has no URI. Any other buffer without
-    // a URI is refused too: only a .glb's first buffer stands for its BIN chunk.
-    void CheckCompressionFallbacks(const nlohmann::json& aJson, bool aBinary) {
-        // Each: "<extension> is not supported, and <what> has no uncompressed fallback to
-        // read instead (<why>): <how to get a plain file>".
-        std::vector<std::string> problems;
-        const auto refuse = [&](const char* aExtension, const std::string& aWhat, const std::string& aWhy) {
-            problems.push_back(std::string(aExtension) + " is not supported, and " + aWhat +
-                               " has no uncompressed fallback to read instead (" + aWhy + "): " + HowToGetAPlainFile(aExtension));
-        };
-        const nlohmann::json& accessors = Member(aJson, "accessors");
-        const nlohmann::json& meshes = Member(aJson, "meshes");
-        std::string draco;  // the first accessor of a compressed primitive without a bufferView
-        for (size_t m = 0; meshes.is_array() && m < meshes.size() && draco.empty(); m++) {
-            const nlohmann::json& primitives = Member(meshes[m], "primitives");
-            for (size_t p = 0; primitives.is_array() && p < primitives.size() && draco.empty(); p++) {
-                const nlohmann::json& primitive = primitives[p];
-                if (!Member(Member(primitive, "extensions"), "KHR_draco_mesh_compression").is_object()) continue;
-                const nlohmann::json& indices = Member(primitive, "indices");
-                if (HasNoBufferView(Element(accessors, indices))) draco = "accessor " + indices.dump() + ", its indices";
-                const nlohmann::json& attributes = Member(primitive, "attributes");
-                if (attributes.is_object())
-                    for (const auto& [semantic, index] : attributes.items())
-                        if (draco.empty() && HasNoBufferView(Element(accessors, index)))
-                            draco = "accessor " + index.dump() + ", its " + Excerpt(semantic);
-                if (!draco.empty())
-                    refuse("KHR_draco_mesh_compression", "mesh " + std::to_string(m) + " primitive " + std::to_string(p),
-                           draco + ", has no bufferView");
-            }
-        }
-
+    // EXT_meshopt_compression: a compressed buffer view reads its bytes through the
+    // extension (DecodeMeshoptViews); its own buffer, the fallback, holds the same bytes
+    // uncompressed for readers without the extension, or nothing (no URI). tinygltf 2.7
+    // refuses a buffer without a URI in a .gltf and copies a .glb's BIN chunk (the
+    // compressed bytes) into one: the empty fallbacks returned here get one placeholder
+    // byte instead (ForTinygltf), which no decoded view reads. Any other buffer
+    // without a URI is refused: only a .glb's first buffer stands for its BIN chunk.
+    std::set<size_t> EmptyFallbackBuffers(const nlohmann::json& aJson, bool aBinary) const {
         const nlohmann::json& buffers = Member(aJson, "buffers");
         const nlohmann::json& views = Member(aJson, "bufferViews");
         std::set<size_t> fallbackBuffers;  // under a compressed view, or marked as a fallback
-        bool meshopt = false;              // refused already
         for (size_t v = 0; views.is_array() && v < views.size(); v++) {
             if (!Member(Member(views[v], "extensions"), "EXT_meshopt_compression").is_object()) continue;
             const nlohmann::json& buffer = Member(views[v], "buffer");
-            if (!Element(buffers, buffer).is_object()) continue;  // tinygltf says what is wrong
-            fallbackBuffers.insert(buffer.get<size_t>());
-            if (!meshopt && HasNoData(buffers, buffer.get<size_t>(), aBinary)) {
-                refuse("EXT_meshopt_compression", "bufferView " + std::to_string(v), "its buffer " + buffer.dump() + " has no URI: it holds no data");
-                meshopt = true;
-            }
+            if (Element(buffers, buffer).is_object()) fallbackBuffers.insert(buffer.get<size_t>());  // else tinygltf says what is wrong
         }
         for (size_t b = 0; buffers.is_array() && b < buffers.size(); b++)
-            if (Member(Member(Member(buffers[b], "extensions"), "EXT_meshopt_compression"), "fallback") == true) {
-                fallbackBuffers.insert(b);
-                if (!meshopt && HasNoData(buffers, b, aBinary)) {
-                    refuse("EXT_meshopt_compression", "the file", "buffer " + std::to_string(b) + ", marked as the fallback, has no URI: it holds no data");
-                    meshopt = true;
-                }
+            if (Member(Member(Member(buffers[b], "extensions"), "EXT_meshopt_compression"), "fallback") == true) fallbackBuffers.insert(b);
+        std::set<size_t> empty;
+        for (size_t b = 0; buffers.is_array() && b < buffers.size(); b++) {
+            if (!HasNoData(buffers, b, aBinary)) continue;
+            if (!fallbackBuffers.count(b))
+                Fail("buffer " + std::to_string(b) + " has no URI (only a .glb's first buffer may go without one: it stands for the "
+                     "BIN chunk, and an EXT_meshopt_compression fallback buffer holds nothing)");
+            empty.insert(b);
+        }
+        return empty;
+    }
+
+    // KHR_draco_mesh_compression: the accessors a compressed primitive's stream fills may
+    // have no bufferView (their data is only in the stream), which tinygltf 2.7 refuses.
+    // Returns them, each with the stream's bufferView, which tinygltf is told they read
+    // until DecodeDracoPrimitives gives them the decoded bytes.
+    static std::map<size_t, nlohmann::json> DracoAccessorsWithoutView(const nlohmann::json& aJson) {
+        std::map<size_t, nlohmann::json> result;
+        const nlohmann::json& accessors = Member(aJson, "accessors");
+        const nlohmann::json& meshes = Member(aJson, "meshes");
+        for (size_t m = 0; meshes.is_array() && m < meshes.size(); m++) {
+            const nlohmann::json& primitives = Member(meshes[m], "primitives");
+            for (size_t p = 0; primitives.is_array() && p < primitives.size(); p++) {
+                const nlohmann::json& draco = Member(Member(primitives[p], "extensions"), "KHR_draco_mesh_compression");
+                const nlohmann::json& stream = Member(draco, "bufferView");
+                const nlohmann::json& ids = Member(draco, "attributes");
+                if (!stream.is_number_unsigned() || !ids.is_object()) continue;  // DecodeDracoPrimitive says what is wrong
+                std::vector<const nlohmann::json*> filled = {&Member(primitives[p], "indices")};
+                for (const auto& entry : ids.items()) filled.push_back(&Member(Member(primitives[p], "attributes"), entry.key().c_str()));
+                for (const nlohmann::json* index : filled)
+                    if (Element(accessors, *index).is_object() && !Element(accessors, *index).contains("bufferView"))
+                        result[index->get<size_t>()] = stream;
             }
-        for (size_t b = 0; buffers.is_array() && b < buffers.size() && problems.empty(); b++)
-            if (!fallbackBuffers.count(b) && HasNoData(buffers, b, aBinary))
-                problems.push_back("buffer " + std::to_string(b) + " has no URI (only a .glb's first buffer may go without one: "
-                                   "it stands for the BIN chunk)");
-        if (problems.empty()) return;
-        std::string message;
-        for (const std::string& problem : problems) message += (message.empty() ? "" : "; ") + problem;
-        Fail(message);
+        }
+        return result;
+    }
+
+    // The file as tinygltf is given it when aEmpty names buffers or aDracoAccessors
+    // accessors: each of those buffers one placeholder byte (a data URI), each of those
+    // accessors its stream's bufferView, in the JSON; in a .glb the JSON chunk is written
+    // anew and the chunks after it are kept as they are.
+    static void ForTinygltf(nlohmann::json aJson, const std::set<size_t>& aEmpty, const std::map<size_t, nlohmann::json>& aDracoAccessors,
+                            bool aBinary, size_t aJsonEnd, std::vector<unsigned char>& ioBytes) {
+        for (const size_t b : aEmpty) {
+            aJson["buffers"][b]["uri"] = "data:application/octet-stream;base64,AA==";
+            aJson["buffers"][b]["byteLength"] = 1;
+        }
+        for (const auto& [accessor, view] : aDracoAccessors) aJson["accessors"][accessor]["bufferView"] = view;
+        std::string text = aJson.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+        if (!aBinary) {
+            ioBytes.assign(text.begin(), text.end());
+            return;
+        }
+        while (text.size() % 4 != 0) text += ' ';  // a chunk's length is a multiple of 4
+        std::vector<unsigned char> glb(ioBytes.begin(), ioBytes.begin() + 12);
+        const auto append32 = [&](uint32_t aValue) {
+            const auto* bytes = reinterpret_cast<const unsigned char*>(&aValue);
+            glb.insert(glb.end(), bytes, bytes + 4);
+        };
+        append32(uint32_t(text.size()));
+        append32(0x4E4F534Au);  // "JSON"
+        glb.insert(glb.end(), text.begin(), text.end());
+        glb.insert(glb.end(), ioBytes.begin() + std::ptrdiff_t(aJsonEnd), ioBytes.end());
+        const uint32_t total = uint32_t(std::min<size_t>(glb.size(), std::numeric_limits<uint32_t>::max()));
+        std::memcpy(glb.data() + 8, &total, 4);
+        ioBytes = std::move(glb);
     }
 
     // tinygltf keeps the default of a spot cone angle that is not a number ("0.5" as a
@@ -8872,7 +8980,6 @@ private:
             const auto& pbr = source.pbrMetallicRoughness;
             std::vector<std::pair<const char*, int>> texCoordSets;  // the textures read, and their sets
             // What the header does not model is approximated and listed in one note.
-            if (pbr.metallicRoughnessTexture.index >= 0) Approximated("metallicRoughnessTexture (the factors are used)");
             if (source.occlusionTexture.index >= 0) Approximated("occlusionTexture (occlusion is computed, not baked)");
             if (source.alphaMode == "BLEND") Approximated("alphaMode BLEND (thresholded: a hole where alpha < 0.5)");
 
@@ -8905,6 +9012,8 @@ private:
                 material.mPhongExponent = float(NumberOr(e, "phongExponent", 1.0));
                 material.mIor = float(NumberOr(e, "ior", -1.0));
                 if (pbr.baseColorTexture.index >= 0) Approximated("baseColorTexture with SMALLVCM_material (its colours are used)");
+                if (pbr.metallicRoughnessTexture.index >= 0)
+                    Approximated("metallicRoughnessTexture with SMALLVCM_material (its colours are used)");
             } else {
                 // The documented mapping of pbrMetallicRoughness (docs/scene_format.md).
                 Vec3 baseColor(1.f);
@@ -8930,7 +9039,6 @@ private:
                 const float glass = (1.f - metallic) * t;
                 if (t > 0.f && glass == 0.f)  // glTF's metallicFactor defaults to 1: a metal
                     Approximated("KHR_materials_transmission on a fully metallic material (no glass: metallicFactor is 1; set it to 0 for glass)");
-                const float dielectric = (1.f - metallic) * (1.f - t);  // the opaque dielectric share
                 float ior = 1.5f;
                 if (glass > 0.f) {
                     auto iorExtension = source.extensions.find("KHR_materials_ior");
@@ -8939,31 +9047,34 @@ private:
                         Fail(what + ": KHR_materials_ior.ior must be a number >= 1, or 0");
                     if (roughness > 0.f) Approximated("roughnessFactor on transmission (rendered as smooth glass)");
                 }
-                // The opaque rest, as without transmission when t = 0. With ior 0 (F = 1) the
-                // glass share reflects all it receives, untinted: it joins that specular.
-                const bool refracts = glass > 0.f && ior > 0.f;
-                const float untinted = 0.04f * dielectric + (refracts ? 0.f : glass);
-                const Vec3 specular = Vec3(untinted) + metallic * baseColor;
-                material.mDiffuseReflectance = dielectric * 0.96f * baseColor;
+                // The written rule (MetallicRoughnessRule), once for the factors.
+                const MetallicRoughnessMaterial rule = MetallicRoughnessRule(baseColor, metallic, roughness, t, ior);
+                material.mDiffuseReflectance = rule.mDiffuse;
+                material.mPhongReflectance = rule.mPhong;
+                material.mPhongExponent = rule.mPhongExponent;
+                material.mMirrorReflectance = rule.mMirror;
+                material.mOpaqueMirror = rule.mOpaqueMirror;
+                material.mTransmittance = rule.mTransmittance;
+                material.mIor = rule.mIor;
                 if (pbr.baseColorTexture.index >= 0) {
                     const TextureUse use = UseTexture(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
                                                       pbr.baseColorTexture.extensions, true, "baseColorTexture", what, cutOut);
                     material.mBaseColorTexture = use.mTexture;
                     texCoordSets.push_back({"baseColorTexture", use.mTexCoord});
-                    material.mSpecularUntinted = Vec3(untinted);
+                    material.mSpecularUntinted = rule.mSpecularUntinted;
                 }
-                if (roughness > 0.f) {
-                    material.mPhongReflectance = specular;
-                    material.mPhongExponent = std::min(10000.f, std::max(0.f, 2.f / std::pow(roughness, 4.f) - 2.f));
-                } else if (refracts) {
-                    material.mOpaqueMirror = specular;
-                } else {
-                    material.mMirrorReflectance = specular;
-                }
-                if (refracts) {
-                    material.mIor = ior;
-                    material.mMirrorReflectance = Vec3(glass);
-                    material.mTransmittance = glass * baseColor;
+                // Metal and roughness per texel: the Bsdf applies the rule at each hit
+                // (Material::mMetallicRoughnessTexture); the texture is linear, not sRGB.
+                if (pbr.metallicRoughnessTexture.index >= 0) {
+                    const TextureUse use = UseTexture(pbr.metallicRoughnessTexture.index, pbr.metallicRoughnessTexture.texCoord,
+                                                      pbr.metallicRoughnessTexture.extensions, false, "metallicRoughnessTexture", what);
+                    material.mMetallicRoughnessTexture = use.mTexture;
+                    texCoordSets.push_back({"metallicRoughnessTexture", use.mTexCoord});
+                    material.mBaseColor = baseColor;
+                    material.mMetallic = metallic;
+                    material.mRoughness = roughness;
+                    material.mTransmission = t;
+                    material.mRuleIor = ior;
                 }
             }
             CheckColor(material.mDiffuseReflectance, what + ": the diffuse reflectance", true);
@@ -9226,6 +9337,233 @@ private:
         for (int child : node.children) VisitNode(child, world, aDepth + 1);
     }
 
+    // --- compressed geometry ---------------------------------------------------------
+    // Decoded bytes come from untrusted ones: each decoded size is checked against the
+    // loader's limits (as if it were one more file read) before it is allocated.
+    void CheckDecodedSize(uint64_t aBytes, const std::string& aWhat) {
+        if (aBytes > mOptions.mMaxFileBytes || aBytes > mOptions.mMaxTotalBytes - std::min(mOptions.mMaxTotalBytes, mBytesRead))
+            Fail(aWhat + ": decodes to " + ByteCount(aBytes) + ", more than the loader's limits allow (GltfLoadOptions::mMaxFileBytes, "
+                         "mMaxTotalBytes)");
+        mBytesRead += aBytes;
+    }
+    // Decoded bytes go to a buffer and a view of their own; returns the view.
+    int AddDecodedView(std::vector<unsigned char>&& aBytes) {
+        tinygltf::Buffer buffer;
+        buffer.data = std::move(aBytes);
+        tinygltf::BufferView view;
+        view.buffer = int(mModel.buffers.size());
+        view.byteLength = buffer.data.size();
+        mModel.buffers.push_back(std::move(buffer));
+        mModel.bufferViews.push_back(view);
+        return int(mModel.bufferViews.size()) - 1;
+    }
+    // A member of an extension object that must be an integer in [0, 2^53).
+    uint64_t ExtensionInteger(const tinygltf::Value& aObject, const char* aKey, const std::string& aWhat) const {
+        if (!aObject.Has(aKey)) Fail(aWhat + ": '" + aKey + "' is missing");
+        const tinygltf::Value& value = aObject.Get(aKey);
+        const double number = value.IsNumber() ? value.GetNumberAsDouble() : -1.0;
+        if (!(number >= 0.0 && number < 9.0e15 && number == std::floor(number)))
+            Fail(aWhat + ": '" + aKey + "' must be a non-negative integer");
+        return uint64_t(number);
+    }
+
+    // EXT_meshopt_compression: each compressed buffer view is decoded from the bytes the
+    // extension names (its buffer, byteOffset, byteLength) into count x byteStride bytes:
+    // mode ATTRIBUTES by meshopt_decodeVertexBuffer, TRIANGLES by meshopt_decodeIndexBuffer,
+    // INDICES by meshopt_decodeIndexSequence, then its filter (OCTAHEDRAL, QUATERNION,
+    // EXPONENTIAL) undone in place. The view then names the decoded bytes, and accessors
+    // read it as any other; its fallback buffer is not read.
+    void DecodeMeshoptViews() {
+        for (size_t v = 0; v < mModel.bufferViews.size(); v++) {
+            const auto found = mModel.bufferViews[v].extensions.find("EXT_meshopt_compression");
+            if (found == mModel.bufferViews[v].extensions.end()) continue;
+            const std::string what = "bufferView " + std::to_string(v) + ": EXT_meshopt_compression";
+            const tinygltf::Value& e = found->second;
+            if (!e.IsObject()) Fail(what + " must be an object");
+            const uint64_t buffer = ExtensionInteger(e, "buffer", what), length = ExtensionInteger(e, "byteLength", what);
+            const uint64_t offset = e.Has("byteOffset") ? ExtensionInteger(e, "byteOffset", what) : 0;
+            const uint64_t stride = ExtensionInteger(e, "byteStride", what), count = ExtensionInteger(e, "count", what);
+            const auto text = [&](const char* aKey, const char* aDefault) {
+                if (!e.Has(aKey)) return std::string(aDefault);
+                if (!e.Get(aKey).IsString()) Fail(what + ": '" + aKey + "' must be a string");
+                return e.Get(aKey).Get<std::string>();
+            };
+            const std::string mode = text("mode", ""), filter = text("filter", "NONE");
+            if (buffer >= mModel.buffers.size()) Fail(what + " refers to buffer " + std::to_string(buffer) + ", which does not exist");
+            const size_t sourceSize = mModel.buffers[size_t(buffer)].data.size();
+            if (offset > sourceSize || length > sourceSize - offset)
+                Fail(what + ": its compressed bytes (byteOffset " + std::to_string(offset) + ", byteLength " + std::to_string(length) +
+                     ") lie past the end of buffer " + std::to_string(buffer) + " (" + ByteCount(sourceSize) + ")");
+            // What the decoders require (meshoptimizer asserts it rather than returning an error).
+            const bool attributes = mode == "ATTRIBUTES";
+            if (attributes) {
+                if (stride == 0 || stride > 256 || stride % 4 != 0)
+                    Fail(what + ": byteStride " + std::to_string(stride) + " (mode ATTRIBUTES takes a multiple of 4 from 4 to 256)");
+            } else if (mode == "TRIANGLES" || mode == "INDICES") {
+                if (stride != 2 && stride != 4) Fail(what + ": byteStride " + std::to_string(stride) + " (mode " + mode + " takes 2 or 4)");
+                if (mode == "TRIANGLES" && count % 3 != 0) Fail(what + ": count " + std::to_string(count) + " (mode TRIANGLES takes a multiple of 3)");
+            } else {
+                Fail(what + ": mode '" + Excerpt(mode) + "' (ATTRIBUTES, TRIANGLES or INDICES)");
+            }
+            const bool filterFits = filter == "NONE" || (attributes && (filter == "EXPONENTIAL" || (filter == "QUATERNION" && stride == 8) ||
+                                                                        (filter == "OCTAHEDRAL" && (stride == 4 || stride == 8))));
+            if (!filterFits)
+                Fail(what + ": filter '" + Excerpt(filter) + "' with mode " + mode + " and byteStride " + std::to_string(stride) +
+                     " (OCTAHEDRAL takes ATTRIBUTES of stride 4 or 8, QUATERNION of stride 8, EXPONENTIAL any ATTRIBUTES)");
+            if (count > (uint64_t(1) << 31)) Fail(what + ": count " + std::to_string(count) + " is more than 2^31");
+            CheckDecodedSize(count * stride, what);
+            std::vector<unsigned char> decoded(size_t(count * stride));
+            const unsigned char* source = mModel.buffers[size_t(buffer)].data.data() + offset;
+            const int status = attributes ? meshopt_decodeVertexBuffer(decoded.data(), size_t(count), size_t(stride), source, size_t(length))
+                             : mode == "TRIANGLES" ? meshopt_decodeIndexBuffer(decoded.data(), size_t(count), size_t(stride), source, size_t(length))
+                                                   : meshopt_decodeIndexSequence(decoded.data(), size_t(count), size_t(stride), source, size_t(length));
+            if (status != 0)
+                Fail(what + ": its " + std::to_string(length) + " compressed bytes do not decode to " + std::to_string(count) + " x " +
+                     std::to_string(stride) + " bytes (meshoptimizer error " + std::to_string(status) + ": damaged, or not meshopt data)");
+            if (filter == "OCTAHEDRAL") meshopt_decodeFilterOct(decoded.data(), size_t(count), size_t(stride));
+            else if (filter == "QUATERNION") meshopt_decodeFilterQuat(decoded.data(), size_t(count), size_t(stride));
+            else if (filter == "EXPONENTIAL") meshopt_decodeFilterExp(decoded.data(), size_t(count), size_t(stride));
+            const int decodedView = AddDecodedView(std::move(decoded));
+            tinygltf::BufferView& view = mModel.bufferViews[v];
+            view.buffer = mModel.bufferViews[size_t(decodedView)].buffer;
+            view.byteOffset = 0;
+            view.byteLength = size_t(count * stride);
+            if (attributes) view.byteStride = size_t(stride);
+        }
+    }
+
+    // KHR_draco_mesh_compression: a compressed primitive's stream (the extension's
+    // bufferView) is decoded by libdraco into a mesh of points and faces. The indices
+    // accessor gets the faces' corners (3 per face, unsigned int), each attribute the
+    // extension names gets the stream's attribute of that unique id, one value per point,
+    // in the component type its accessor declares; each is written to a view of its own
+    // that the accessor then names, so that it is read like any accessor. The accessors'
+    // counts and types are what the stream must hold: a stream that disagrees is refused.
+    void DecodeDracoPrimitives() {
+        std::map<int, int> filledBy;  // accessor -> the view of the stream that filled it
+        for (size_t m = 0; m < mModel.meshes.size(); m++)
+            for (size_t p = 0; p < mModel.meshes[m].primitives.size(); p++) {
+                const tinygltf::Primitive& primitive = mModel.meshes[m].primitives[p];
+                const auto found = primitive.extensions.find("KHR_draco_mesh_compression");
+                if (found != primitive.extensions.end())
+                    DecodeDracoPrimitive(primitive, found->second, "mesh " + std::to_string(m) + " primitive " + std::to_string(p) +
+                                                                    ": KHR_draco_mesh_compression", filledBy);
+            }
+    }
+    void DecodeDracoPrimitive(const tinygltf::Primitive& aPrimitive, const tinygltf::Value& aExtension, const std::string& aWhat,
+                              std::map<int, int>& ioFilledBy) {
+        if (!aExtension.IsObject() || !aExtension.Has("attributes") || !aExtension.Get("attributes").IsObject())
+            Fail(aWhat + " must be an object with a bufferView and an attributes object");
+        const uint64_t streamView = ExtensionInteger(aExtension, "bufferView", aWhat);
+        if (streamView >= mModel.bufferViews.size()) Fail(aWhat + " refers to bufferView " + std::to_string(streamView) + ", which does not exist");
+        // The accessors it fills (-1: the indices), all checked before a byte is decoded.
+        struct Target { std::string mSemantic; int mAccessor; int mId; };
+        std::vector<Target> targets;
+        if (aPrimitive.indices >= 0) targets.push_back({"indices", aPrimitive.indices, -1});
+        const tinygltf::Value& ids = aExtension.Get("attributes");
+        for (const std::string& semantic : ids.Keys()) {
+            const tinygltf::Value& id = ids.Get(semantic);
+            if (!id.IsInt() || id.GetNumberAsInt() < 0) Fail(aWhat + ": the id of " + Excerpt(semantic) + " must be a non-negative integer");
+            const auto attribute = aPrimitive.attributes.find(semantic);
+            if (attribute == aPrimitive.attributes.end())
+                Fail(aWhat + ": it compresses " + Excerpt(semantic) + ", which the primitive has no accessor for");
+            targets.push_back({semantic, attribute->second, id.GetNumberAsInt()});
+        }
+        for (const Target& target : targets) {
+            if (target.mAccessor < 0 || target.mAccessor >= int(mModel.accessors.size()))
+                Fail(aWhat + ": its " + Excerpt(target.mSemantic) + " refers to accessor " + std::to_string(target.mAccessor) + ", which does not exist");
+            const auto filled = ioFilledBy.find(target.mAccessor);
+            if (filled == ioFilledBy.end()) continue;
+            if (filled->second == int(streamView)) return;  // the same stream, decoded already for another primitive
+            Fail(aWhat + ": accessor " + std::to_string(target.mAccessor) + " is filled by two Draco streams (bufferViews " +
+                 std::to_string(filled->second) + " and " + std::to_string(streamView) + ")");
+        }
+        const auto componentSize = [](int aType) {
+            switch (aType) {
+            case TINYGLTF_COMPONENT_TYPE_BYTE: case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
+            case TINYGLTF_COMPONENT_TYPE_SHORT: case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
+            case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
+            default: return 0;
+            }
+        };
+        for (const Target& target : targets) {
+            const tinygltf::Accessor& accessor = mModel.accessors[size_t(target.mAccessor)];
+            const int components = target.mId < 0 ? 1 : tinygltf::GetNumComponentsInType(uint32_t(accessor.type));
+            const int size = target.mId < 0 ? 4 : componentSize(accessor.componentType);
+            if (components < 1 || components > 4 || size == 0)
+                Fail(aWhat + ": the accessor of " + Excerpt(target.mSemantic) + " (accessor " + std::to_string(target.mAccessor) +
+                     ") has a type this loader does not read from Draco (scalars and vectors of float, byte or short)");
+            if (accessor.count > (size_t(1) << 31)) Fail(aWhat + ": accessor " + std::to_string(target.mAccessor) + " counts more than 2^31");
+            CheckDecodedSize(uint64_t(accessor.count) * uint64_t(components * size), aWhat);
+        }
+        const tinygltf::BufferView& view = mModel.bufferViews[size_t(streamView)];
+        if (view.buffer < 0 || view.buffer >= int(mModel.buffers.size())) Fail(aWhat + ": its bufferView refers to a missing buffer");
+        const std::vector<unsigned char>& bytes = mModel.buffers[size_t(view.buffer)].data;
+        if (view.byteOffset > bytes.size() || view.byteLength > bytes.size() - view.byteOffset)
+            Fail(aWhat + ": its bufferView " + std::to_string(streamView) + " lies past the end of its buffer");
+        draco::DecoderBuffer input;
+        input.Init(reinterpret_cast<const char*>(bytes.data() + view.byteOffset), view.byteLength);
+        draco::Decoder decoder;
+        draco::StatusOr<std::unique_ptr<draco::Mesh>> decoded = decoder.DecodeMeshFromBuffer(&input);
+        if (!decoded.ok() || !decoded.value())
+            Fail(aWhat + ": the stream in bufferView " + std::to_string(streamView) + " does not decode (libdraco: " +
+                 Excerpt(decoded.ok() ? std::string("no mesh") : decoded.status().error_msg_string(), 120) + ")");
+        const std::unique_ptr<draco::Mesh> mesh = std::move(decoded).value();
+        const uint64_t points = mesh->num_points();
+        for (const Target& target : targets) {
+            tinygltf::Accessor& accessor = mModel.accessors[size_t(target.mAccessor)];
+            std::vector<unsigned char> out;
+            if (target.mId < 0) {
+                if (uint64_t(mesh->num_faces()) * 3 != accessor.count)
+                    Fail(aWhat + ": the stream holds " + std::to_string(mesh->num_faces()) + " triangles, the indices accessor " +
+                         std::to_string(target.mAccessor) + " counts " + std::to_string(accessor.count) + " indices");
+                out.resize(accessor.count * 4);
+                for (uint32_t f = 0; f < mesh->num_faces(); f++)
+                    for (int c = 0; c < 3; c++) {
+                        const uint32_t index = mesh->face(draco::FaceIndex(f))[size_t(c)].value();
+                        if (index >= points) Fail(aWhat + ": the stream's triangle " + std::to_string(f) + " names a point it does not hold");
+                        std::memcpy(out.data() + (size_t(f) * 3 + size_t(c)) * 4, &index, 4);
+                    }
+                accessor.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+            } else {
+                const draco::PointAttribute* attribute = mesh->GetAttributeByUniqueId(uint32_t(target.mId));
+                const int components = tinygltf::GetNumComponentsInType(uint32_t(accessor.type));
+                if (!attribute) Fail(aWhat + ": the stream has no attribute of id " + std::to_string(target.mId) + " (" + Excerpt(target.mSemantic) + ")");
+                if (attribute->num_components() != components)
+                    Fail(aWhat + ": the stream's " + Excerpt(target.mSemantic) + " has " + std::to_string(int(attribute->num_components())) +
+                         " components, its accessor " + std::to_string(components));
+                if (points != accessor.count)
+                    Fail(aWhat + ": the stream holds " + std::to_string(points) + " points, the accessor of " + Excerpt(target.mSemantic) +
+                         " (accessor " + std::to_string(target.mAccessor) + ") counts " + std::to_string(accessor.count));
+                const int size = componentSize(accessor.componentType);
+                out.resize(accessor.count * size_t(components * size));
+                bool converted = false;
+                switch (accessor.componentType) {
+                case TINYGLTF_COMPONENT_TYPE_BYTE: converted = DracoValues<int8_t>(*attribute, points, components, out.data()); break;
+                case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: converted = DracoValues<uint8_t>(*attribute, points, components, out.data()); break;
+                case TINYGLTF_COMPONENT_TYPE_SHORT: converted = DracoValues<int16_t>(*attribute, points, components, out.data()); break;
+                case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: converted = DracoValues<uint16_t>(*attribute, points, components, out.data()); break;
+                default: converted = DracoValues<float>(*attribute, points, components, out.data()); break;
+                }
+                if (!converted) Fail(aWhat + ": the stream's " + Excerpt(target.mSemantic) + " does not convert to its accessor's component type");
+            }
+            accessor.bufferView = AddDecodedView(std::move(out));
+            accessor.byteOffset = 0;
+            ioFilledBy[target.mAccessor] = int(streamView);
+        }
+    }
+    // aPoints values of aComponents components of aAttribute as T, one after the other.
+    template <typename T>
+    static bool DracoValues(const draco::PointAttribute& aAttribute, uint64_t aPoints, int aComponents, unsigned char* oBytes) {
+        std::array<T, 4> value{};
+        for (uint64_t i = 0; i < aPoints; i++) {
+            const draco::AttributeValueIndex index = aAttribute.mapped_index(draco::PointIndex(uint32_t(i)));
+            if (index.value() >= aAttribute.size() || !aAttribute.ConvertValue<T>(index, int8_t(aComponents), value.data())) return false;
+            std::memcpy(oBytes + i * sizeof(T) * size_t(aComponents), value.data(), sizeof(T) * size_t(aComponents));
+        }
+        return true;
+    }
+
     // Reads an accessor as aComponents-wide rows of doubles, after checking its type,
     // component type and that every byte it names lies inside its buffer.
     enum class AccessorKind { kIndices, kPositions, kNormals, kTexcoords, kTangents };
@@ -9244,19 +9582,41 @@ private:
             else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) componentSize = 2;
             else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) componentSize = 4;
             else Fail(where + ": indices must be unsigned byte, short or int");
-        } else if (aKind == AccessorKind::kTexcoords) {  // glTF: float, or normalised unsigned byte/short
-            if (componentType == TINYGLTF_COMPONENT_TYPE_FLOAT) componentSize = 4;
-            else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && accessor.normalized) componentSize = 1;
-            else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT && accessor.normalized) componentSize = 2;
-            else Fail(where + ": texture coordinates must be FLOAT or normalised unsigned byte or short");
+        } else if (!mQuantized) {
+            if (aKind == AccessorKind::kTexcoords) {  // glTF: float, or normalised unsigned byte/short
+                if (componentType == TINYGLTF_COMPONENT_TYPE_FLOAT) componentSize = 4;
+                else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && accessor.normalized) componentSize = 1;
+                else if (componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT && accessor.normalized) componentSize = 2;
+                else Fail(where + ": texture coordinates must be FLOAT or normalised unsigned byte or short");
+            } else {
+                if (componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
+                    Fail(where + (aKind == AccessorKind::kNormals ? ": normals must be FLOAT"
+                                  : aKind == AccessorKind::kTangents ? ": tangents must be FLOAT" : ": positions must be FLOAT"));
+                componentSize = 4;
+            }
         } else {
-            if (componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
-                Fail(where + (aKind == AccessorKind::kNormals ? ": normals must be FLOAT"
-                              : aKind == AccessorKind::kTangents ? ": tangents must be FLOAT" : ": positions must be FLOAT"));
-            componentSize = 4;
+            // KHR_mesh_quantization adds integer components: positions and texture
+            // coordinates of (unsigned) byte or short, normalised or not; normals and
+            // tangents of normalised (signed) byte or short. The node transform scales
+            // and offsets what they hold into the model's units (the extension's
+            // dequantization), as it places any mesh.
+            const bool small = componentType == TINYGLTF_COMPONENT_TYPE_BYTE || componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+                               componentType == TINYGLTF_COMPONENT_TYPE_SHORT || componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+            const bool isSigned = componentType == TINYGLTF_COMPONENT_TYPE_BYTE || componentType == TINYGLTF_COMPONENT_TYPE_SHORT;
+            const bool directional = aKind == AccessorKind::kNormals || aKind == AccessorKind::kTangents;
+            if (componentType == TINYGLTF_COMPONENT_TYPE_FLOAT) componentSize = 4;
+            else if (small && (!directional || (isSigned && accessor.normalized)))
+                componentSize = componentType == TINYGLTF_COMPONENT_TYPE_BYTE || componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ? 1 : 2;
+            else Fail(where + (directional ? (aKind == AccessorKind::kNormals ? ": normals" : ": tangents") +
+                                                 std::string(" must be FLOAT or normalised byte or short (KHR_mesh_quantization)")
+                                           : (aKind == AccessorKind::kTexcoords ? ": texture coordinates" : ": positions") +
+                                                 std::string(" must be FLOAT, byte or short (KHR_mesh_quantization)")));
         }
+        const bool signedComponents = componentType == TINYGLTF_COMPONENT_TYPE_BYTE || componentType == TINYGLTF_COMPONENT_TYPE_SHORT;
         const size_t components = aIndices ? 1 : aKind == AccessorKind::kTexcoords ? 2 : aKind == AccessorKind::kTangents ? 4 : 3;
-        const double normalisation = aKind != AccessorKind::kTexcoords || componentSize == 4 ? 1.0
+        // A normalised integer c stands for c / (2^bits - 1) unsigned, max(c / (2^(bits-1) - 1), -1) signed.
+        const double normalisation = aIndices || componentSize == 4 || !accessor.normalized ? 1.0
+                                     : signedComponents ? (componentSize == 1 ? 1.0 / 127.0 : 1.0 / 32767.0)
                                      : componentSize == 1 ? 1.0 / 255.0 : 1.0 / 65535.0;
         if (accessor.bufferView < 0 || accessor.bufferView >= int(mModel.bufferViews.size()))
             Fail(where + ": missing or invalid bufferView");
@@ -9282,11 +9642,13 @@ private:
             for (size_t c = 0; c < components; c++) {
                 const unsigned char* p = element + c * componentSize;
                 double value;
-                if (componentSize == 1) value = *p;
+                if (componentSize == 1) value = signedComponents ? double(int8_t(*p)) : double(*p);
+                else if (componentSize == 2 && signedComponents) { int16_t v; std::memcpy(&v, p, 2); value = v; }
                 else if (componentSize == 2) { uint16_t v; std::memcpy(&v, p, 2); value = v; }
                 else if (aIndices) { uint32_t v; std::memcpy(&v, p, 4); value = v; }
                 else { float v; std::memcpy(&v, p, 4); value = v; }
-                values[i * components + c] = value * normalisation;
+                values[i * components + c] = signedComponents && normalisation != 1.0 ? std::max(value * normalisation, -1.0)
+                                                                                      : value * normalisation;
             }
         }
         return values;
@@ -9337,6 +9699,7 @@ private:
             const char* texture = sceneMaterial.mBaseColorTexture >= 0 || sceneMaterial.mAlphaTexture >= 0 ? "a baseColorTexture"
                                   : mMaterialEmissionTexture[size_t(material)] >= 0       ? "an emissiveTexture"
                                   : normalMapped                                           ? "a normalTexture"
+                                  : sceneMaterial.mMetallicRoughnessTexture >= 0           ? "a metallicRoughnessTexture"
                                                                                            : nullptr;
             if (texture) {
                 const std::string set = "TEXCOORD_" + std::to_string(mMaterialTexCoord[size_t(material)]);
@@ -9548,13 +9911,16 @@ private:
         const glm::dmat3 normalMatrix = glm::transpose(glm::inverse(glm::dmat3(aWorld)));
         std::vector<Vec3> world(aVertexCount);
         size_t notUnit = 0;
+        // A quantized normal (KHR_mesh_quantization: often 8 to 10 bits, stored in bytes or
+        // shorts) is of unit length only to within its steps, up to about 1/127.
+        const double unitTolerance = mModel.accessors[size_t(attribute->second)].componentType == TINYGLTF_COMPONENT_TYPE_FLOAT ? 1e-3 : 1e-2;
         for (size_t v = 0; v < aVertexCount; v++) {
             const glm::dvec3 n(local[3 * v], local[3 * v + 1], local[3 * v + 2]);
             const double length = glm::length(n);
             if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z))
                 Fail(aWhat + ": NORMAL of vertex " + std::to_string(v) + " is not finite (NaN or infinity)");
             if (!(length > 0.0)) Fail(aWhat + ": NORMAL of vertex " + std::to_string(v) + " has zero length");
-            if (std::abs(length - 1.0) > 1e-3) notUnit++;
+            if (std::abs(length - 1.0) > unitTolerance) notUnit++;
             const glm::dvec3 w = normalMatrix * (n / length);
             const double worldLength = glm::length(w);
             if (worldLength > 0.0 && std::isfinite(worldLength)) world[v] = Vec3(w / worldLength);
@@ -9931,7 +10297,8 @@ private:
     std::string mRoot;                          // canonical folder every URI must resolve into
     std::set<uint64_t> mDeclaredBufferSizes;    // byteLength of every buffer with a file URI
     std::map<std::string, std::deque<std::string>> mBufferFileNames;  // tinygltf's decoding of a file URI -> the files it names, in order
-    uint64_t mBytesRead = 0;                    // scene file and buffer files so far
+    uint64_t mBytesRead = 0;                    // scene file and buffer files so far (and decoded geometry)
+    bool mQuantized = false;                    // the file uses KHR_mesh_quantization
     std::string mBufferProblem;                 // why a buffer file was not read, if one was not
     tinygltf::Model mModel;
     Scene mScene;

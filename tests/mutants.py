@@ -234,7 +234,7 @@ def build_programs(tree, programs, objdir, impl):
         code, out = run([CXX] + CXXFLAGS + ["-c", source, "-o", obj], tree, 600)
         if code != 0:
             return "%s does not compile: %s" % (source, out[-500:])
-        code, out = run([CXX, obj, impl, "-o", os.path.join(tree, "build", name), "-pthread", "-ltinyexr"], tree, 300)
+        code, out = run([CXX, obj, impl, "-o", os.path.join(tree, "build", name), "-pthread", "-ltinyexr", "-ldraco", "-lmeshoptimizer"], tree, 300)
         if code != 0:
             return "build/%s does not link: %s" % (name, out[-500:])
     return None
@@ -271,7 +271,7 @@ def test_mutant(tree, shared, mutant, header, jobs, stage_count, timeouts=None, 
         binary = os.path.join(objdir, "run_tests")
         # The mutated objects come first: where an inline function of the header is also
         # emitted in the (unmutated) implementation unit, the linker keeps the first copy.
-        code, out = run([CXX] + objects + [os.path.join(shared, "catch_main.o"), impl, "-o", binary, "-pthread", "-ltinyexr"], tree, 300)
+        code, out = run([CXX] + objects + [os.path.join(shared, "catch_main.o"), impl, "-o", binary, "-pthread", "-ltinyexr", "-ldraco", "-lmeshoptimizer"], tree, 300)
         if code != 0:
             return "broken", name, "link failed: " + out[-500:]
         junit = os.path.join(objdir, "report.xml")

@@ -9,6 +9,7 @@
 #include "test_util.hpp"
 
 #include <catch2/catch.hpp>
+#include <meshoptimizer.h>
 
 #include <filesystem>
 #include <map>
@@ -998,17 +999,16 @@ TEST_CASE("A black background is no light: refused as none is when nothing else 
 
 TEST_CASE("Every unsupported required extension is named in one line, each with its hint", "[gltf]") {
     testutil::TemporaryFolder folder;
-    // KHR_lights_punctual is modelled; EXT_meshopt_compression, listed twice, is named once.
+    // KHR_lights_punctual and KHR_mesh_quantization are modelled; KHR_texture_basisu, listed twice, is named once.
     const std::string path = WriteTemporary(folder, "several.gltf", R"({"asset": {"version": "2.0"},
-        "extensionsUsed": ["KHR_lights_punctual", "EXT_meshopt_compression", "EXT_unknown_feature", "KHR_mesh_quantization"],
-        "extensionsRequired": ["KHR_lights_punctual", "EXT_meshopt_compression", "EXT_unknown_feature", "KHR_mesh_quantization",
-                               "EXT_meshopt_compression"],
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_basisu", "EXT_unknown_feature", "EXT_texture_webp", "KHR_mesh_quantization"],
+        "extensionsRequired": ["KHR_lights_punctual", "KHR_texture_basisu", "EXT_unknown_feature", "EXT_texture_webp",
+                               "KHR_mesh_quantization", "KHR_texture_basisu"],
         "buffers": [{"byteLength": 100, "uri": "missing.bin"}], "scenes": [{"nodes": []}]})");
-    CHECK(LoadError(path) == path + ": required extensions EXT_meshopt_compression, 'EXT_unknown_feature' and KHR_mesh_quantization "
-                                    "are not supported: EXT_meshopt_compression: its buffers are meshopt-compressed: decompress the "
-                                    "file first (e.g. `gltf-transform copy IN OUT`, or re-export without compression); "
-                                    "KHR_mesh_quantization: its vertex attributes are quantized: dequantize the file first (e.g. "
-                                    "`gltf-transform dequantize IN OUT`)");
+    CHECK(LoadError(path) == path + ": required extensions KHR_texture_basisu, 'EXT_unknown_feature' and EXT_texture_webp "
+                                    "are not supported: KHR_texture_basisu: its textures are KTX2/Basis: convert them to PNG or "
+                                    "JPEG first (e.g. re-export with PNG textures); EXT_texture_webp: its textures are WebP: "
+                                    "convert them to PNG or JPEG first");
     // A list longer than a line ends in how many more there are.
     std::string many;
     for (int e = 0; e < 11; e++) many += std::string(e > 0 ? ", " : "") + "\"EXT_unknown_" + std::to_string(e) + "\"";
@@ -1019,48 +1019,39 @@ TEST_CASE("Every unsupported required extension is named in one line, each with 
                                             "'EXT_unknown_7' and 3 more are not supported");
 }
 
-TEST_CASE("A compression extension only used loads from its uncompressed fallback, and is refused by name without one", "[gltf]") {
+TEST_CASE("A meshopt-compressed buffer view is decoded, its fallback buffer holding the plain bytes or nothing", "[gltf][compressed]") {
     testutil::TemporaryFolder folder;
     const std::vector<float> cube = Cube(Vec3(0.f));
     const std::string bytes(reinterpret_cast<const char*>(cube.data()), cube.size() * sizeof(float));
-    const auto ignored = [](const GltfLoadReport& aReport, const std::string& aExtension) {
-        for (const std::string& note : aReport.mNotes)
-            if (note.find("ignored extensions") != std::string::npos && note.find(aExtension) != std::string::npos) return true;
-        return false;
+    std::vector<unsigned char> encoded(meshopt_encodeVertexBufferBound(36, 12));
+    encoded.resize(meshopt_encodeVertexBuffer(encoded.data(), encoded.size(), cube.data(), 36, 12));
+    const std::string compressed(encoded.begin(), encoded.end());
+    // The view's compressed bytes are buffer 0; its own buffer, 1, is the fallback.
+    const std::string meshopt = Replaced(MeshGltf(cube, "", R"(, "extensionsUsed": ["EXT_meshopt_compression"])"),
+        R"("bufferViews": [{"buffer": 0, )",
+        R"("bufferViews": [{"buffer": 1, "byteStride": 12, "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteLength": )" +
+            std::to_string(compressed.size()) + R"(, "byteStride": 12, "count": 36, "mode": "ATTRIBUTES"}}, )");
+    const std::string withCompressed = Replaced(Replaced(meshopt, Base64(bytes), Base64(compressed)),
+                                                R"("buffers": [{"byteLength": 432, )",
+                                                R"("buffers": [{"byteLength": )" + std::to_string(compressed.size()) + ", ");
+    const std::string marked = R"("extensions": {"EXT_meshopt_compression": {"fallback": true}})";
+    const auto sameCube = [&](const std::string& aPath) {
+        const Scene scene = LoadGltfScene(aPath);
+        REQUIRE(scene.mTriangles.size() == 12);
+        for (size_t t = 0; t < 12; t++) CHECK(scene.mTriangles[t].mP0 == Vec3(cube[9 * t], cube[9 * t + 1], cube[9 * t + 2]));
     };
-    SECTION("KHR_draco_mesh_compression: the primitive's accessors keep their bufferView, or have none") {
-        const std::string draco = Replaced(MeshGltf(cube, "", R"(, "extensionsUsed": ["KHR_draco_mesh_compression"])"),
-            R"({"attributes": {"POSITION": 0}, "material": 0})",
-            R"({"attributes": {"POSITION": 0}, "material": 0, "extensions": {"KHR_draco_mesh_compression": {"bufferView": 0,
-                "attributes": {"POSITION": 0}}}})");
-        const std::string withFallback = WriteTemporary(folder, "draco_fallback.gltf", draco);
-        GltfLoadReport report;
-        CHECK(LoadGltfScene(withFallback, &report).mTriangles.size() == 12);
-        CHECK(ignored(report, "KHR_draco_mesh_compression"));
-        const std::string without = WriteTemporary(folder, "draco_only.gltf",
-                                                   Replaced(draco, R"({"bufferView": 0, "componentType")", R"({"componentType")"));
-        CHECK_THAT(LoadError(without), Catch::StartsWith(without + ": KHR_draco_mesh_compression is not supported, and mesh 0 "
-                                                         "primitive 0 has no uncompressed fallback to read instead (accessor 0, its "
-                                                         "POSITION, has no bufferView): its meshes are Draco-compressed"));
+    SECTION("the fallback holds the plain bytes: they are not what is read") {
+        sameCube(WriteTemporary(folder, "meshopt_fallback.gltf", Replaced(withCompressed, R"("}], "extensionsUsed")",
+            R"("}, {"byteLength": 432, "uri": "data:application/octet-stream;base64,)" + Base64(std::string(432, '\0')) + "\", " +
+                marked + R"(}], "extensionsUsed")")));
     }
-    SECTION("EXT_meshopt_compression: the buffer view's own buffer holds the uncompressed bytes, or nothing") {
-        // The view reads its compressed bytes from buffer 0 (here plain ones), its own are in buffer 1.
-        const std::string meshopt = Replaced(MeshGltf(cube, "", R"(, "extensionsUsed": ["EXT_meshopt_compression"])"),
-            R"("bufferViews": [{"buffer": 0, )",
-            R"("bufferViews": [{"buffer": 1, "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteLength": 432,
-                "byteStride": 12, "count": 36, "mode": "ATTRIBUTES"}}, )");
-        const std::string marked = R"("extensions": {"EXT_meshopt_compression": {"fallback": true}})";
-        const std::string withFallback = WriteTemporary(folder, "meshopt_fallback.gltf", Replaced(meshopt, R"("}], "extensionsUsed")",
-            R"("}, {"byteLength": 432, "uri": "data:application/octet-stream;base64,)" + Base64(bytes) + "\", " + marked +
-                R"(}], "extensionsUsed")"));
-        GltfLoadReport report;
-        CHECK(LoadGltfScene(withFallback, &report).mTriangles.size() == 12);
-        CHECK(ignored(report, "EXT_meshopt_compression"));
-        const std::string without = WriteTemporary(folder, "meshopt_only.gltf", Replaced(meshopt, R"("}], "extensionsUsed")",
-            R"("}, {"byteLength": 432, )" + marked + R"(}], "extensionsUsed")"));
-        CHECK_THAT(LoadError(without), Catch::StartsWith(without + ": EXT_meshopt_compression is not supported, and bufferView 0 has "
-                                                         "no uncompressed fallback to read instead (its buffer 1 has no URI: it holds no "
-                                                         "data): its buffers are meshopt-compressed"));
+    SECTION("the fallback holds nothing (no URI), in a .gltf") {
+        sameCube(WriteTemporary(folder, "meshopt_only.gltf", Replaced(withCompressed, R"("}], "extensionsUsed")",
+            R"("}, {"byteLength": 432, )" + marked + R"(}], "extensionsUsed")")));
+    }
+    SECTION("a buffer without a URI that is no fallback is refused") {
+        const std::string path = WriteTemporary(folder, "unmarked.gltf", Replaced(MeshGltf(cube), R"("}]})", R"("}, {"byteLength": 4}]})"));
+        CHECK_THAT(LoadError(path), Catch::StartsWith(path + ": buffer 1 has no URI"));
     }
 }
 
@@ -1072,10 +1063,8 @@ TEST_CASE("Required extensions that are not modelled are refused before any buff
     const struct {
         const char* mExtension;
         const char* mAdvice;
-    } cases[] = {{"KHR_draco_mesh_compression", "Draco-compressed: decompress the file first"},
-                 {"EXT_meshopt_compression", "meshopt-compressed: decompress the file first"},
-                 {"KHR_mesh_quantization", "dequantize the file first"},
-                 {"KHR_texture_basisu", "KTX2/Basis: convert them to PNG or JPEG"}};
+    } cases[] = {{"KHR_texture_basisu", "KTX2/Basis: convert them to PNG or JPEG"},
+                 {"EXT_texture_webp", "WebP: convert them to PNG or JPEG"}};
     for (const auto& c : cases) {
         std::string json = base;
         for (size_t at; (at = json.find("\"EXT\"")) != std::string::npos;) json.replace(at, 5, std::string("\"") + c.mExtension + "\"");
@@ -2289,4 +2278,58 @@ TEST_CASE("The media scenes load with their media, and each medium's mesh is clo
         }
         CHECK(glass == 1);
     }
+}
+
+TEST_CASE("A metallicRoughnessTexture makes each texel the written rule's material of its metal and roughness", "[gltf]") {
+    // data/gltf/metal_roughness_texture.gltf (make_bad_gltf.py): the floor's texture has 3 x 3
+    // cells of metal 0, 128/255, 1 (columns) and roughness 0, 128/255, 1 (rows), factors 1;
+    // materials 2 to 10 are each cell's factor-only material, which the mapping tests above
+    // check number by number. At each cell's centre the textured floor's Bsdf must be that
+    // material's: the same value and pdfs in every direction, the same sampled directions
+    // and weights, the same continuation probability.
+    const Scene scene = LoadGltfScene("data/gltf/metal_roughness_texture.gltf");
+    REQUIRE(scene.mMaterials.size() >= 11);
+    REQUIRE(scene.GetMaterial(0).mMetallicRoughnessTexture >= 0);
+    const Vec3 directions[] = {glm::normalize(Vec3(0.3f, -0.2f, 1.f)), glm::normalize(Vec3(-0.3f, 0.2f, 1.f)),
+                               glm::normalize(Vec3(-0.35f, 0.25f, 1.f)), glm::normalize(Vec3(0.8f, 0.1f, 0.3f)), Vec3(0.f, 0.f, 1.f)};
+    const auto near = [](float aA, float aB) { return std::abs(aA - aB) <= 1e-5f * std::max(1.f, std::abs(aB)); };
+    for (int row = 0; row < 3; row++)
+        for (int column = 0; column < 3; column++) {
+            INFO("cell: metal column " << column << ", roughness row " << row);
+            // Floor corner 0 (-1, -1) has uv (0, 0) and corner 2 (1, 1) uv (1, 1).
+            const Vec3 point(2.f * (float(column) + 0.5f) / 3.f - 1.f, 2.f * (float(row) + 0.5f) / 3.f - 1.f, 0.f);
+            const Ray ray{point + Vec3(0.3f, -0.2f, 0.5f), glm::normalize(Vec3(-0.3f, 0.2f, -0.5f))};
+            const SurfacePoint hit = scene.Intersect(ray);
+            REQUIRE(hit.IsValid());
+            REQUIRE(hit.mMaterialId == 0);
+            Bsdf textured, reference;
+            textured.Setup(ray, hit, scene, Transport::kRadiance);
+            reference.Setup(-ray.mDirection, hit.GeometricNormal(), scene.GetMaterial(2 + 3 * row + column), Transport::kRadiance);
+            REQUIRE(textured.IsValid() == reference.IsValid());
+            CHECK(textured.IsDelta() == reference.IsDelta());
+            CHECK(near(textured.ContinuationProb(), reference.ContinuationProb()));
+            for (const Vec3& direction : directions) {
+                const BsdfEval a = textured.Evaluate(direction), b = reference.Evaluate(direction);
+                for (int c = 0; c < 3; c++) CHECK(near(a.mValue[c], b.mValue[c]));
+                CHECK(near(a.mDirPdfW, b.mDirPdfW));
+                CHECK(near(a.mRevPdfW, b.mRevPdfW));
+            }
+            for (const Vec3& rnd : {Vec3(0.1f, 0.2f, 0.3f), Vec3(0.5f, 0.7f, 0.9f), Vec3(0.95f, 0.4f, 0.6f)}) {
+                const std::optional<ScatterSample> a = textured.Sample(rnd), b = reference.Sample(rnd);
+                REQUIRE(a.has_value() == b.has_value());
+                if (!a) continue;
+                CHECK(a->mEvent == b->mEvent);
+                for (int c = 0; c < 3; c++) {
+                    CHECK(std::abs(a->mDirection[c] - b->mDirection[c]) <= 1e-4f);
+                    CHECK(near(a->mWeight[c], b->mWeight[c]));
+                }
+            }
+        }
+    // The mapping's own numbers at one cell (metal 128/255, roughness 1; base colour
+    // (0.8, 0.5, 0.3)): diffuse (1 - m) 0.96 b, Phong 0.04 (1 - m) + m b of exponent 0.
+    const float m = 128.f / 255.f;
+    const Material& half = scene.GetMaterial(2 + 3 * 2 + 1);
+    CHECK_VEC3(half.mDiffuseReflectance, (1.f - m) * 0.96f * Vec3(0.8f, 0.5f, 0.3f), 1e-6f);
+    CHECK_VEC3(half.mPhongReflectance, Vec3(0.04f * (1.f - m)) + m * Vec3(0.8f, 0.5f, 0.3f), 1e-6f);
+    CHECK(half.mPhongExponent == 0.f);
 }

@@ -603,50 +603,32 @@ bad("extension_required_unknown.gltf", "extensionsRequired names EXT_unknown_fea
 
 def draco_compressed(d):
     # As exporters write it: the primitive's attributes point at accessors without
-    # bufferViews, and the extension names the compressed bufferView (its bytes would be
-    # a Draco stream; the loader must refuse the file before reading any buffer).
+    # bufferViews, and the extension names the compressed bufferView; here that view
+    # holds the floor's plain positions, which are no Draco stream.
     floor = d["meshes"][0]["primitives"][0]
     floor["extensions"] = {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}
-    d["buffers"].append({"byteLength": 1024, "uri": "floor_draco_stream_not_shipped.bin"})
     d["extensionsUsed"] = sorted(d.get("extensionsUsed", []) + ["KHR_draco_mesh_compression"])
     d["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+    for accessor in (0, 1):
+        del d["accessors"][accessor]["bufferView"]
 
 
-bad("extension_required_draco.gltf", "a Draco-compressed floor (KHR_draco_mesh_compression required; its "
-    "buffer file is absent, so reading buffers first would fail differently)",
-    "required extension KHR_draco_mesh_compression is not supported: its meshes are Draco-compressed: "
-    "decompress the file first")(lambda: modified(draco_compressed))
-bad("extension_required_several.gltf", "extensionsRequired names KHR_draco_mesh_compression, EXT_unknown_feature "
-    "and KHR_texture_basisu: all three are named in one line, each with its hint",
-    "required extensions KHR_draco_mesh_compression, 'EXT_unknown_feature' and KHR_texture_basisu are not "
-    "supported: KHR_draco_mesh_compression: its meshes are Draco-compressed")(
+bad("draco_stream_not_draco.gltf", "a Draco-compressed floor whose stream's bufferView holds plain floats, not a "
+    "Draco stream", "mesh 0 primitive 0: KHR_draco_mesh_compression: the stream in bufferView 0 does not decode "
+    "(libdraco: ")(lambda: modified(draco_compressed))
+bad("extension_required_several.gltf", "extensionsRequired names KHR_draco_mesh_compression (read), EXT_unknown_feature "
+    "and KHR_texture_basisu: the two not read are named in one line, with the hint for the known one",
+    "required extensions 'EXT_unknown_feature' and KHR_texture_basisu are not supported: KHR_texture_basisu: its "
+    "textures are KTX2/Basis")(
     lambda: modified(lambda d: (d.update(extensionsRequired=["KHR_draco_mesh_compression", "EXT_unknown_feature",
                                                              "KHR_texture_basisu"]),
                                 d.update(extensionsUsed=sorted(d.get("extensionsUsed", []) + d["extensionsRequired"])))))
 
 
-def draco_without_fallback(d):
-    # Only used, not required, yet the floor's accessors have no bufferView: the data is
-    # only in the Draco stream, which the specification allows only with the extension
-    # required.
-    draco_compressed(d)
-    del d["extensionsRequired"]
-    d["buffers"].pop()
-    for accessor in (0, 1):
-        del d["accessors"][accessor]["bufferView"]
-
-
-bad("draco_used_without_fallback.gltf", "a Draco-compressed floor whose accessors have no bufferView (no "
-    "uncompressed fallback), the extension only used",
-    "KHR_draco_mesh_compression is not supported, and mesh 0 primitive 0 has no uncompressed fallback to read "
-    "instead (accessor 1, its indices, has no bufferView)")(lambda: modified(draco_without_fallback))
-
-
-def meshopt_without_fallback(d):
+def meshopt_not_meshopt(d):
     # The floor's buffer views compressed: each reads its bytes from buffer 0 through
-    # EXT_meshopt_compression (here the plain bytes: the loader must refuse the file before
-    # decoding anything) and stands in buffer 1, a fallback buffer without a URI. The
-    # extension is only used, which the specification allows only when the fallback has data.
+    # EXT_meshopt_compression, here the plain bytes, which are no meshopt data, and stands
+    # in buffer 1, a fallback buffer without a URI.
     for view, stride, count, mode in ((0, 12, 4, "ATTRIBUTES"), (1, 4, 6, "INDICES")):
         v = d["bufferViews"][view]
         v["extensions"] = {"EXT_meshopt_compression": {
@@ -658,13 +640,96 @@ def meshopt_without_fallback(d):
     d["extensionsUsed"] = sorted(d.get("extensionsUsed", []) + ["EXT_meshopt_compression"])
 
 
-MESHOPT_WITHOUT_FALLBACK = ("EXT_meshopt_compression is not supported, and bufferView 0 has no uncompressed fallback "
-                            "to read instead (its buffer 1 has no URI: it holds no data)")
-bad("meshopt_used_without_fallback.gltf", "the floor's buffer views meshopt-compressed, their fallback buffer "
-    "without a URI, the extension only used", MESHOPT_WITHOUT_FALLBACK)(lambda: modified(meshopt_without_fallback))
-bad("meshopt_used_without_fallback.glb", "the same as a .glb (tinygltf would copy the BIN chunk, the compressed "
-    "bytes, into the fallback buffer and render them)", MESHOPT_WITHOUT_FALLBACK)(
-    lambda: make_glb(modified(meshopt_without_fallback)))
+MESHOPT_NOT_MESHOPT = "bufferView 0: EXT_meshopt_compression: its 48 compressed bytes do not decode to 4 x 12 bytes"
+bad("meshopt_bytes_not_meshopt.gltf", "the floor's buffer views meshopt-compressed, their compressed bytes the plain "
+    "floats, their fallback buffer without a URI", MESHOPT_NOT_MESHOPT)(lambda: modified(meshopt_not_meshopt))
+bad("meshopt_bytes_not_meshopt.glb", "the same as a .glb (the fallback buffer without a URI must not be given the "
+    "BIN chunk)", MESHOPT_NOT_MESHOPT)(lambda: make_glb(modified(meshopt_not_meshopt)))
+
+
+# --- compressed geometry, from the files of tests/data/compressed --------------
+COMPRESSED = os.path.join(HERE, "compressed")
+
+
+def read_glb(name):
+    data = open(os.path.join(COMPRESSED, name), "rb").read()
+    length = struct.unpack("<I", data[12:16])[0]
+    binary_start = 20 + length
+    return json.loads(data[20:binary_start]), data[binary_start + 8:]
+
+
+def glb_of(doc, binary):
+    text = json.dumps(doc, separators=(",", ":")).encode("ascii")
+    text += b" " * (-len(text) % 4)
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(binary), 0x004E4942) + binary
+    return struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body
+
+
+def compressed(name, change):
+    def make():
+        doc, binary = read_glb(name)
+        changed = change(doc, binary)
+        binary = changed if isinstance(changed, bytes) else binary
+        return glb_of(doc, binary)
+    return make
+
+
+def meshopt_view(doc, mode):
+    return next(v["extensions"]["EXT_meshopt_compression"] for v in doc["bufferViews"]
+                if v.get("extensions", {}).get("EXT_meshopt_compression", {}).get("mode") == mode)
+
+
+bad("meshopt_truncated.glb", "the Avocado through gltf-transform meshopt, its index view's compressed bytes cut "
+    "to half their length", "EXT_meshopt_compression: its 396 compressed bytes do not decode to 2046 x 2 bytes")(
+    compressed("avocado_meshopt.glb", lambda d, b: meshopt_view(d, "TRIANGLES").update(byteLength=396)))
+bad("meshopt_count_lies.glb", "the same, its vertex view's count 406 said to be 40600 (the compressed bytes hold "
+    "406 vertices)", "compressed bytes do not decode to 40600 x 8 bytes")(
+    compressed("avocado_meshopt.glb", lambda d, b: [v["extensions"]["EXT_meshopt_compression"].update(count=40600)
+                                                    for v in d["bufferViews"] if v.get("byteStride") == 8]))
+bad("meshopt_count_huge.glb", "the same, a view's count 2^30 of 256-byte vertices (256 GiB, more than the "
+    "limits: refused before anything is allocated)", "EXT_meshopt_compression: decodes to 262144.0 MiB, more than the loader's limits allow")(
+    compressed("avocado_meshopt.glb", lambda d, b: next(e for e in (v["extensions"]["EXT_meshopt_compression"]
+                                                                    for v in d["bufferViews"] if "extensions" in v)
+                                                        if e["mode"] == "ATTRIBUTES" and "filter" not in e)
+               .update(count=2 ** 30, byteStride=256)))
+bad("meshopt_filter_stride.glb", "the same, the octahedral filter on a view of 12-byte vertices (it takes 4 or 8)",
+    "filter 'OCTAHEDRAL' with mode ATTRIBUTES and byteStride 12")(
+    compressed("avocado_meshopt.glb", lambda d, b: next(v for v in (e["extensions"]["EXT_meshopt_compression"]
+                                                                    for e in d["bufferViews"] if "extensions" in e)
+                                                        if v.get("filter") == "OCTAHEDRAL").update(byteStride=12)))
+bad("meshopt_mode_unknown.glb", "the same, the index view's mode \"STRIPS\"", "mode 'STRIPS' (ATTRIBUTES, TRIANGLES or INDICES)")(
+    compressed("avocado_meshopt.glb", lambda d, b: meshopt_view(d, "TRIANGLES").update(mode="STRIPS")))
+
+
+def draco_stream(doc):
+    return doc["bufferViews"][doc["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["bufferView"]]
+
+
+bad("draco_truncated.glb", "the Avocado through gltf-transform draco, its Draco stream cut to half its length",
+    "mesh 0 primitive 0: KHR_draco_mesh_compression: the stream in bufferView 2 does not decode (libdraco: ")(
+    compressed("avocado_draco.glb", lambda d, b: draco_stream(d).update(byteLength=draco_stream(d)["byteLength"] // 2)))
+bad("draco_count_lies.glb", "the same, the POSITION accessor's count 406 said to be 405",
+    "the stream holds 406 points, the accessor of POSITION (accessor 4) counts 405")(
+    compressed("avocado_draco.glb", lambda d, b: d["accessors"][4].update(count=405)))
+bad("draco_indices_count_lies.glb", "the same, the indices accessor's count 2046 said to be 2049",
+    "the stream holds 682 triangles, the indices accessor 0 counts 2049 indices")(
+    compressed("avocado_draco.glb", lambda d, b: d["accessors"][0].update(count=2049)))
+bad("draco_attribute_id_missing.glb", "the same, POSITION mapped to the stream's attribute id 9, which it has not",
+    "the stream has no attribute of id 9 (POSITION)")(
+    compressed("avocado_draco.glb", lambda d, b: d["meshes"][0]["primitives"][0]["extensions"]
+               ["KHR_draco_mesh_compression"]["attributes"].update(POSITION=9)))
+bad("draco_bit_flips.glb", "the same, every 7th byte of the Draco stream's second half inverted",
+    "KHR_draco_mesh_compression: ")(
+    compressed("avocado_draco.glb", lambda d, b: bytes(
+        (x ^ 0xFF) if (draco_stream(d)["byteOffset"] + draco_stream(d)["byteLength"] // 2 <= i <
+                       draco_stream(d)["byteOffset"] + draco_stream(d)["byteLength"] and i % 7 == 0) else x
+        for i, x in enumerate(b))))
+bad("quantized_normals_unsigned.glb", "the Avocado through gltf-transform quantize, its NORMAL accessor's component "
+    "type changed to unsigned short (KHR_mesh_quantization allows normalised byte or short)",
+    "normals must be FLOAT or normalised byte or short (KHR_mesh_quantization)")(
+    compressed("avocado_quantized.glb", lambda d, b: d["accessors"][2].update(componentType=USHORT)))
+
+
 bad("buffer_without_uri.glb", "a .glb whose second buffer has no URI (only the first stands for the BIN chunk; "
     "tinygltf would copy the BIN chunk into it)", "buffer 1 has no URI")(
     lambda: make_glb(modified(lambda d: d["buffers"].append({"byteLength": d["buffers"][0]["byteLength"]}))))
@@ -721,7 +786,34 @@ def pbr(base_color, metallic, roughness, **extra):
 
 QUARTER_TURN_Z = [0.0, 0.0, 0.7071067811865476, 0.7071067811865476]   # 90 degrees about +z
 
+# metallicRoughnessTexture: a 12 x 12 texture of 3 x 3 cells of 4 x 4 texels, metal (blue)
+# 0, 128, 255 from left to right and roughness (green) 0, 128, 255 from top to bottom, on
+# the floor (uv (0, 0) at floor corner 0, (1, 1) at corner 2), factors 1 and base colour
+# (0.8, 0.5, 0.3). Materials 2 to 10: the factor-only material of each cell (cell i = 3 *
+# row + column), metallicFactor and roughnessFactor the cell's bytes / 255, that the
+# textured floor must equal at the cell's centre (tests/test_gltf_compressed.cpp).
+MR_BYTES = (0, 128, 255)
+MR_BASE = (0.8, 0.5, 0.3)
+
+
+def metal_roughness_texture():
+    texels = [(0, MR_BYTES[y // 4], MR_BYTES[x // 4]) for y in range(12) for x in range(12)]
+    b = base(floor_material=pbr(MR_BASE, 1.0, 1.0))
+    b.doc["materials"][0]["pbrMetallicRoughness"]["metallicRoughnessTexture"] = {"index": 0}
+    b.doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(png_bytes(12, 12, texels)).decode(),
+                        "mimeType": "image/png"}]
+    b.doc["textures"] = [{"source": 0}]
+    packed = b"".join(struct.pack("<2f", *uv) for uv in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)])
+    b.doc["accessors"].append({"bufferView": b.view(packed), "componentType": FLOAT, "count": 4, "type": "VEC2"})
+    b.doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = len(b.doc["accessors"]) - 1
+    for row in range(3):
+        for column in range(3):
+            b.material(pbr(MR_BASE, float(repr(MR_BYTES[column] / 255)), float(repr(MR_BYTES[row] / 255))))
+    return b.finish()
+
+
 GOOD_CASES = {
+    "metal_roughness_texture.gltf": metal_roughness_texture,
     # pbrMetallicRoughness mapping (docs/scene_format.md 4.2)
     "material_lambert.gltf": lambda: scene(floor_material=pbr((0.5, 0.25, 1.0), 0.0, 1.0)),
     "material_mirror.gltf": lambda: scene(floor_material=pbr((0.9, 0.8, 0.7), 1.0, 0.0)),

@@ -394,7 +394,7 @@ def build_grader(student, work, reuse_impl, parallel=2):
                 messages.append(f.read())
         return None, "\n".join(messages)
     binary = os.path.join(work, "grade_tests")
-    link = [CXX] + objects + [os.path.join(BUILD, "tests", "catch_main.o"), "-o", binary, "-pthread", "-ltinyexr"]
+    link = [CXX] + objects + [os.path.join(BUILD, "tests", "catch_main.o"), "-o", binary, "-pthread", "-ltinyexr", "-ldraco", "-lmeshoptimizer"]
     result = subprocess.run(link, cwd=ROOT, capture_output=True, text=True)
     if result.returncode != 0:
         return None, result.stdout + result.stderr
@@ -526,7 +526,7 @@ def command_compare(student, args):
     subprocess.check_call(["make", "--no-print-directory", "-s", "build/smallvcm"], cwd=ROOT)
     print(f"compare: building the command line against {rel(student)} (about 25 s)")
     code = subprocess.call([CXX] + RENDER_CXXFLAGS + ["-I" + include, "-I" + ROOT, "examples/smallvcm.cpp",
-                            "examples/smallvcm_impl.cpp", "-o", program, "-pthread", "-ltinyexr"], cwd=ROOT)
+                            "examples/smallvcm_impl.cpp", "-o", program, "-pthread", "-ltinyexr", "-ldraco", "-lmeshoptimizer"], cwd=ROOT)
     if code != 0:
         raise KitError(f"compare: {rel(student)} does not compile", 1)
     images = []
@@ -597,7 +597,7 @@ def command_figures(student, quick, only):
     for program in programs:
         binary = os.path.join(work, program)
         subprocess.check_call([CXX, os.path.join(work, program + ".o"), os.path.join(work, "smallvcm_impl.o"),
-                               "-o", binary, "-pthread", "-ltinyexr"], cwd=ROOT)
+                               "-o", binary, "-pthread", "-ltinyexr", "-ldraco", "-lmeshoptimizer"], cwd=ROOT)
         code = subprocess.call([binary, "--out", student_out] + flag, cwd=ROOT)
         print(f"student-figures: {program} exited with {code}")
     subprocess.call(["/usr/bin/python3", "figures/make_gallery.py", student_out, os.path.join(student_out, "figures.md")], cwd=ROOT)

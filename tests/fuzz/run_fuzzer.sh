@@ -8,7 +8,7 @@
 #    apt-get when they are missing (sudo when not root).
 # 2. Builds build/fuzz/fuzz_gltf (again only when the target or smallvcm.hpp changed).
 # 3. Seeds the working corpus build/fuzz/corpus (not committed; it grows from run to
-#    run) from scenes/*.gltf, tests/data/bad/* and tests/data/gltf/* (and tests/data/fuzz/*
+#    run) from scenes/*.gltf, tests/data/bad/*, tests/data/gltf/* and tests/data/compressed/*.glb (and tests/data/fuzz/*
 #    with FUZZ_SEED_REGRESSIONS=1).
 # 4. Fuzzes for SECONDS on both cores (libFuzzer's fork mode, 2 workers, going on past
 #    crashes, hangs and out-of-memory; the dictionary tests/fuzz/gltf.dict of glTF keys),
@@ -53,7 +53,7 @@ have_fuzzer_runtime() {
     compgen -G "$dir/lib/linux/libclang_rt.fuzzer-*.a" >/dev/null || compgen -G "$dir/lib/*/libclang_rt.fuzzer.a" >/dev/null
 }
 missing=""
-for p in libglm-dev libtinygltf-dev libstb-dev nlohmann-json3-dev; do
+for p in libglm-dev libtinygltf-dev libstb-dev nlohmann-json3-dev libdraco-dev libmeshoptimizer-dev; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
 done
 if ! find_clang; then missing="$missing clang"; fi
@@ -77,14 +77,14 @@ mkdir -p "$OUT" "$CORPUS" "$ARTIFACTS"
 if [ ! -x "$BIN" ] || [ tests/fuzz/fuzz_gltf.cpp -nt "$BIN" ] || [ smallvcm.hpp -nt "$BIN" ] || [ "$0" -nt "$BIN" ]; then
     echo "run_fuzzer.sh: building $BIN with $CLANGXX (about a minute)"
     "$CLANGXX" -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
-        -I. tests/fuzz/fuzz_gltf.cpp -o "$BIN" -pthread -ltinyexr
+        -I. tests/fuzz/fuzz_gltf.cpp -o "$BIN" -pthread -ltinyexr -ldraco -lmeshoptimizer
 fi
 
 # --- 3. seeds ----------------------------------------------------------------------
 # Regular files only (tests/data/bad/directory.gltf is a folder); at most 64 KiB. The
 # regression inputs of tests/data/fuzz join only with FUZZ_SEED_REGRESSIONS=1: until
 # their fixes are in smallvcm.hpp every run would report them again as new crashes.
-seeds="scenes/*.gltf tests/data/bad/* tests/data/gltf/*"
+seeds="scenes/*.gltf tests/data/bad/* tests/data/gltf/* tests/data/compressed/*.glb"
 [ "${FUZZ_SEED_REGRESSIONS:-0}" = 1 ] && seeds="$seeds tests/data/fuzz/*"
 for f in $seeds; do
     [ -f "$f" ] || continue
