@@ -2796,7 +2796,8 @@ struct SegmentPdfs {
 struct PathSegment {
     // Where it ends: a surface point; at a point in a medium only mHit's mPosition and
     // mDist are set (IsValid() is false); out of the scene it is invalid, mDist infinite.
-    // mDist is the length from the origin, across index-matched boundaries.
+    // mDist is its length from the vertex it left (the ray's gap included), across
+    // index-matched boundaries.
     SurfacePoint mHit;
     bool mInMedium = false;   // it ends at a scattering point of medium mMedium
     int mMedium = -1;         // the medium it ends in (the last piece's)
@@ -2811,25 +2812,30 @@ struct PathSegment {
 // point rather than a surface, which decides the reverse pdf). Steps through
 // index-matched boundaries, and samples a free flight in each attenuating medium.
 // aGap: how far aRay's origin lies off the vertex it leaves (the ray epsilon of SpawnRay,
-// 0 for a camera's primary ray). The throughput takes the distance flown; the MIS pdfs
-// take each piece's whole length, gaps included, as TraceConnection measures the same
-// segment for the techniques that connect it (otherwise they differ by exp(sigma_t eps)).
+// 0 for a camera's primary ray and a point in a medium). Each piece is measured, and its
+// free flight sampled, from where it starts (the vertex, or the boundary it crossed), not
+// from the ray's origin a gap beyond: a gap flown for free would be a thin shell of
+// medium where light neither scatters nor is absorbed, and TraceConnection measures the
+// same segment whole for the techniques that connect it.
 inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler,
                                             float aGap);
 // In a scene without media the next vertex is the nearest surface, and every factor 1.
 SMALLVCM_ALWAYS_INLINE PathSegment TraceSegment(const Scene& aScene, const Ray& aRay, int aMedium, bool aFromMedium,
                                                 Sampler& aSampler, float aGap) {
     if (aScene.HasMedia()) return TraceSegmentThroughMedia(aScene, aRay, aMedium, aFromMedium, aSampler, aGap);
-    return PathSegment{aScene.Intersect(aRay), false, -1, Vec3(1.f), SegmentPdfs{}};
+    PathSegment segment{aScene.Intersect(aRay), false, -1, Vec3(1.f), SegmentPdfs{}};
+    segment.mHit.mDist += aGap;
+    return segment;
 }
 inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler,
                                             float aGap) {
     PathSegment segment;
     segment.mMedium = aMedium;
-    float length = 0.f;
+    float length = 0.f;     // from the vertex to where this piece starts
+    float offset = aGap;    // how far aRay's origin lies past where this piece starts
     for (int piece = 0;; piece++) {
         segment.mHit = aScene.Intersect(aRay);
-        const float toSurface = segment.mHit.mDist;
+        const float toSurface = segment.mHit.mDist + offset;
         if (aMedium >= 0 && aScene.GetMedium(aMedium).Attenuates()) {
             const Medium& medium = aScene.GetMedium(aMedium);
             const float t = SampleFreeFlight(medium, aSampler.Get1D());
@@ -2837,14 +2843,12 @@ inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int a
             const float d = scatters ? t : toSurface;
             const float forward = scatters ? FreeFlightDensity(medium, d) : FreeFlightProbability(medium, d);
             segment.mWeight *= MediumTransmittance(medium, d) / forward;
-            const float pieceLength = d + (piece == 0 ? aGap : aScene.RayEpsilon());
-            segment.mPdfs.mForward *= scatters ? FreeFlightDensity(medium, pieceLength) : FreeFlightProbability(medium, pieceLength);
-            segment.mPdfs.mReverse *= piece == 0 && aFromMedium ? FreeFlightDensity(medium, pieceLength)
-                                                                : FreeFlightProbability(medium, pieceLength);
+            segment.mPdfs.mForward *= forward;
+            segment.mPdfs.mReverse *= piece == 0 && aFromMedium ? FreeFlightDensity(medium, d) : FreeFlightProbability(medium, d);
             if (scatters) {
                 segment.mInMedium = true;
                 segment.mHit = SurfacePoint{};
-                segment.mHit.mPosition = aRay.mOrigin + t * aRay.mDirection;
+                segment.mHit.mPosition = aRay.mOrigin + (t - offset) * aRay.mDirection;
                 segment.mHit.mDist = length + t;
                 return segment;
             }
@@ -2853,9 +2857,7 @@ inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int a
         if (!segment.mHit.IsValid() || !aScene.IsIndexMatchedBoundary(segment.mHit) || piece >= kMaxMediumCrossings) break;
         aMedium = segment.mMedium = aScene.MediumAfter(segment.mHit, aRay.mDirection, aMedium);
         aRay = aScene.SpawnRay(segment.mHit.mPosition, aRay.mDirection);
-        length += aScene.RayEpsilon();
-        // The ray epsilon beyond the boundary is flown through, not sampled: it attenuates.
-        if (aMedium >= 0) segment.mWeight *= MediumTransmittance(aScene.GetMedium(aMedium), aScene.RayEpsilon());
+        offset = aScene.RayEpsilon();
     }
     segment.mHit.mDist = length;
     return segment;
@@ -3974,7 +3976,7 @@ private:
         float weight = 1.f;
         if (!aPath.mLastSpecular) {
             const float cosAtLight = glm::dot(hit.GeometricNormal(), -aRay.mDirection);
-            const float distance = aSegment.Length() + aPath.mGap;
+            const float distance = aSegment.Length();
             const float directPdfW = PdfAtoW(received.mDirectPdfA, distance, cosAtLight) * mScene.LightPickProb();
             weight = BsdfHitWeight(aPath.mLastPdfW * aSegment.mPdfs.mForward, directPdfW);
         }
@@ -4800,8 +4802,8 @@ private:
         Bsdf bsdf;
         for (;;) {
             const Ray ray = LeaveVertex(mScene, light.mOrigin, light.mDirection, light.mInMedium);
-            const float gap = GapOfVertex(mScene, light.mInMedium);
-            const PathSegment segment = TraceSegment(mScene, ray, light.mMedium, light.mInMedium, aSampler, gap);
+            const PathSegment segment = TraceSegment(mScene, ray, light.mMedium, light.mInMedium, aSampler,
+                                                     GapOfVertex(mScene, light.mInMedium));
             if (segment.Escaped()) return;
             light.mThroughput *= segment.mWeight;
             if (segment.mInMedium) bsdf.SetupInMedium(-ray.mDirection, mScene.GetMedium(segment.mMedium), Transport::kImportance);
@@ -4809,7 +4811,7 @@ private:
             if (!bsdf.IsValid()) return;
             // The area (in a medium: volume) pdf of this vertex: a change of measure, by the
             // geometric cosine (1 in a medium), and the segment's free-flight pdfs.
-            VcmMis::AfterSegment(mMisConstants, light.mMis, segment.Length() + gap, bsdf.CosThetaFixGeometric(),
+            VcmMis::AfterSegment(mMisConstants, light.mMis, segment.Length(), bsdf.CosThetaFixGeometric(),
                                  light.mPathLength > 1 || light.mIsFiniteLight);
             if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, light.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
             if (mPathRecords) mLightHistories.back().push_back(RecordedVertex(segment));
@@ -4887,7 +4889,7 @@ private:
                 return;
             }
             const float cosAtHit = segment.mInMedium ? 1.f : glm::dot(hit.GeometricNormal(), -ray.mDirection);
-            const float distance = segment.Length() + (cam.mPathLength > 1 ? GapOfVertex(mScene, cam.mInMedium) : 0.f);
+            const float distance = segment.Length();
             VcmMis::AfterSegment(mMisConstants, cam.mMis, distance, cosAtHit, true);
             if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, cam.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
             if (mPathRecords) mCameraHistory.push_back(RecordedVertex(segment, true));
