@@ -255,15 +255,6 @@ inline bool IsFinite(const Vec3& aV) {
 #define SMALLVCM_NOINLINE
 #define SMALLVCM_ALWAYS_INLINE inline
 #endif
-// Asks the processor to start loading the cache line of aAddress, which the caller will
-// read soon: a hint only (no effect on any result; nothing on compilers without it).
-inline void Prefetch(const void* aAddress) {
-#if defined(__GNUC__) || defined(__clang__)
-    __builtin_prefetch(aAddress);
-#else
-    (void)aAddress;
-#endif
-}
 // Luminance with the sRGB / Rec. 709 weights; SmallVCM uses it to pick BSDF components.
 inline float Luminance(const Vec3& aRgb) {
     return 0.212671f * aRgb.x + 0.715160f * aRgb.y + 0.072169f * aRgb.z;
@@ -2581,22 +2572,7 @@ public:
             mReflectance = aConstants->mReflectance;
         else
             mReflectance = ReflectancesOf(aMaterial);
-        if (aBaseColorTexel) {
-            // The base colour tints what glTF's base colour reaches: not the dielectric's
-            // untinted specular share, nor glass's Fresnel reflection.
-            const Vec3& texel = *aBaseColorTexel;
-            const auto tint = [&](Vec3& ioSpecular) {
-                if (!IsBlack(ioSpecular)) ioSpecular = aMaterial.mSpecularUntinted + (ioSpecular - aMaterial.mSpecularUntinted) * texel;
-            };
-            mReflectance.mDiffuse *= texel;
-            tint(mReflectance.mPhong);
-            if (aMaterial.mIor > 0.f) {
-                tint(mReflectance.mOpaqueMirror);
-                mReflectance.mTransmittance *= texel;
-            } else {
-                tint(mReflectance.mMirror);
-            }
-        }
+        if (aBaseColorTexel) TintReflectances(aMaterial, *aBaseColorTexel);
         // A two-sided non-glass material turns both normals towards whoever looks at it,
         // deciding by the geometric one (the side the ray really arrives from).
         mShaded = aShadingNormal != aGeometricNormal;
@@ -2786,22 +2762,7 @@ private:
             if (IsBlack(s.mValue)) sample.reset();
             return sample;
         } else {
-            s.mEvent = kEventRefract;
-            const std::optional<Refraction> refraction = RefractLocal(mLocalDirFix, mMaterial->mIor);
-            if (!refraction || !(p[kRefract] > 0.f)) {
-                sample.reset();
-                return sample;
-            }
-            localDirGen = refraction->mLocalGen;
-            s.mPdfW = s.mReversePdfW = p[kRefract];
-            s.mCosThetaOut = std::abs(localDirGen.z);
-            s.mDirection = mFrame.ToWorld(localDirGen);
-            // Radiance is not symmetric under refraction: L/eta^2 is what is conserved, so
-            // camera paths carry (eta_fix / eta_gen)^2; light paths (importance) do not
-            // (Veach 1997, sec. 5.2).
-            const float scale = mTransport == Transport::kImportance ? 1.f : Sqr(refraction->mEtaFixOverEtaGen);
-            s.mValue = Vec3((1.f - mFresnel) * scale / s.mCosThetaOut) * mReflectance.mTransmittance;
-            if (IsBlack(s.mValue)) sample.reset();
+            if (!SampleRefraction(s)) sample.reset();
             return sample;
         }
         // Non-specular pick: evaluate every non-specular component for this direction.
@@ -2822,6 +2783,24 @@ private:
         return sample;
     }
 
+    // The refraction component's sample (SampleInShadingFrame's last pick); false when it
+    // is unusable (total internal reflection, no refraction share, black).
+    bool SampleRefraction(ScatterSample& oSample) const {
+        oSample.mEvent = kEventRefract;
+        const std::optional<Refraction> refraction = RefractLocal(mLocalDirFix, mMaterial->mIor);
+        if (!refraction || !(mProbabilities[kRefract] > 0.f)) return false;
+        const Vec3 localDirGen = refraction->mLocalGen;
+        oSample.mPdfW = oSample.mReversePdfW = mProbabilities[kRefract];
+        oSample.mCosThetaOut = std::abs(localDirGen.z);
+        oSample.mDirection = mFrame.ToWorld(localDirGen);
+        // Radiance is not symmetric under refraction: L/eta^2 is what is conserved, so
+        // camera paths carry (eta_fix / eta_gen)^2; light paths (importance) do not
+        // (Veach 1997, sec. 5.2).
+        const float scale = mTransport == Transport::kImportance ? 1.f : Sqr(refraction->mEtaFixOverEtaGen);
+        oSample.mValue = Vec3((1.f - mFresnel) * scale / oSample.mCosThetaOut) * mReflectance.mTransmittance;
+        return !IsBlack(oSample.mValue);
+    }
+
     // A direction whose cosines with the shading and the geometric normal have one sign,
     // and that does not graze the geometric surface: the only kind a smooth surface
     // scatters from and into (section notes: no light leaks).
@@ -2835,6 +2814,21 @@ private:
     static Reflectances ReflectancesOf(const Material& aMaterial) {
         return Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance,
                             aMaterial.mOpaqueMirror, aMaterial.mTransmittance};
+    }
+    // The base colour texel tints what glTF's base colour reaches: not the dielectric's
+    // untinted specular share, nor glass's Fresnel reflection.
+    void TintReflectances(const Material& aMaterial, const Vec3& aTexel) {
+        const auto tint = [&](Vec3& ioSpecular) {
+            if (!IsBlack(ioSpecular)) ioSpecular = aMaterial.mSpecularUntinted + (ioSpecular - aMaterial.mSpecularUntinted) * aTexel;
+        };
+        mReflectance.mDiffuse *= aTexel;
+        tint(mReflectance.mPhong);
+        if (aMaterial.mIor > 0.f) {
+            tint(mReflectance.mOpaqueMirror);
+            mReflectance.mTransmittance *= aTexel;
+        } else {
+            tint(mReflectance.mMirror);
+        }
     }
     // The delta reflection's reflectance: glass's F x mirror, plus (front side only) the
     // mirror of an opaque share that F does not weight (Material::mOpaqueMirror).
@@ -2991,21 +2985,11 @@ public:
 
     void AddColor(int aPixelIndex, const Vec3& aColor) {
         CheckContribution(aPixelIndex, aColor);
-        if (!mSplats.empty()) AddSplats();
         mPixels[size_t(aPixelIndex)] += glm::dvec3(aColor);
     }
     // The same for a contribution that lands anywhere in the image (light tracing's
-    // splats). The film adds these a batch at a time, in the order given, having asked
-    // for each pixel's memory first, so that the cache misses of pixels far apart overlap;
-    // every other use of the film adds the pending ones first.
-    void Splat(int aPixelIndex, const Vec3& aColor) {
-        CheckContribution(aPixelIndex, aColor);
-        Prefetch(&mPixels[size_t(aPixelIndex)]);
-        PendingSplat& splat = mSplats.emplace_back();
-        splat.mPixel = aPixelIndex;
-        splat.mColor = aColor;
-        if (mSplats.size() == kSplatBatch) AddSplats();
-    }
+    // splats).
+    void Splat(int aPixelIndex, const Vec3& aColor) { AddColor(aPixelIndex, aColor); }
 
     // Layers: created before rendering; AddLayer returns the index to write with.
     int AddLayer(const std::string& aName) {
@@ -3029,8 +3013,6 @@ public:
 
     // Adds another film of the same size and layers (the per-thread films of a render).
     void Accumulate(const Film& aOther) {
-        AddSplats();
-        aOther.AddSplats();
         for (size_t i = 0; i < mPixels.size(); i++) mPixels[i] += aOther.mPixels[i];
         for (size_t l = 0; l < mLayers.size(); l++)
             for (size_t i = 0; i < mPixels.size(); i++) mLayers[l][i] += aOther.mLayers[l][i];
@@ -3038,7 +3020,6 @@ public:
 
     // The image (aLayer = -1) or a layer, each pixel multiplied by aScale (1 / iterations).
     Image Resolve(double aScale, int aLayer = -1) const {
-        AddSplats();
         const std::vector<glm::dvec3>& source = aLayer < 0 ? mPixels : mLayers[size_t(aLayer)];
         Image image(mWidth, mHeight);
         for (size_t i = 0; i < source.size(); i++) image.mPixels[i] = Vec3(source[i] * aScale);
@@ -3053,17 +3034,9 @@ private:
         (void)aPixelIndex;
         (void)aColor;
     }
-    // The pending splats, added in order (const: they are part of what the film holds).
-    void AddSplats() const {
-        for (const PendingSplat& splat : mSplats) mPixels[size_t(splat.mPixel)] += glm::dvec3(splat.mColor);
-        mSplats.clear();
-    }
 
-    static constexpr size_t kSplatBatch = 32;
-    struct PendingSplat { int mPixel; Vec3 mColor; };
     int mWidth = 0, mHeight = 0;
-    mutable std::vector<glm::dvec3> mPixels;     // (mutable: AddSplats)
-    mutable std::vector<PendingSplat> mSplats;  // Splat's, not yet in mPixels
+    std::vector<glm::dvec3> mPixels;
     std::vector<std::string> mLayerNames;
     std::vector<std::vector<glm::dvec3>> mLayers;
 };
@@ -5682,6 +5655,18 @@ inline uint32_t Bvh::LargestLeaf() const { return mTree ? mTree->LargestLeaf() :
 // point, so that fewer occupied cells share a bucket. A dense grid does neither: there
 // the bits and the larger table would only be more memory to read.
 
+namespace detail {
+// Asks the processor to start loading the cache line of aAddress, which the caller will
+// read soon: a hint only (no effect on any result; nothing on compilers without it).
+inline void Prefetch(const void* aAddress) {
+#if defined(__GNUC__) || defined(__clang__)
+    __builtin_prefetch(aAddress);
+#else
+    (void)aAddress;
+#endif
+}
+} // namespace detail
+
 template <class Item>
 class RangeSearch<Item>::Grid {
 public:
@@ -5714,7 +5699,7 @@ public:
         // large array: each is requested kAhead points before it is written.
         constexpr size_t kAhead = 16;
         for (size_t i = 0; i < aCount; i++) {
-            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
+            if (i + kAhead < aCount) detail::Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
             mBucketEnds[mBucketOf[i]]++;
         }
         // In place: the counts become the buckets' beginnings, and filling the points in
@@ -5722,11 +5707,11 @@ public:
         uint32_t sum = 0;
         for (uint32_t& entry : mBucketEnds) { const uint32_t count = entry; entry = sum; sum += count; }
         for (size_t i = 0; i < aCount; i++) {
-            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
+            if (i + kAhead < aCount) detail::Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
             if (i + kAhead / 2 < aCount) {  // where that point will go, unless its bucket gets a point before it
                 const uint32_t slot = mBucketEnds[mBucketOf[i + kAhead / 2]];
-                Prefetch(&mPoints[slot]);
-                Prefetch(&mItems[slot]);
+                detail::Prefetch(&mPoints[slot]);
+                detail::Prefetch(&mItems[slot]);
             }
             const uint32_t slot = mBucketEnds[mBucketOf[i]]++;
             mPoints[slot] = Point{aPositionOf(i), uint32_t(i)};
@@ -5796,7 +5781,7 @@ private:
         }
         // The cells' ranges are requested before their marks are read, so that a query
         // with points waits for one round of memory here, not two.
-        for (int c = 0; c < cells; c++) Prefetch(&mBucketEnds[hashes[c] & mBucketMask]);
+        for (int c = 0; c < cells; c++) detail::Prefetch(&mBucketEnds[hashes[c] & mBucketMask]);
         // No marked cell: nothing can pass.
         bool anyOccupied = mOccupied.empty();
         if (!anyOccupied)
@@ -5834,13 +5819,13 @@ private:
                 aQuery.mEnds[ranges] = end;
                 ranges++;
             }
-            Prefetch(&mPoints[begin]);
-            Prefetch(&mPoints[end - 1]);
+            detail::Prefetch(&mPoints[begin]);
+            detail::Prefetch(&mPoints[end - 1]);
             // The items of the range too, so that they arrive with the points.
             const char* first = reinterpret_cast<const char*>(&mItems[begin]);
             const char* last = reinterpret_cast<const char*>(&mItems[end]) - 1;
             if (last - first < 8 * 64)
-                for (const char* line = first; line <= last + 63; line += 64) Prefetch(line);
+                for (const char* line = first; line <= last + 63; line += 64) detail::Prefetch(line);
         }
         aQuery.mRangeCount = ranges;
     }
@@ -5860,8 +5845,8 @@ private:
         if (count > Query::kMaxSelected) return;
         for (int i = 0; i < count; i++) {
             const Item* const item = &mItems[aQuery.mSelected[i]];
-            Prefetch(item);
-            Prefetch(reinterpret_cast<const char*>(item + 1) - 1);  // an item may straddle two lines
+            detail::Prefetch(item);
+            detail::Prefetch(reinterpret_cast<const char*>(item + 1) - 1);  // an item may straddle two lines
         }
     }
 
