@@ -125,6 +125,7 @@
 //  PART II: appendices a student may skip, each behind an interface Part I states
 //  [SECTION] Appendix: BVH
 //  [SECTION] Appendix: range search    (the hashed grid; the kd-tree)
+//  [SECTION] Appendix: film splats       (light tracing's additions, a batch at a time)
 //  [SECTION] Render loop                 (threads, budgets, progress, Ctrl-C)
 //  [SECTION] Image output and metrics
 //  [SECTION] Scene loading (glTF)
@@ -2985,11 +2986,14 @@ public:
 
     void AddColor(int aPixelIndex, const Vec3& aColor) {
         CheckContribution(aPixelIndex, aColor);
+        AddSplats();
         mPixels[size_t(aPixelIndex)] += glm::dvec3(aColor);
     }
     // The same for a contribution that lands anywhere in the image (light tracing's
-    // splats).
-    void Splat(int aPixelIndex, const Vec3& aColor) { AddColor(aPixelIndex, aColor); }
+    // splats): every pixel receives the same additions in the same order as with
+    // AddColor, so the image is the one AddColor would give. How the film adds them
+    // is [SECTION] Appendix: film splats.
+    void Splat(int aPixelIndex, const Vec3& aColor);
 
     // Layers: created before rendering; AddLayer returns the index to write with.
     int AddLayer(const std::string& aName) {
@@ -3013,6 +3017,8 @@ public:
 
     // Adds another film of the same size and layers (the per-thread films of a render).
     void Accumulate(const Film& aOther) {
+        AddSplats();
+        aOther.AddSplats();
         for (size_t i = 0; i < mPixels.size(); i++) mPixels[i] += aOther.mPixels[i];
         for (size_t l = 0; l < mLayers.size(); l++)
             for (size_t i = 0; i < mPixels.size(); i++) mLayers[l][i] += aOther.mLayers[l][i];
@@ -3020,6 +3026,7 @@ public:
 
     // The image (aLayer = -1) or a layer, each pixel multiplied by aScale (1 / iterations).
     Image Resolve(double aScale, int aLayer = -1) const {
+        AddSplats();
         const std::vector<glm::dvec3>& source = aLayer < 0 ? mPixels : mLayers[size_t(aLayer)];
         Image image(mWidth, mHeight);
         for (size_t i = 0; i < source.size(); i++) image.mPixels[i] = Vec3(source[i] * aScale);
@@ -3034,9 +3041,14 @@ private:
         (void)aPixelIndex;
         (void)aColor;
     }
+    // Adds the splats Splat has not added yet, in order (const: they are part of what
+    // the film holds).
+    void AddSplats() const;
 
+    struct PendingSplat { int mPixel; Vec3 mColor; };
     int mWidth = 0, mHeight = 0;
-    std::vector<glm::dvec3> mPixels;
+    mutable std::vector<glm::dvec3> mPixels;     // (mutable: AddSplats)
+    mutable std::vector<PendingSplat> mSplats;  // Splat's, not yet in mPixels
     std::vector<std::string> mLayerNames;
     std::vector<std::vector<glm::dvec3>> mLayers;
 };
@@ -6108,6 +6120,38 @@ std::vector<NearestSearch::Neighbor> NearestSearch::KNearest(const Vec3& aPoint,
 
 inline size_t NearestSearch::Size() const { return mState ? mState->mTree.Size() : 0; }
 inline const Vec3& NearestSearch::Position(size_t aIndex) const { return mState->mTree.Position(aIndex); }
+
+// =====================================================================================
+// [SECTION] Appendix: film splats
+// =====================================================================================
+// Provides: how Film::Splat meets what [SECTION] Film states of it. Relies on Film and on
+// detail::Prefetch ([SECTION] Appendix: range search).
+//
+// A splat's pixel is anywhere in the image (6 MiB of doubles at 512x512), so adding it
+// at once waits for a cache miss. The film instead asks for the pixel's memory when the
+// splat comes and adds the splats a batch at a time, in the order given, so that the
+// misses of pixels far apart overlap; every other use of the film (AddColor,
+// Accumulate, Resolve) adds the pending ones first. Each pixel receives the same
+// additions in the same order, so the image is the same bit for bit.
+
+namespace detail {
+inline constexpr size_t kFilmSplatBatch = 32;
+} // namespace detail
+
+inline void Film::Splat(int aPixelIndex, const Vec3& aColor) {
+    CheckContribution(aPixelIndex, aColor);
+    detail::Prefetch(&mPixels[size_t(aPixelIndex)]);
+    PendingSplat& splat = mSplats.emplace_back();
+    splat.mPixel = aPixelIndex;
+    splat.mColor = aColor;
+    if (mSplats.size() == detail::kFilmSplatBatch) AddSplats();
+}
+
+inline void Film::AddSplats() const {
+    if (mSplats.empty()) return;
+    for (const PendingSplat& splat : mSplats) mPixels[size_t(splat.mPixel)] += glm::dvec3(splat.mColor);
+    mSplats.clear();
+}
 
 // =====================================================================================
 // [SECTION] Render loop
