@@ -135,6 +135,7 @@
 //  PART II: appendices a student may skip, each behind an interface Part I states
 //  [SECTION] Appendix: BVH
 //  [SECTION] Appendix: range search    (the hashed grid; the kd-tree)
+//  [SECTION] Appendix: film splats       (light tracing's additions, a batch at a time)
 //  [SECTION] Render loop                 (threads, budgets, progress, Ctrl-C)
 //  [SECTION] Image output and metrics
 //  [SECTION] Scene loading (glTF)
@@ -268,15 +269,6 @@ inline bool IsFinite(const Vec3& aV) {
 #define SMALLVCM_NOINLINE
 #define SMALLVCM_ALWAYS_INLINE inline
 #endif
-// Asks the processor to start loading the cache line of aAddress, which the caller will
-// read soon: a hint only (no effect on any result; nothing on compilers without it).
-inline void Prefetch(const void* aAddress) {
-#if defined(__GNUC__) || defined(__clang__)
-    __builtin_prefetch(aAddress);
-#else
-    (void)aAddress;
-#endif
-}
 // Luminance with the sRGB / Rec. 709 weights; SmallVCM uses it to pick BSDF components.
 inline float Luminance(const Vec3& aRgb) {
     return 0.212671f * aRgb.x + 0.715160f * aRgb.y + 0.072169f * aRgb.z;
@@ -3135,22 +3127,7 @@ public:
             mReflectance = aConstants->mReflectance;
         else
             mReflectance = ReflectancesOf(aMaterial);
-        if (aBaseColorTexel) {
-            // The base colour tints what glTF's base colour reaches: not the dielectric's
-            // untinted specular share, nor glass's Fresnel reflection.
-            const Vec3& texel = *aBaseColorTexel;
-            const auto tint = [&](Vec3& ioSpecular) {
-                if (!IsBlack(ioSpecular)) ioSpecular = aMaterial.mSpecularUntinted + (ioSpecular - aMaterial.mSpecularUntinted) * texel;
-            };
-            mReflectance.mDiffuse *= texel;
-            tint(mReflectance.mPhong);
-            if (aMaterial.mIor > 0.f) {
-                tint(mReflectance.mOpaqueMirror);
-                mReflectance.mTransmittance *= texel;
-            } else {
-                tint(mReflectance.mMirror);
-            }
-        }
+        if (aBaseColorTexel) TintReflectances(aMaterial, *aBaseColorTexel);
         // A two-sided non-glass material turns both normals towards whoever looks at it,
         // deciding by the geometric one (the side the ray really arrives from).
         mShaded = aShadingNormal != aGeometricNormal;
@@ -3387,22 +3364,7 @@ private:
             if (IsBlack(s.mValue)) sample.reset();
             return sample;
         } else {
-            s.mEvent = kEventRefract;
-            const std::optional<Refraction> refraction = RefractLocal(mLocalDirFix, mMaterial->mIor);
-            if (!refraction || !(p[kRefract] > 0.f)) {
-                sample.reset();
-                return sample;
-            }
-            localDirGen = refraction->mLocalGen;
-            s.mPdfW = s.mReversePdfW = p[kRefract];
-            s.mCosThetaOut = std::abs(localDirGen.z);
-            s.mDirection = mFrame.ToWorld(localDirGen);
-            // Radiance is not symmetric under refraction: L/eta^2 is what is conserved, so
-            // camera paths carry (eta_fix / eta_gen)^2; light paths (importance) do not
-            // (Veach 1997, sec. 5.2).
-            const float scale = mTransport == Transport::kImportance ? 1.f : Sqr(refraction->mEtaFixOverEtaGen);
-            s.mValue = Vec3((1.f - mFresnel) * scale / s.mCosThetaOut) * mReflectance.mTransmittance;
-            if (IsBlack(s.mValue)) sample.reset();
+            if (!SampleRefraction(s)) sample.reset();
             return sample;
         }
         // Non-specular pick: evaluate every non-specular component for this direction.
@@ -3423,6 +3385,24 @@ private:
         return sample;
     }
 
+    // The refraction component's sample (SampleInShadingFrame's last pick); false when it
+    // is unusable (total internal reflection, no refraction share, black).
+    bool SampleRefraction(ScatterSample& oSample) const {
+        oSample.mEvent = kEventRefract;
+        const std::optional<Refraction> refraction = RefractLocal(mLocalDirFix, mMaterial->mIor);
+        if (!refraction || !(mProbabilities[kRefract] > 0.f)) return false;
+        const Vec3 localDirGen = refraction->mLocalGen;
+        oSample.mPdfW = oSample.mReversePdfW = mProbabilities[kRefract];
+        oSample.mCosThetaOut = std::abs(localDirGen.z);
+        oSample.mDirection = mFrame.ToWorld(localDirGen);
+        // Radiance is not symmetric under refraction: L/eta^2 is what is conserved, so
+        // camera paths carry (eta_fix / eta_gen)^2; light paths (importance) do not
+        // (Veach 1997, sec. 5.2).
+        const float scale = mTransport == Transport::kImportance ? 1.f : Sqr(refraction->mEtaFixOverEtaGen);
+        oSample.mValue = Vec3((1.f - mFresnel) * scale / oSample.mCosThetaOut) * mReflectance.mTransmittance;
+        return !IsBlack(oSample.mValue);
+    }
+
     // A direction whose cosines with the shading and the geometric normal have one sign,
     // and that does not graze the geometric surface: the only kind a smooth surface
     // scatters from and into (section notes: no light leaks).
@@ -3436,6 +3416,21 @@ private:
     static Reflectances ReflectancesOf(const Material& aMaterial) {
         return Reflectances{aMaterial.mDiffuseReflectance, aMaterial.mPhongReflectance, aMaterial.mMirrorReflectance,
                             aMaterial.mOpaqueMirror, aMaterial.mTransmittance};
+    }
+    // The base colour texel tints what glTF's base colour reaches: not the dielectric's
+    // untinted specular share, nor glass's Fresnel reflection.
+    void TintReflectances(const Material& aMaterial, const Vec3& aTexel) {
+        const auto tint = [&](Vec3& ioSpecular) {
+            if (!IsBlack(ioSpecular)) ioSpecular = aMaterial.mSpecularUntinted + (ioSpecular - aMaterial.mSpecularUntinted) * aTexel;
+        };
+        mReflectance.mDiffuse *= aTexel;
+        tint(mReflectance.mPhong);
+        if (aMaterial.mIor > 0.f) {
+            tint(mReflectance.mOpaqueMirror);
+            mReflectance.mTransmittance *= aTexel;
+        } else {
+            tint(mReflectance.mMirror);
+        }
     }
     // The delta reflection's reflectance: glass's F x mirror, plus (front side only) the
     // mirror of an opaque share that F does not weight (Material::mOpaqueMirror).
@@ -3594,21 +3589,14 @@ public:
 
     void AddColor(int aPixelIndex, const Vec3& aColor) {
         CheckContribution(aPixelIndex, aColor);
-        if (!mSplats.empty()) AddSplats();
+        AddSplats();
         mPixels[size_t(aPixelIndex)] += glm::dvec3(aColor);
     }
     // The same for a contribution that lands anywhere in the image (light tracing's
-    // splats). The film adds these a batch at a time, in the order given, having asked
-    // for each pixel's memory first, so that the cache misses of pixels far apart overlap;
-    // every other use of the film adds the pending ones first.
-    void Splat(int aPixelIndex, const Vec3& aColor) {
-        CheckContribution(aPixelIndex, aColor);
-        Prefetch(&mPixels[size_t(aPixelIndex)]);
-        PendingSplat& splat = mSplats.emplace_back();
-        splat.mPixel = aPixelIndex;
-        splat.mColor = aColor;
-        if (mSplats.size() == kSplatBatch) AddSplats();
-    }
+    // splats): every pixel receives the same additions in the same order as with
+    // AddColor, so the image is the one AddColor would give. How the film adds them
+    // is [SECTION] Appendix: film splats.
+    void Splat(int aPixelIndex, const Vec3& aColor);
 
     // Layers: created before rendering; AddLayer returns the index to write with.
     int AddLayer(const std::string& aName) {
@@ -3656,13 +3644,10 @@ private:
         (void)aPixelIndex;
         (void)aColor;
     }
-    // The pending splats, added in order (const: they are part of what the film holds).
-    void AddSplats() const {
-        for (const PendingSplat& splat : mSplats) mPixels[size_t(splat.mPixel)] += glm::dvec3(splat.mColor);
-        mSplats.clear();
-    }
+    // Adds the splats Splat has not added yet, in order (const: they are part of what
+    // the film holds).
+    void AddSplats() const;
 
-    static constexpr size_t kSplatBatch = 32;
     struct PendingSplat { int mPixel; Vec3 mColor; };
     int mWidth = 0, mHeight = 0;
     mutable std::vector<glm::dvec3> mPixels;     // (mutable: AddSplats)
@@ -6437,6 +6422,18 @@ inline uint32_t Bvh::LargestLeaf() const { return mTree ? mTree->LargestLeaf() :
 // point, so that fewer occupied cells share a bucket. A dense grid does neither: there
 // the bits and the larger table would only be more memory to read.
 
+namespace detail {
+// Asks the processor to start loading the cache line of aAddress, which the caller will
+// read soon: a hint only (no effect on any result; nothing on compilers without it).
+inline void Prefetch(const void* aAddress) {
+#if defined(__GNUC__) || defined(__clang__)
+    __builtin_prefetch(aAddress);
+#else
+    (void)aAddress;
+#endif
+}
+} // namespace detail
+
 template <class Item>
 class RangeSearch<Item>::Grid {
 public:
@@ -6469,7 +6466,7 @@ public:
         // large array: each is requested kAhead points before it is written.
         constexpr size_t kAhead = 16;
         for (size_t i = 0; i < aCount; i++) {
-            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
+            if (i + kAhead < aCount) detail::Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
             mBucketEnds[mBucketOf[i]]++;
         }
         // In place: the counts become the buckets' beginnings, and filling the points in
@@ -6477,11 +6474,11 @@ public:
         uint32_t sum = 0;
         for (uint32_t& entry : mBucketEnds) { const uint32_t count = entry; entry = sum; sum += count; }
         for (size_t i = 0; i < aCount; i++) {
-            if (i + kAhead < aCount) Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
+            if (i + kAhead < aCount) detail::Prefetch(&mBucketEnds[mBucketOf[i + kAhead]]);
             if (i + kAhead / 2 < aCount) {  // where that point will go, unless its bucket gets a point before it
                 const uint32_t slot = mBucketEnds[mBucketOf[i + kAhead / 2]];
-                Prefetch(&mPoints[slot]);
-                Prefetch(&mItems[slot]);
+                detail::Prefetch(&mPoints[slot]);
+                detail::Prefetch(&mItems[slot]);
             }
             const uint32_t slot = mBucketEnds[mBucketOf[i]]++;
             mPoints[slot] = Point{aPositionOf(i), uint32_t(i)};
@@ -6551,7 +6548,7 @@ private:
         }
         // The cells' ranges are requested before their marks are read, so that a query
         // with points waits for one round of memory here, not two.
-        for (int c = 0; c < cells; c++) Prefetch(&mBucketEnds[hashes[c] & mBucketMask]);
+        for (int c = 0; c < cells; c++) detail::Prefetch(&mBucketEnds[hashes[c] & mBucketMask]);
         // No marked cell: nothing can pass.
         bool anyOccupied = mOccupied.empty();
         if (!anyOccupied)
@@ -6589,13 +6586,13 @@ private:
                 aQuery.mEnds[ranges] = end;
                 ranges++;
             }
-            Prefetch(&mPoints[begin]);
-            Prefetch(&mPoints[end - 1]);
+            detail::Prefetch(&mPoints[begin]);
+            detail::Prefetch(&mPoints[end - 1]);
             // The items of the range too, so that they arrive with the points.
             const char* first = reinterpret_cast<const char*>(&mItems[begin]);
             const char* last = reinterpret_cast<const char*>(&mItems[end]) - 1;
             if (last - first < 8 * 64)
-                for (const char* line = first; line <= last + 63; line += 64) Prefetch(line);
+                for (const char* line = first; line <= last + 63; line += 64) detail::Prefetch(line);
         }
         aQuery.mRangeCount = ranges;
     }
@@ -6615,8 +6612,8 @@ private:
         if (count > Query::kMaxSelected) return;
         for (int i = 0; i < count; i++) {
             const Item* const item = &mItems[aQuery.mSelected[i]];
-            Prefetch(item);
-            Prefetch(reinterpret_cast<const char*>(item + 1) - 1);  // an item may straddle two lines
+            detail::Prefetch(item);
+            detail::Prefetch(reinterpret_cast<const char*>(item + 1) - 1);  // an item may straddle two lines
         }
     }
 
@@ -6878,6 +6875,38 @@ std::vector<NearestSearch::Neighbor> NearestSearch::KNearest(const Vec3& aPoint,
 
 inline size_t NearestSearch::Size() const { return mState ? mState->mTree.Size() : 0; }
 inline const Vec3& NearestSearch::Position(size_t aIndex) const { return mState->mTree.Position(aIndex); }
+
+// =====================================================================================
+// [SECTION] Appendix: film splats
+// =====================================================================================
+// Provides: how Film::Splat meets what [SECTION] Film states of it. Relies on Film and on
+// detail::Prefetch ([SECTION] Appendix: range search).
+//
+// A splat's pixel is anywhere in the image (6 MiB of doubles at 512x512), so adding it
+// at once waits for a cache miss. The film instead asks for the pixel's memory when the
+// splat comes and adds the splats a batch at a time, in the order given, so that the
+// misses of pixels far apart overlap; every other use of the film (AddColor,
+// Accumulate, Resolve) adds the pending ones first. Each pixel receives the same
+// additions in the same order, so the image is the same bit for bit.
+
+namespace detail {
+inline constexpr size_t kFilmSplatBatch = 32;
+} // namespace detail
+
+inline void Film::Splat(int aPixelIndex, const Vec3& aColor) {
+    CheckContribution(aPixelIndex, aColor);
+    detail::Prefetch(&mPixels[size_t(aPixelIndex)]);
+    PendingSplat& splat = mSplats.emplace_back();
+    splat.mPixel = aPixelIndex;
+    splat.mColor = aColor;
+    if (mSplats.size() == detail::kFilmSplatBatch) AddSplats();
+}
+
+inline void Film::AddSplats() const {
+    if (mSplats.empty()) return;
+    for (const PendingSplat& splat : mSplats) mPixels[size_t(splat.mPixel)] += glm::dvec3(splat.mColor);
+    mSplats.clear();
+}
 
 // =====================================================================================
 // [SECTION] Render loop
