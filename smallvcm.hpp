@@ -8311,6 +8311,7 @@ public:
         if (!mHasCamera) AddDefaultCamera();
         ChooseBackground();  // the default sun is placed from the camera
         CheckSomethingEmits();
+        NoteLightFromInfinityInMedium();
         mScene.mName = mPath;
         const auto finalizeStart = std::chrono::steady_clock::now();
         mScene.Finalize();  // its Error messages start with the path too
@@ -10155,6 +10156,21 @@ private:
                                                                         "they light only through its openings: a closed room "
                                                                         "renders black, give it lights")
                                                           : std::string()));
+    }
+
+    // The scene medium fills all space (Scene's rule): light from infinity (a background,
+    // an environment map, the sun) is extinguished in it. Said once, as it darkens a scene
+    // that had such lights (the default sky and sun included).
+    void NoteLightFromInfinityInMedium() {
+        if (mScene.mSceneMedium < 0 || !mScene.mMedia[size_t(mScene.mSceneMedium)].Attenuates()) return;
+        for (const Light& light : mScene.mLights)
+            if (!light.IsFinite()) {
+                mReport.mNotes.push_back("the scene medium fills all space, so light from infinity (the background, an "
+                                         "environment map, directional lights and the default sky and sun) is extinguished in "
+                                         "it: light the scene from inside, or give the medium a closed mesh (SMALLVCM_medium "
+                                         "on a material)");
+                return;
+            }
     }
 
     // A scene in which nothing emits renders black with every estimator: refused, with why
