@@ -2097,7 +2097,7 @@ public:
     // outside (the medium around its closed mesh, found by Finalize); every other surface
     // has the same medium on both sides, the one the path is in. The geometric normal
     // tells the sides: it points outwards (Finalize checks the winding).
-    int MediumAfter(const SurfacePoint& aHit, const Vec3& aDirection, int aCurrent) const {
+    SMALLVCM_ALWAYS_INLINE int MediumAfter(const SurfacePoint& aHit, const Vec3& aDirection, int aCurrent) const {
         if (!mHasMedia) return aCurrent;
         const int outside = mBoundaryOutside[size_t(aHit.mPrimitiveId)];
         if (outside == kNotBoundary) return aCurrent;
@@ -2786,18 +2786,19 @@ struct SegmentPdfs {
 // Where a sub-path's next segment ends (TraceSegment): at a surface, at a scattering
 // point in a medium, or out of the scene.
 struct PathSegment {
-    // Where it ends: a surface point; at a point in a medium only mHit's mPosition and
-    // mDist are set (IsValid() is false); out of the scene it is invalid, mDist infinite.
-    // mDist is its length from the vertex it left (the ray's gap included), across
-    // index-matched boundaries.
+    // Where it ends: a surface point; at a point in a medium only mHit's mPosition is set
+    // (IsValid() is false); out of the scene it is invalid. Its length from the vertex it
+    // left, across index-matched boundaries, is mHit.mDist plus the gap of the ray that
+    // found mHit (LeaveVertex).
     SurfacePoint mHit;
+    float mGap = 0.f;
     bool mInMedium = false;   // it ends at a scattering point of medium mMedium
     int mMedium = -1;         // the medium it ends in (the last piece's)
     Vec3 mWeight{1.f};        // T / (its distance pdf), per channel
     SegmentPdfs mPdfs;
     const Vec3& Position() const { return mHit.mPosition; }
-    float Length() const { return mHit.mDist; }
-    bool Escaped() const { return !mInMedium && !mHit.IsValid(); }
+    float Length() const { return mHit.mDist + mGap; }
+    bool Escaped() const { return !mHit.IsValid() && !mInMedium; }
 };
 
 // The next vertex from aRay's origin, a vertex in medium aMedium (aFromMedium: a medium
@@ -2812,12 +2813,11 @@ struct PathSegment {
 inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler,
                                             float aGap);
 // In a scene without media the next vertex is the nearest surface, and every factor 1.
+// (Both returns build the segment in the caller's place: no copy of it is made.)
 SMALLVCM_ALWAYS_INLINE PathSegment TraceSegment(const Scene& aScene, const Ray& aRay, int aMedium, bool aFromMedium,
                                                 Sampler& aSampler, float aGap) {
     if (aScene.HasMedia()) return TraceSegmentThroughMedia(aScene, aRay, aMedium, aFromMedium, aSampler, aGap);
-    PathSegment segment{aScene.Intersect(aRay), false, -1, Vec3(1.f), SegmentPdfs{}};
-    segment.mHit.mDist += aGap;
-    return segment;
+    return PathSegment{aScene.Intersect(aRay), aGap, false, -1, Vec3(1.f), SegmentPdfs{}};
 }
 inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler,
                                             float aGap) {
@@ -2858,13 +2858,13 @@ inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int a
 // The ray that leaves a vertex along aDirection: off a surface by the ray epsilon
 // (SpawnRay), from a point in a medium exactly there (no surface to leave, and a gap
 // would be flown through for free). Its gap is what TraceSegment's aGap takes.
-inline Ray LeaveVertex(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, bool aInMedium) {
+SMALLVCM_ALWAYS_INLINE Ray LeaveVertex(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, bool aInMedium) {
     return aInMedium ? Ray{aPoint, aDirection} : aScene.SpawnRay(aPoint, aDirection);
 }
-inline float GapOfVertex(const Scene& aScene, bool aInMedium) { return aInMedium ? 0.f : aScene.RayEpsilon(); }
+SMALLVCM_ALWAYS_INLINE float GapOfVertex(const Scene& aScene, bool aInMedium) { return aInMedium ? 0.f : aScene.RayEpsilon(); }
 
 // The medium a connection from the vertex a segment ended at starts in, towards aDirection.
-inline int MediumTowards(const Scene& aScene, const PathSegment& aVertex, const Vec3& aDirection) {
+SMALLVCM_ALWAYS_INLINE int MediumTowards(const Scene& aScene, const PathSegment& aVertex, const Vec3& aDirection) {
     return aVertex.mInMedium ? aVertex.mMedium : aScene.MediumAfter(aVertex.mHit, aDirection, aVertex.mMedium);
 }
 
@@ -2894,9 +2894,7 @@ inline SegmentMedia TraceConnectionThroughMedia(const Scene& aScene, const Vec3&
 SMALLVCM_ALWAYS_INLINE SegmentMedia TraceConnection(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, float aDistance,
                                                     int aMedium) {
     if (aScene.HasMedia()) return TraceConnectionThroughMedia(aScene, aPoint, aDirection, aDistance, aMedium);
-    SegmentMedia media;
-    media.mOccluded = aScene.Occluded(aPoint, aDirection, aDistance);
-    return media;
+    return SegmentMedia{aScene.Occluded(aPoint, aDirection, aDistance)};  // built in the caller's place, as in TraceSegment
 }
 inline SegmentMedia TraceConnectionThroughMedia(const Scene& aScene, const Vec3& aPoint, const Vec3& aDirection, float aDistance,
                                                 int aMedium) {
@@ -3051,12 +3049,13 @@ public:
     // aRay is the ray that found aHit (its direction points into the surface); the Bsdf
     // shades in a frame around aHit's shading normal.
     // aTransport: radiance on camera sub-paths, importance on light sub-paths.
-    void Setup(const Ray& aRay, const SurfacePoint& aHit, const Scene& aScene, Transport aTransport) {
+    SMALLVCM_ALWAYS_INLINE void Setup(const Ray& aRay, const SurfacePoint& aHit, const Scene& aScene, Transport aTransport) {
         Setup(-aRay.mDirection, aHit, aScene, aTransport);
     }
     // The same with the fixed direction given (pointing away from the surface), as a
     // stored light vertex has it. The material's constants come from the scene.
-    void Setup(const Vec3& aWorldDirFix, const SurfacePoint& aHit, const Scene& aScene, Transport aTransport) {
+    SMALLVCM_ALWAYS_INLINE void Setup(const Vec3& aWorldDirFix, const SurfacePoint& aHit, const Scene& aScene,
+                                      Transport aTransport) {
         const Material& material = aScene.GetMaterial(aHit.mMaterialId);
         if (material.mMetallicRoughnessTexture >= 0) {
             SetupAtTexel(aWorldDirFix, aHit, aScene, material, aTransport);
@@ -3075,8 +3074,8 @@ public:
     // factors) and base colour (the factor times the base-colour texel) stand in for the
     // material's constants. Where a glass material has no glass share (metal 1), its
     // specular is the opaque mirror (the rule's when the material refracts).
-    void SetupAtTexel(const Vec3& aWorldDirFix, const SurfacePoint& aHit, const Scene& aScene, const Material& aMaterial,
-                      Transport aTransport) {
+    SMALLVCM_NOINLINE void SetupAtTexel(const Vec3& aWorldDirFix, const SurfacePoint& aHit, const Scene& aScene,
+                                        const Material& aMaterial, Transport aTransport) {
         const Vec3 texel = aScene.mTextures[size_t(aMaterial.mMetallicRoughnessTexture)].Lookup(aHit.mUv);
         const bool glass = aMaterial.mIor > 0.f;
         const MetallicRoughnessMaterial rule =
@@ -3236,8 +3235,8 @@ public:
     // Inlined, with EvaluateNonSpecular, into every connection and merge, which call it
     // more often than anything else.
     SMALLVCM_ALWAYS_INLINE BsdfEval Evaluate(const Vec3& aWorldDirGen) const {
-        if (mMedium) return EvaluatePhase(aWorldDirGen);
         const Vec3 localDirGen = mFrame.ToLocal(aWorldDirGen);
+        if (mMedium) return EvaluatePhase(localDirGen.z);
         BsdfEval eval = EvaluateNonSpecular(localDirGen);
         eval.mCosThetaGen = std::abs(localDirGen.z);
         if (mShaded && !eval.IsBlack()) {
@@ -3281,8 +3280,9 @@ public:
     // The pdf of sampling aWorldDirGen (or, with aReverse, of sampling the fixed
     // direction when aWorldDirGen were fixed), non-specular components only.
     float Pdf(const Vec3& aWorldDirGen, bool aReverse = false) const {
-        if (mMedium) return EvaluatePhase(aWorldDirGen).mDirPdfW;
-        const BsdfEval eval = EvaluateNonSpecular(mFrame.ToLocal(aWorldDirGen));
+        const Vec3 localDirGen = mFrame.ToLocal(aWorldDirGen);
+        if (mMedium) return EvaluatePhase(localDirGen.z).mDirPdfW;
+        const BsdfEval eval = EvaluateNonSpecular(localDirGen);
         return aReverse ? eval.mRevPdfW : eval.mDirPdfW;
     }
 
@@ -3297,7 +3297,7 @@ public:
     // unusable, and a Bsdf of a light sub-path multiplies the adjoint factor in.
     // (mWeight is left to SampleBsdf.)
     std::optional<ScatterSample> Sample(const Vec3& aRnd) const {
-        std::optional<ScatterSample> sample = mMedium ? SamplePhase(Vec2(aRnd)) : SampleInShadingFrame(aRnd);
+        std::optional<ScatterSample> sample = SampleInShadingFrame(aRnd);
         if (!mShaded || !sample) return sample;
         const float cosGenGeometric = glm::dot(mGeometricNormal, sample->mDirection);
         if (!SidesAgree(glm::dot(mFrame.mZ, sample->mDirection), cosGenGeometric)) sample.reset();
@@ -3307,25 +3307,25 @@ public:
     }
 
 private:
-    // A medium point's f = sigma_s p and pdfs p (fix . gen = -cos theta: both point away).
-    SMALLVCM_NOINLINE BsdfEval EvaluatePhase(const Vec3& aWorldDirGen) const {
+    // (SampleInShadingFrame's pick for a medium point; false when the sample is unusable.)
+    SMALLVCM_NOINLINE bool SamplePhase(ScatterSample& oSample, const Vec2& aRnd) const {
+        oSample.mDirection = SampleHenyeyGreenstein(-mFrame.mZ, mMedium->mG, aRnd);
+        oSample.mEvent = kEventMedium;
+        oSample.mCosThetaOut = 1.f;
+        oSample.mPdfW = oSample.mReversePdfW = HenyeyGreensteinPdf(-glm::dot(mFrame.mZ, oSample.mDirection), mMedium->mG);
+        oSample.mValue = mMedium->mSigmaS * oSample.mPdfW;
+        return oSample.mPdfW > 0.f && !IsBlack(oSample.mValue);
+    }
+
+    // A medium point's f = sigma_s p and pdfs p. Its frame is around fix, so aCosFixGen =
+    // fix . gen, which is -cos theta (both point away from the vertex).
+    SMALLVCM_NOINLINE BsdfEval EvaluatePhase(float aCosFixGen) const {
         BsdfEval eval;
-        const float phase = HenyeyGreensteinPdf(-glm::dot(mFrame.mZ, aWorldDirGen), mMedium->mG);
+        const float phase = HenyeyGreensteinPdf(-aCosFixGen, mMedium->mG);
         eval.mValue = mMedium->mSigmaS * phase;
         eval.mCosThetaGen = 1.f;
         eval.mDirPdfW = eval.mRevPdfW = phase;
         return eval;
-    }
-    SMALLVCM_NOINLINE std::optional<ScatterSample> SamplePhase(const Vec2& aRnd) const {
-        std::optional<ScatterSample> sample(std::in_place);
-        ScatterSample& s = *sample;
-        s.mDirection = SampleHenyeyGreenstein(-mFrame.mZ, mMedium->mG, aRnd);
-        s.mEvent = kEventMedium;
-        s.mCosThetaOut = 1.f;
-        s.mPdfW = s.mReversePdfW = HenyeyGreensteinPdf(-glm::dot(mFrame.mZ, s.mDirection), mMedium->mG);
-        s.mValue = mMedium->mSigmaS * s.mPdfW;
-        if (!(s.mPdfW > 0.f) || IsBlack(s.mValue)) sample.reset();
-        return sample;
     }
 
     // f_path from f (EvaluatePath): f |gen . Ns| / |gen . Ng|, f itself on a flat surface.
@@ -3362,6 +3362,9 @@ private:
             s.mDirection = mFrame.ToWorld(localDirGen);
             s.mValue = MirrorReflectance() / s.mCosThetaOut;
             if (IsBlack(s.mValue)) sample.reset();
+            return sample;
+        } else if (mMedium) {  // a medium point has no components (every p is 0): its phase function
+            if (!SamplePhase(s, Vec2(aRnd))) sample.reset();
             return sample;
         } else {
             if (!SampleRefraction(s)) sample.reset();
@@ -5193,18 +5196,24 @@ private:
     // sub-path, built at its first connection and kept for the camera sub-path's later
     // vertices, which connect to it again (building a BSDF costs more than evaluating one).
     const Bsdf& PixelLightBsdf(size_t aSlot, const LightVertex& aVertex) {
-        if (mPixelLightBsdfPath[aSlot] != mCameraPathNumber && aVertex.mInMedium) {
-            mPixelLightBsdfs[aSlot].SetupInMedium(aVertex.mDirFix, mScene.GetMedium(aVertex.mMedium), Transport::kImportance);
-            mPixelLightBsdfPath[aSlot] = mCameraPathNumber;
-        } else if (mPixelLightBsdfPath[aSlot] != mCameraPathNumber) {
-            SurfacePoint surface;
-            surface.mPosition = aVertex.mHitPoint;
-            surface.mPrimitiveId = aVertex.mPrimitiveId;
-            mScene.FillSurfacePoint(surface);
-            mPixelLightBsdfs[aSlot].Setup(aVertex.mDirFix, surface, mScene, Transport::kImportance);
+        if (mPixelLightBsdfPath[aSlot] != mCameraPathNumber) {
+            SetupAtLightVertex(mPixelLightBsdfs[aSlot], aVertex);
             mPixelLightBsdfPath[aSlot] = mCameraPathNumber;
         }
         return mPixelLightBsdfs[aSlot];
+    }
+    // The stored vertex's BSDF rebuilt: its surface point from the primitive (see
+    // LightVertex), or its medium's phase function.
+    SMALLVCM_NOINLINE void SetupAtLightVertex(Bsdf& oBsdf, const LightVertex& aVertex) const {
+        if (aVertex.mInMedium) {
+            oBsdf.SetupInMedium(aVertex.mDirFix, mScene.GetMedium(aVertex.mMedium), Transport::kImportance);
+            return;
+        }
+        SurfacePoint surface;
+        surface.mPosition = aVertex.mHitPoint;
+        surface.mPrimitiveId = aVertex.mPrimitiveId;
+        mScene.FillSurfacePoint(surface);
+        oBsdf.Setup(aVertex.mDirFix, surface, mScene, Transport::kImportance);
     }
     // A new camera sub-path, paired with light sub-path aLightPath: none of its light
     // vertices' BSDFs is built yet. Each entry holds the number of the camera sub-path it
