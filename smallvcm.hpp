@@ -5818,13 +5818,15 @@ private:
             const Vec3& d = aRay.mDirection;
             const Vec3& o = aRay.mOrigin;
             // Lane i: axis i as kz; "next" is axis (i + 1) % 3, "after" (i + 2) % 3.
-            const Int4 toNext = {1, 2, 0, 3}, toAfter = {2, 0, 1, 3};
+            // (__builtin_shufflevector: GCC 12 and clang alike.)
+            const auto next = [](Float4 aV) { return __builtin_shufflevector(aV, aV, 1, 2, 0, 3); };
+            const auto after = [](Float4 aV) { return __builtin_shufflevector(aV, aV, 2, 0, 1, 3); };
             const Float4 dir = {d.x, d.y, d.z, 1.f};
-            const Float4 nextOver = __builtin_shuffle(dir, toNext) / dir, afterOver = __builtin_shuffle(dir, toAfter) / dir;
+            const Float4 nextOver = next(dir) / dir, afterOver = after(dir) / dir;
             const Float4 inverse = Float4{1.f, 1.f, 1.f, 1.f} / dir;
             const Float4 absDir = reinterpret_cast<Float4>(reinterpret_cast<Int4>(dir) & Int4{INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX});
-            const int overNext = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > __builtin_shuffle(absDir, toNext)));
-            const int overAfter = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > __builtin_shuffle(absDir, toAfter)));
+            const int overNext = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > next(absDir)));
+            const int overAfter = __builtin_ia32_movmskps(reinterpret_cast<Float4>(absDir > after(absDir)));
             const int xOverY = overNext & 1, yOverZ = (overNext >> 1) & 1, xOverZ = overAfter & 1;
             const int kz = 2 - 2 * (xOverY & xOverZ) - ((1 - xOverY) & yOverZ);
             // Lanes whose axis the ray runs backwards along: were it kz, kx and ky would
@@ -5833,7 +5835,7 @@ private:
             const int back = (__builtin_ia32_movmskps(reinterpret_cast<Float4>(backwards)) >> kz) & 1;
             const Float4 shearX = backwards ? afterOver : nextOver, shearY = backwards ? nextOver : afterOver;
             const Float4 originZ = {o.x, o.y, o.z, 0.f};
-            const Float4 originNext = __builtin_shuffle(originZ, toNext), originAfter = __builtin_shuffle(originZ, toAfter);
+            const Float4 originNext = next(originZ), originAfter = after(originZ);
             const Float4 originX = backwards ? originAfter : originNext, originY = backwards ? originNext : originAfter;
             // (kz + 1 + back) % 3 and (kz + 2 - back) % 3: two bits each of 0x124, which
             // holds 0, 1, 2, 0, 1.
