@@ -1990,7 +1990,7 @@ TEST_CASE("A base-colour texture on glass tints the refraction and the opaque sh
     // the texture off it (0.02 + 0.5 untinted of 0.52: a texel tints nothing).
     std::ofstream(folder / "mirror.gltf") << Replaced(text, R"("transmissionFactor": 0.5}})",
                                                       R"("transmissionFactor": 0.5}, "KHR_materials_ior": {"ior": 0}})");
-    const Material& mirror = LoadGltfScene(folder / "mirror.gltf").mMaterials.at(0);
+    const Material mirror = LoadGltfScene(folder / "mirror.gltf").mMaterials.at(0);
     CHECK(mirror.mIor < 0.f);
     CHECK_VEC3(mirror.mMirrorReflectance, Vec3(0.52f), 1e-7f);
     CHECK_VEC3(mirror.mSpecularUntinted, Vec3(0.52f), 1e-7f);
