@@ -9220,8 +9220,9 @@ private:
     // becomes attenuationColor c (Beer-Lambert), so sigma_a = -ln(c) / d per channel; it
     // does not scatter. d defaults to infinity (no absorption). A channel c = 0 (all of it
     // absorbed: sigma_a infinite) is clamped to 1e-38, sigma_a = 87.5 / d, and noted when
-    // the medium is used (aUsed). thicknessFactor and thicknessTexture stand in for the
-    // geometry in a rasteriser; the geometry is traced here, so they are not read.
+    // the medium is used (aUsed). thicknessFactor's value does not matter here (it stands
+    // in for the geometry in a rasteriser, and the geometry is traced), only whether it is
+    // 0: VolumeIsThinWalled.
     Medium VolumeMedium(const tinygltf::Value& aVolume, const std::string& aWhat, const std::string& aName, bool aUsed) {
         const std::string what = aWhat + ": KHR_materials_volume";
         if (!aVolume.IsObject()) Fail(what + " must be an object");
@@ -9244,16 +9245,27 @@ private:
         return medium;
     }
 
+    // glTF's thin-walled material: KHR_materials_volume's thicknessFactor 0 (its default)
+    // says the surface has no volume behind it, so nothing inside it absorbs.
+    bool VolumeIsThinWalled(const tinygltf::Value& aVolume, const std::string& aWhat) const {
+        const double thickness = NumberOr(aVolume, "thicknessFactor", 0.0);
+        if (!(thickness >= 0.0 && std::isfinite(thickness)))
+            Fail(aWhat + ": KHR_materials_volume.thicknessFactor must be a finite number >= 0");
+        return thickness == 0.0;
+    }
+
     // The medium inside the closed mesh a material covers, added to the scene, or -1:
     // SMALLVCM_medium when the material has it, else KHR_materials_volume's when it
-    // absorbs and the material refracts (aRefracts: glTF's volume needs transmission).
+    // absorbs, the material refracts (aRefracts: glTF's volume needs transmission) and
+    // is not thin-walled.
     // Every medium extension is checked, used or not.
     int MaterialMedium(const tinygltf::Material& aSource, const std::string& aWhat, bool aRefracts) {
         const std::string name = aSource.name.empty() ? aWhat : aSource.name;
         const auto own = aSource.extensions.find("SMALLVCM_medium");
         const auto volume = aSource.extensions.find("KHR_materials_volume");
         const bool hasOwn = own != aSource.extensions.end(), hasVolume = volume != aSource.extensions.end();
-        const Medium absorbing = hasVolume ? VolumeMedium(volume->second, aWhat, name, !hasOwn && aRefracts) : Medium();
+        const bool thinWalled = hasVolume && VolumeIsThinWalled(volume->second, aWhat);
+        const Medium absorbing = hasVolume ? VolumeMedium(volume->second, aWhat, name, !hasOwn && aRefracts && !thinWalled) : Medium();
         if (hasOwn) {
             const Medium medium = ReadMedium(own->second, aWhat, name);
             if (hasVolume) Approximated("KHR_materials_volume beside SMALLVCM_medium (ignored: SMALLVCM_medium is used)");
@@ -9264,7 +9276,12 @@ private:
             Approximated("KHR_materials_volume on a material that does not refract (ignored: the volume needs KHR_materials_transmission)");
             return -1;
         }
-        return absorbing.Attenuates() ? mScene.AddMedium(absorbing) : -1;
+        if (!absorbing.Attenuates()) return -1;
+        if (thinWalled) {
+            Approximated("KHR_materials_volume with thicknessFactor 0 (glTF's thin-walled surface: no volume inside, its attenuation ignored)");
+            return -1;
+        }
+        return mScene.AddMedium(absorbing);
     }
 
     // The medium filling all space outside every closed mesh: the scene's SMALLVCM_medium,

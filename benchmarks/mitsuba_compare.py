@@ -239,11 +239,13 @@ def mitsuba_material(material, where):
         else:
             raise ConversionError(f"{where}: this pbrMetallicRoughness mapping has no exact Mitsuba equivalent"
                                   " (only emitters, perfect mirrors and glass of transmission 1 are converted)")
-    # The medium inside (4.4): SMALLVCM_medium wins; KHR_materials_volume only on glass.
+    # The medium inside (4.4): SMALLVCM_medium wins; KHR_materials_volume only on glass
+    # that is not thin-walled (thicknessFactor > 0).
     medium = None
     if "SMALLVCM_medium" in extensions:
         medium = medium_coefficients(extensions["SMALLVCM_medium"], where)
-    elif "KHR_materials_volume" in extensions and ior > 0:
+    elif ("KHR_materials_volume" in extensions and ior > 0
+          and float(extensions["KHR_materials_volume"].get("thicknessFactor", 0)) > 0):
         v = extensions["KHR_materials_volume"]
         distance = float(v.get("attenuationDistance", math.inf))
         colour = [float(c) for c in v.get("attenuationColor", [1, 1, 1])]

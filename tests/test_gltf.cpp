@@ -2040,10 +2040,10 @@ TEST_CASE("KHR_materials_volume on glass: sigma_a = -ln(attenuationColor) / atte
     CHECK_VEC3(medium.mSigmaA, Vec3(0.2107210f, 1.3862944f, 3.2188758f), 1e-6f);
     CHECK_VEC3(medium.mSigmaS, Vec3(0.f), 0.f);
     CHECK(medium.mG == 0.f);
-    CHECK(ApproximatedNote(report).empty());  // thicknessFactor is not read, and not worth a note
+    CHECK(ApproximatedNote(report).empty());  // thicknessFactor's value does not matter (only whether it is 0)
 }
 
-TEST_CASE("KHR_materials_volume without absorption adds no medium; attenuationColor 0 is clamped and noted; without refraction it is noted and ignored", "[gltf][media]") {
+TEST_CASE("KHR_materials_volume without absorption adds no medium; attenuationColor 0 is clamped and noted; without refraction or thin-walled it is noted and ignored", "[gltf][media]") {
     SECTION("attenuationDistance absent: infinity, no absorption") {
         const Scene scene = LoadMediumCube(GlassWith("clear", R"("KHR_materials_volume": {"attenuationColor": [0.5, 0.5, 0.5]})"));
         CHECK(scene.mMaterials.at(0).mMedium == -1);
@@ -2056,7 +2056,8 @@ TEST_CASE("KHR_materials_volume without absorption adds no medium; attenuationCo
     }
     SECTION("a channel 0: sigma_a = -ln(1e-38) / d = 87.5 / d, and the note says so") {
         GltfLoadReport report;
-        const Scene scene = LoadMediumCube(GlassWith("red", R"("KHR_materials_volume": {"attenuationColor": [1, 0, 0], "attenuationDistance": 2})"),
+        const Scene scene = LoadMediumCube(GlassWith("red", R"("KHR_materials_volume": {"attenuationColor": [1, 0, 0], "attenuationDistance": 2, )"
+                                                            R"("thicknessFactor": 1})"),
                                            &report);
         REQUIRE(scene.mMedia.size() == 1);
         CHECK_VEC3(scene.mMedia[0].mSigmaA, Vec3(0.f, 43.749f, 43.749f), 1e-3f);
@@ -2070,6 +2071,25 @@ TEST_CASE("KHR_materials_volume without absorption adds no medium; attenuationCo
         CHECK(scene.mMaterials.at(0).mMedium == -1);
         CHECK(scene.mMedia.empty());
         CHECK_THAT(ApproximatedNote(report), Catch::Contains("KHR_materials_volume on a material that does not refract (ignored"));
+    }
+    SECTION("thicknessFactor 0, absent or given (glTF's thin-walled): no volume, one note, and an open mesh is no error") {
+        for (const std::string thickness : {"", R"(, "thicknessFactor": 0)"}) {
+            GltfLoadReport report;
+            const Scene scene = LoadMediumCube(GlassWith("pane", R"("KHR_materials_volume": {"attenuationColor": [0.5, 0.5, 0.5], )"
+                                                                 R"("attenuationDistance": 1)" + thickness + "}"), &report);
+            CHECK(scene.mMaterials.at(0).mMedium == -1);
+            CHECK(scene.mMedia.empty());
+            CHECK_THAT(ApproximatedNote(report), Catch::Contains("KHR_materials_volume with thicknessFactor 0 (glTF's thin-walled surface"));
+            CHECK_THAT(ApproximatedNote(report), !Catch::Contains("attenuationColor 0"));
+        }
+        // An open refracting mesh that is thin-walled loads: no medium, so nothing needs it
+        // closed (with the volume it would be refused, as a medium's mesh must be closed).
+        TemporaryFolder folder;
+        const std::string pane = GlassWith("pane", R"("KHR_materials_volume": {"attenuationColor": [0, 0.5, 0.5], "attenuationDistance": 1})");
+        std::vector<float> open = Cube(Vec3(0.f));
+        open.resize(open.size() - 9 * 2);  // two triangles (one face) fewer
+        const Scene scene = LoadGltfScene(WriteTemporary(folder, "pane.gltf", MeshGltf(open, "", "", pane)));
+        CHECK(scene.mMedia.empty());
     }
 }
 
@@ -2180,6 +2200,8 @@ TEST_CASE("Bad media are one clear error naming the file and the material or sce
         {R"("SMALLVCM_medium": {"sigma_s": [1, 1, 1]})", "", what + "SMALLVCM_medium has an unknown member 'sigma_s'"},
         {v + R"({"attenuationDistance": 0})", "", what + "KHR_materials_volume.attenuationDistance must be a number > 0"},
         {v + R"({"attenuationDistance": -2})", "", what + "KHR_materials_volume.attenuationDistance must be a number > 0"},
+        {v + R"({"attenuationDistance": 1, "thicknessFactor": -1})", "", what + "KHR_materials_volume.thicknessFactor must be a finite number >= 0"},
+        {v + R"({"attenuationDistance": 1, "thicknessFactor": "thick"})", "", what + "KHR_materials_volume.thicknessFactor must be a finite number >= 0"},
         {v + R"({"attenuationDistance": "far"})", "", what + "KHR_materials_volume.attenuationDistance must be a number > 0"},
         {v + R"({"attenuationDistance": 1e-300, "attenuationColor": [0.5, 0.5, 0.5]})", "",
          what + "KHR_materials_volume: sigma_a = -ln(attenuationColor) / attenuationDistance must be finite"},
