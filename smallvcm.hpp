@@ -4873,6 +4873,10 @@ private:
             const SurfacePoint& hit = segment.mHit;
             cam.mThroughput *= segment.mWeight;
             if (segment.Escaped()) {
+                // Out of the scene, through the media on the way: no distance or cosine to
+                // apply (a background's pdfs are per solid angle), but the free flights were
+                // sampled, as next-event estimation's connection to the background knows.
+                if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, cam.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
                 AddToFilm(aPixel, BackgroundHit(cam, ray.mDirection));
                 return;
             }

@@ -512,9 +512,15 @@ struct SegmentFlight {
     int endMedium = -1;
     SurfacePoint endHit;   // the surface x_i is on (invalid for a medium point or the camera)
 };
+// The first segment from a light at infinity starts at a point far outside the scene in
+// the light's direction (the scene medium there is clear, or the path carries nothing).
 inline SegmentFlight WalkSegment(const Scene& aScene, const FullPath& aPath, int aI, int aStartMedium) {
     SegmentFlight flight;
-    const Vec3 from = aPath.At(aI - 1, aI), to = aPath.At(aI, aI - 1);
+    const Vec3 to = aPath.At(aI, aI - 1);
+    const SceneSphere& sphere = aScene.GetSceneSphere();
+    const Vec3 from = aI == 1 && aPath.infiniteLight
+                          ? to + aPath.dirToInfinity * (2.f * (sphere.mRadius + glm::length(to - sphere.mCenter)))
+                          : aPath.At(aI - 1, aI);
     const Vec3 direction = glm::normalize(to - from);
     const bool endOnSurface = aI < aPath.K() && !aPath.InMedium(aI);
     const float eps = aScene.RayEpsilon();
@@ -564,8 +570,9 @@ inline bool SegmentFlights(const Scene& aScene, const FullPath& aPath, std::vect
     oForward.assign(size_t(k + 1), 1.0);
     oReverse.assign(size_t(k + 1), 1.0);
     if (!aScene.HasMedia()) return true;
-    if (aPath.infiniteLight) return false;  // the media scenes have finite lights only
     int medium = aScene.LightMedium(aPath.lightId);
+    // Light from infinity is extinguished in an attenuating scene medium: no such path.
+    if (aPath.infiniteLight && medium >= 0 && aScene.GetMedium(medium).Attenuates()) return false;
     SurfacePoint previousHit;
     for (int i = 1; i <= k; i++) {
         if (i > 1) medium = aPath.InMedium(i - 1) ? aPath.medium[size_t(i - 1)] : aScene.MediumAfter(previousHit, Dir(aPath, i - 1, i), medium);
@@ -937,7 +944,10 @@ private:
         }
         if (mPath.deltaLight) return;
         if (mPath.infiniteLight) {
-            mCameraAtBackground = mis;  // the ray escapes: no segment update
+            // The ray escapes: no distance or cosine, but the free flights through the media
+            // on the way (backwards, as above).
+            if (mMedia) VcmMis::ThroughMedia(mMis, mis, mFlightR[1], mFlightF[1]);
+            mCameraAtBackground = mis;
         } else {
             const float cosAtHit = glm::dot(mPath.n[0], -Dir(mPath, 1, 0));
             VcmMis::AfterSegment(mMis, mis, Dist(mPath, 1, 0), cosAtHit, true);

@@ -267,12 +267,15 @@ namespace {
 // back-scattering medium inside the glass ball and empty space around it (medium points
 // reached only through refraction: merges, no connections); 12 is scene 2 (point light)
 // in a thin grey fog with a ball of chromatic medium behind an index-matched boundary
-// in the middle of the box, so that segments cross boundaries between two media.
-constexpr int kMediaSceneCount = 3;
-const char* const kMediaSceneNames[kMediaSceneCount] = {"10 fog", "11 medium in glass", "12 index-matched ball"};
+// in the middle of the box, so that segments cross boundaries between two media; 13 is
+// scene 3 (open towards a background light) with that ball and no fog, so that camera
+// paths leave the ball and the scene: the background found through a medium.
+constexpr int kMediaSceneCount = 4;
+const char* const kMediaSceneNames[kMediaSceneCount] = {"10 fog", "11 medium in glass", "12 index-matched ball",
+                                                        "13 ball, background"};
 
 Scene MediaScene(int aIndex, int aSize) {
-    Scene scene = testutil::LoadCornell(aIndex == 2 ? 2 : 4, aSize, aSize);
+    Scene scene = testutil::LoadCornell(aIndex == 2 ? 2 : aIndex == 3 ? 3 : 4, aSize, aSize);
     Medium medium;
     if (aIndex == 0) {
         medium.mName = "chromatic fog";
@@ -289,11 +292,13 @@ Scene MediaScene(int aIndex, int aSize) {
         for (Material& material : scene.mMaterials)
             if (material.mIor > 0.f) material.mMedium = id;
     } else {
-        Medium fog;
-        fog.mName = "thin grey fog";
-        fog.mSigmaA = Vec3(0.02f);
-        fog.mSigmaS = Vec3(0.12f);
-        scene.mSceneMedium = scene.AddMedium(fog);
+        if (aIndex == 2) {
+            Medium fog;
+            fog.mName = "thin grey fog";
+            fog.mSigmaA = Vec3(0.02f);
+            fog.mSigmaS = Vec3(0.12f);
+            scene.mSceneMedium = scene.AddMedium(fog);
+        }
         medium.mName = "chromatic ball";
         medium.mSigmaA = Vec3(0.05f, 0.1f, 0.15f);
         medium.mSigmaS = Vec3(0.9f, 0.6f, 0.3f);
