@@ -267,7 +267,9 @@ def test_mutant(tree, shared, mutant, header, jobs, stage_count, timeouts=None, 
         error = compile_objects(tree, sources, objdir, jobs) or build_programs(tree, programs, objdir, impl)
         if error:
             return "broken", name, error.splitlines()[0]
-        objects += [os.path.join(objdir, s + ".o") for s in sources if os.path.exists(os.path.join(objdir, s + ".o"))]
+        # (A test file of an earlier stage is linked once: twice, Catch2 would find every
+        # test case defined twice and stop before running any.)
+        objects += [o for o in (os.path.join(objdir, s + ".o") for s in sources) if os.path.exists(o) and o not in objects]
         binary = os.path.join(objdir, "run_tests")
         # The mutated objects come first: where an inline function of the header is also
         # emitted in the (unmutated) implementation unit, the linker keeps the first copy.
