@@ -1084,12 +1084,12 @@ std::string Report(const Options& aOptions, const std::vector<Measurement>& aRun
                 out << "failed: " << (constant.mOk ? environment.mError : constant.mError) << " | | | | |\n";
                 continue;
             }
-            const auto cpu = [](const Measurement& aM) { return aM.mCpuSeconds / std::max(1, aM.mIterations); };
+            const auto cpuPerIteration = [](const Measurement& aM) { return aM.mCpuSeconds / std::max(1, aM.mIterations); };
             const auto rays = [](const Measurement& aM) { return double(aM.mRays) / std::max(1, aM.mIterations); };
-            out << Seconds(constant.SecondsPerIteration()) << " / " << Seconds(cpu(constant)) << " | "
-                << Seconds(environment.SecondsPerIteration()) << " / " << Seconds(cpu(environment)) << " | "
+            out << Seconds(constant.SecondsPerIteration()) << " / " << Seconds(cpuPerIteration(constant)) << " | "
+                << Seconds(environment.SecondsPerIteration()) << " / " << Seconds(cpuPerIteration(environment)) << " | "
                 << Format("%.2f", environment.SecondsPerIteration() / constant.SecondsPerIteration()) << " | "
-                << Format("%.2f", cpu(environment) / cpu(constant)) << " | " << Rate(rays(constant)) << " / "
+                << Format("%.2f", cpuPerIteration(environment) / cpuPerIteration(constant)) << " | " << Rate(rays(constant)) << " / "
                 << Rate(rays(environment)) << " |\n";
         }
         out << "\n(CPU: the measured process's user + system time; on a shared machine the figure that compares.)\n";
