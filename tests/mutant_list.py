@@ -3,8 +3,10 @@
 Each entry: id, class (what part of the transport it breaks), what (the bug in words),
 find (exact text of smallvcm.hpp, unique; it may span a neighbouring line only to be
 unique -- the edit itself is one line), replace, and optionally
-  impl        True when the line is compiled into the implementation unit (Scene::Finalize),
-              which is then rebuilt for this mutant;
+  impl        True when the line reaches the implementation unit (Scene::Finalize), which
+              is then rebuilt for this mutant; mutants.py also rebuilds it by itself for
+              every mutant whose line has code in the unit (its DWARF line table), such as
+              an inline function the loader calls;
   equivalent  why the mutant cannot change anything a test can see (counted apart from
               the score, but only if it survives; the argument is printed with it).
 Ids are stable: a mutant that no longer applies is reported, never renumbered.

@@ -203,6 +203,8 @@ def shared_objects(tree, jobs):
                                     for f in (HEADER, "examples/smallvcm_impl.cpp", "build/cxxflags.txt")):
         shutil.copy2(impl, os.path.join(objdir, "smallvcm_impl.o"))
         commands = [c for c in commands if "examples/smallvcm_impl.cpp" not in c]
+    # With line tables (-g1), for implementation_lines: a copy of the unit not linked.
+    commands.append([CXX] + CXXFLAGS + ["-g1", "-c", "examples/smallvcm_impl.cpp", "-o", os.path.join(objdir, "impl_lines.o")])
     processes = [subprocess.Popen(c, cwd=tree, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
                  for c in commands]
     for p in processes:
@@ -211,6 +213,34 @@ def shared_objects(tree, jobs):
             sys.exit("mutants: the unmutated tree does not build:\n" + out[-3000:])
     return objdir
 
+
+def implementation_lines(shared):
+    """The header's lines that have code in the implementation unit: the loader's own and
+    every inline function it calls and the compiler inlined there (UvTransform::Make,
+    the tangent frames, the glass rule...), read from the unit's DWARF line table. A mutant
+    on such a line must rebuild the unit, or the loader would keep the unmutated copy."""
+    code, out = run(["objdump", "--dwarf=decodedline", os.path.join(shared, "impl_lines.o")], shared, 300)
+    if code != 0:
+        sys.exit("mutants: objdump cannot read the implementation unit's line table:\n" + out[-1000:])
+    lines = set()
+    for row in out.splitlines():
+        fields = row.split()
+        if len(fields) >= 2 and fields[0] == HEADER and fields[1].isdigit():
+            lines.add(int(fields[1]))
+    if not lines:
+        sys.exit("mutants: the implementation unit's line table names no line of " + HEADER)
+    return lines
+
+
+def needs_implementation_unit(header, mutant, impl_lines):
+    """Whether the mutant's lines reach the implementation unit: listed so (impl=True), or
+    one of its lines has code there."""
+    first = line_of(header, mutant)
+    return bool(mutant.get("impl")) or any(
+        line in impl_lines for line in range(first, first + mutant["find"].count("\n") + 1))
+
+
+IMPL_LINES = set()  # implementation_lines of the unmutated header, filled by main
 
 # The folders whose NAME.cpp is a program build/NAME, as in the Makefile.
 PROGRAM_FOLDERS = ("examples", "benchmarks", "figures")
@@ -255,7 +285,7 @@ def test_mutant(tree, shared, mutant, header, jobs, stage_count, timeouts=None, 
                 os.remove(os.path.join(tree, "build", program))
     os.makedirs(objdir)
     impl = os.path.join(shared, "smallvcm_impl.o")
-    if mutant is not None and mutant.get("impl"):
+    if mutant is not None and needs_implementation_unit(header, mutant, IMPL_LINES):
         # The mutated line is compiled into the implementation unit too (Scene::Finalize is
         # emitted there and may be inlined into the loader): rebuild it for this mutant.
         impl = os.path.join(objdir, "smallvcm_impl.o")
@@ -356,6 +386,7 @@ def main():
     start = time.time()
     tree = prepare_tree(workdir)
     shared = shared_objects(tree, args.jobs)
+    IMPL_LINES.update(implementation_lines(shared))
     results = []
     os.makedirs(os.path.dirname(args.report), exist_ok=True)
     report = open(args.report, "w")
