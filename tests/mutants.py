@@ -65,9 +65,10 @@ CXXFLAGS = ["-std=c++17", "-O2", "-w"] + machine_flags() + ["-I."]
 # endless is killed by the timeout, as it would be in CI.
 STAGES = [
     ("mis", ["test_vcm_mis"], "[mis]", 120, []),
-    ("units", ["test_sampling", "test_bsdf", "test_camera", "test_light_units", "test_exercises"],
+    ("units", ["test_sampling", "test_bsdf", "test_shading", "test_camera", "test_light_units", "test_exercises"],
      "[sampling],[bsdf],[camera],[light_units],[exercise]", 300, []),
-    ("scenes", ["test_transport", "test_integrators", "test_lights"], "[transport],[integrators],[lights]", 600, []),
+    ("scenes", ["test_transport", "test_integrators", "test_lights", "test_environment"],
+     "[transport],[integrators],[lights]", 600, []),
     ("photons+stability", ["test_photon_mapping", "test_stability"], "[photon_mapping],[stability]", 600, []),
     ("figures+convergence", ["test_figures", "test_convergence"], "[figures],[convergence]", 900, ["convergence"]),
     # Last: a scene without cut-outs runs none of their code, and no render runs the glTF
@@ -78,6 +79,19 @@ STAGES = [
     # scene runs that code (each has a camera and no texture), so their mutants get here.
     ("loader", ["test_gltf"], "[interior],[textures]", 120, []),
 ]
+# A mutant of these classes runs the stages named here first, then the others in order:
+# the outcome is the same (killed by any failing stage, survived only through all), but
+# the loader's mutants no longer wait for five stages that never run the loader.
+FIRST_STAGES = {"textures": ("loader", "cutouts+glass"), "camera": ("loader",),
+                "cutouts": ("cutouts+glass",), "glass": ("cutouts+glass",)}
+
+
+def stage_order(mutant, stage_count):
+    stages = STAGES[:stage_count]
+    first = FIRST_STAGES.get(mutant["class"], ()) if mutant is not None else ()
+    return [s for s in stages if s[0] in first] + [s for s in stages if s[0] not in first]
+
+
 # The rest of the suite (every other test file; built with the Makefile, with the
 # programs its tests run: build/smallvcm for the command line, build/bench, build/minimal):
 # everything except the golden images and what the stages above already ran.
@@ -133,7 +147,9 @@ def run(command, cwd, timeout):
 
 def compile_objects(tree, sources, objdir, jobs):
     """Compiles tests/NAME.cpp for each NAME into objdir, jobs at a time. None or the error."""
-    pending = [s for s in sources if os.path.exists(os.path.join(tree, "tests", s + ".cpp"))]
+    # (An object already in objdir is this mutant's, from an earlier stage.)
+    pending = [s for s in sources if os.path.exists(os.path.join(tree, "tests", s + ".cpp"))
+               and not os.path.exists(os.path.join(objdir, s + ".o"))]
     running = []
     while pending or running:
         while pending and len(running) < jobs:
@@ -293,7 +309,7 @@ def test_mutant(tree, shared, mutant, header, jobs, stage_count, timeouts=None, 
         if code != 0:
             return "broken", "build", "the implementation unit does not compile: " + out[-500:]
     objects = []
-    for name, sources, spec, timeout, programs in STAGES[:stage_count]:
+    for name, sources, spec, timeout, programs in stage_order(mutant, stage_count):
         error = compile_objects(tree, sources, objdir, jobs) or build_programs(tree, programs, objdir, impl)
         if error:
             return "broken", name, error.splitlines()[0]
