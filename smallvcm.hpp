@@ -134,7 +134,7 @@
 //      vertex connection ConnectVertices, merging MergeWithLightVertices)
 //  PART II: appendices a student may skip, each behind an interface Part I states
 //  [SECTION] Appendix: BVH
-//  [SECTION] Appendix: range search    (the hashed grid; the kd-tree)
+//  [SECTION] Appendix: range search    (the hashed grid; the points along rays; the kd-tree)
 //  [SECTION] Appendix: film splats       (light tracing's additions, a batch at a time)
 //  [SECTION] Render loop                 (threads, budgets, progress, Ctrl-C)
 //  [SECTION] Image output and metrics
@@ -2801,9 +2801,22 @@ struct PathSegment {
     bool Escaped() const { return !mHit.IsValid() && !mInMedium; }
 };
 
+// A piece of a segment in a scattering medium, for estimators that gather along the
+// segment (the beam radiance estimate): from where it starts to the surface that ends it
+// or the sampled scattering point, and the transmittance and the probability of flying
+// through the segment's pieces before it (per channel; channels averaged).
+struct SegmentPiece {
+    Vec3 mStart{0.f};
+    float mLength = 0.f;
+    int mMedium = -1;
+    Vec3 mTransmittanceBefore{1.f};
+    float mProbabilityBefore = 1.f;
+};
+
 // The next vertex from aRay's origin, a vertex in medium aMedium (aFromMedium: a medium
 // point rather than a surface, which decides the reverse pdf). Steps through
 // index-matched boundaries, and samples a free flight in each attenuating medium.
+// aPieces, if given, receives the segment's pieces in scattering media.
 // aGap: how far aRay's origin lies off the vertex it leaves (the ray epsilon of SpawnRay,
 // 0 for a camera's primary ray and a point in a medium). Each piece is measured, and its
 // free flight sampled, from where it starts (the vertex, or the boundary it crossed), not
@@ -2811,20 +2824,23 @@ struct PathSegment {
 // medium where light neither scatters nor is absorbed, and TraceConnection measures the
 // same segment whole for the techniques that connect it.
 inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler,
-                                            float aGap);
+                                            float aGap, std::vector<SegmentPiece>* aPieces = nullptr);
 // In a scene without media the next vertex is the nearest surface, and every factor 1.
 // (Both returns build the segment in the caller's place: no copy of it is made.)
 SMALLVCM_ALWAYS_INLINE PathSegment TraceSegment(const Scene& aScene, const Ray& aRay, int aMedium, bool aFromMedium,
-                                                Sampler& aSampler, float aGap) {
-    if (aScene.HasMedia()) return TraceSegmentThroughMedia(aScene, aRay, aMedium, aFromMedium, aSampler, aGap);
+                                                Sampler& aSampler, float aGap, std::vector<SegmentPiece>* aPieces = nullptr) {
+    if (aScene.HasMedia()) return TraceSegmentThroughMedia(aScene, aRay, aMedium, aFromMedium, aSampler, aGap, aPieces);
     return PathSegment{aScene.Intersect(aRay), aGap, false, -1, Vec3(1.f), SegmentPdfs{}};
 }
 inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int aMedium, bool aFromMedium, Sampler& aSampler,
-                                            float aGap) {
+                                            float aGap, std::vector<SegmentPiece>* aPieces) {
     PathSegment segment;
     segment.mMedium = aMedium;
     float length = 0.f;     // from the vertex to where this piece starts
     float offset = aGap;    // how far aRay's origin lies past where this piece starts
+    if (aPieces) aPieces->clear();
+    Vec3 transmittance(1.f);  // of the pieces so far (only with aPieces)
+    float probability = 1.f;
     for (int piece = 0;; piece++) {
         segment.mHit = aScene.Intersect(aRay);
         const float toSurface = segment.mHit.mDist + offset;
@@ -2837,6 +2853,12 @@ inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int a
             segment.mWeight *= MediumTransmittance(medium, d) / forward;
             segment.mPdfs.mForward *= forward;
             segment.mPdfs.mReverse *= piece == 0 && aFromMedium ? FreeFlightDensity(medium, d) : FreeFlightProbability(medium, d);
+            if (aPieces) {
+                if (medium.Scatters())
+                    aPieces->push_back(SegmentPiece{aRay.mOrigin - offset * aRay.mDirection, d, aMedium, transmittance, probability});
+                transmittance *= MediumTransmittance(medium, d);
+                probability *= FreeFlightProbability(medium, d);
+            }
             if (scatters) {
                 segment.mInMedium = true;
                 segment.mHit = SurfacePoint{};
@@ -3701,9 +3723,11 @@ enum class Algorithm {
     kVertexConnectionMerging,
     kPhotonMapping,
     kPhotonMappingFinalGather,
+    kBeamRadianceEstimate,
 };
 
-// SmallVCM's short names ("el", "pt", "lt", "ppm", "bpm", "bpt", "vcm").
+// SmallVCM's short names ("el", "pt", "lt", "ppm", "bpm", "bpt", "vcm"), and UPBP's name of
+// the beam radiance estimate ("pb2d": photon points queried by camera beams, 2D kernel).
 inline const char* AlgorithmShortName(Algorithm aAlgorithm) {
     switch (aAlgorithm) {
     case Algorithm::kEyeLight: return "el";
@@ -3715,6 +3739,7 @@ inline const char* AlgorithmShortName(Algorithm aAlgorithm) {
     case Algorithm::kVertexConnectionMerging: return "vcm";
     case Algorithm::kPhotonMapping: return "pm";
     case Algorithm::kPhotonMappingFinalGather: return "pmfg";
+    case Algorithm::kBeamRadianceEstimate: return "pb2d";
     }
     return "?";
 }
@@ -3722,7 +3747,7 @@ inline std::optional<Algorithm> ParseAlgorithm(const std::string& aName) {
     for (Algorithm a : {Algorithm::kEyeLight, Algorithm::kPathTracing, Algorithm::kLightTracing,
                         Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
                         Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging,
-                        Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather})
+                        Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather, Algorithm::kBeamRadianceEstimate})
         if (aName == AlgorithmShortName(a)) return a;
     return std::nullopt;
 }
@@ -4625,6 +4650,26 @@ private:
     std::shared_ptr<Grid> mGrid;  // null until Build
 };
 
+// Search of points along a ray, by its contract (the beam radiance estimate's query); how
+// it works is [SECTION] Appendix: range search. Build(count, radius, positionOf, itemOf)
+// keeps a copy of itemOf(i) at positionOf(i) for every i < count. Process(origin,
+// direction, length, visit), with a unit direction, calls visit(item, t) once for every
+// kept point p whose projection on the ray, origin + t direction, has 0 <= t <= length and
+// lies within the radius of p (|p - origin - t direction| <= r), in an order that depends
+// only on the points and the query. A RaySearch is used by one thread.
+template <class Item>
+class RaySearch {
+public:
+    template <class PositionOf, class ItemOf>
+    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf);
+    template <class Visit>
+    void Process(const Vec3& aOrigin, const Vec3& aDirection, float aLength, Visit&& aVisit) const;
+
+private:
+    class Tree;
+    std::shared_ptr<Tree> mTree;  // null until Build
+};
+
 class VertexCM : public AbstractRenderer {
 public:
     // Technique classes, the layers of the VCM overview (F15) and the VC/VM shares (F17).
@@ -4643,6 +4688,7 @@ public:
         case Algorithm::kBidirectionalPhotonMapping: mUseVC = false; mUseVM = true; break;
         case Algorithm::kBidirectionalPathTracing: mUseVC = true; mUseVM = false; break;
         case Algorithm::kVertexConnectionMerging: mUseVC = true; mUseVM = true; break;
+        case Algorithm::kBeamRadianceEstimate: mPpm = true; mUseVC = false; mUseVM = true; mBeamQueries = true; break;
         default: throw Error("VertexCM: algorithm '" + std::string(AlgorithmShortName(mOptions.mAlgorithm)) + "' is not of the VertexCM family");
         }
         mBaseRadius = mOptions.mRadiusFactor * mScene.GetSceneSphere().mRadius;
@@ -4671,10 +4717,12 @@ public:
         if (mLightTraceOnly) return;
 
         // 2. The range searches over the stored vertices, for merging: the surface points,
-        //    and the points in media (each merges only with its own kind).
+        //    and the points in media (each merges only with its own kind), or, for the
+        //    beam radiance estimate, the points in media along camera rays.
         if (mUseVM) {
             BuildVertexSearch(mLightVertexSearch, mSurfaceVertexIndices, false, radius);
-            if (mScene.HasMedia()) BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, mediumRadius);
+            if (mScene.HasMedia() && !mBeamQueries) BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, mediumRadius);
+            if (mScene.HasMedia() && mBeamQueries) BuildBeamQuerySearch(mediumRadius, pathCount);
         }
 
         // 3. Camera sub-paths, one per pixel, each connecting to the light sub-path the
@@ -4849,6 +4897,17 @@ private:
                       [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[aIndices[i]]); });
     }
 
+    // The beam radiance estimate's search: the stored points in media, queried along rays.
+    void BuildBeamQuerySearch(float aRadius, int aPathCount) {
+        mMediumVertexIndices.clear();
+        for (size_t i = 0; i < mLightVertices.size(); i++)
+            if (mLightVertices[i].mInMedium) mMediumVertexIndices.push_back(uint32_t(i));
+        mPointsAlongRays.Build(mMediumVertexIndices.size(), aRadius,
+                               [&](size_t i) { return mLightVertices[mMediumVertexIndices[i]].mHitPoint; },
+                               [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[mMediumVertexIndices[i]]); });
+        mBeamKernel = 1.f / (kPi * Sqr(aRadius) * float(aPathCount));
+    }
+
     // --- stage 3: camera sub-paths ---------------------------------------------------------
     // One camera sub-path through aPixel; at each vertex the techniques that complete a
     // path there, each adding its contribution: a light it hits (s = 0), and at a
@@ -4869,7 +4928,9 @@ private:
         Bsdf bsdf;
         for (;;) {
             const PathSegment segment = TraceSegment(mScene, ray, cam.mMedium, cam.mInMedium, aSampler,
-                                                     cam.mPathLength > 1 ? GapOfVertex(mScene, cam.mInMedium) : 0.f);
+                                                     cam.mPathLength > 1 ? GapOfVertex(mScene, cam.mInMedium) : 0.f,
+                                                     mBeamQueries ? &mSegmentPieces : nullptr);
+            if (mBeamQueries) AddToFilm(aPixel, GatherAlongSegment(cam, ray.mDirection));
             const SurfacePoint& hit = segment.mHit;
             cam.mThroughput *= segment.mWeight;
             if (segment.Escaped()) {
@@ -4887,6 +4948,7 @@ private:
             if (mPathRecords) mCameraHistory.push_back(RecordedVertex(segment, true));
 
             if (segment.mInMedium) {
+                if (mBeamQueries) return;  // the scattering here was gathered along the segment
                 bsdf.SetupInMedium(-ray.mDirection, mScene.GetMedium(segment.mMedium), Transport::kRadiance);
             } else {
                 // Continues after a light only if the emitter's material reflects (see PathTracer).
@@ -5192,6 +5254,35 @@ private:
         // END EXERCISE ppm_merging/merge
     }
 
+    // The beam radiance estimate (pb2d) [Jarosz et al. 2008; Křivánek et al. 2014, Table 1]:
+    // the camera segment just traced, from its vertex along aDirection, is a beam that
+    // gathers every photon point y within r of its pieces in scattering media, at the
+    // distance t_y of y's projection. Replacing the free-flight sample of the camera's next
+    // vertex by the integral along the segment, with a kernel 1 / (pi r^2) across it:
+    //   C = beta_C sum_y T(t_y) / P(t_y) sigma_s rho(w_y, -w) beta_L(y) / (N_L pi r^2)
+    // T the transmittance from the vertex to t_y, P the probability that the flight got
+    // that far (this is a short beam: it ends where the flight did, so t_y is gathered
+    // with probability P and T / P leaves T). The camera sub-path then ends if it
+    // scattered in the medium; at a surface it goes on as in ppm. Points in any medium
+    // count, as photon points merge across boundaries (see MergeWithLightVertices).
+    Contribution GatherAlongSegment(const SubpathState& aCamera, const Vec3& aDirection) {
+        Vec3 sum(0.f);
+        for (const SegmentPiece& piece : mSegmentPieces) {
+            const Medium& medium = mScene.GetMedium(piece.mMedium);
+            Bsdf phase;
+            phase.SetupInMedium(-aDirection, medium, Transport::kRadiance);
+            mPointsAlongRays.Process(piece.mStart, aDirection, piece.mLength, [&](const MergeData& vertex, float aT) {
+                const int pathLength = vertex.mPathLength + aCamera.mPathLength;
+                if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
+                const Vec3 reach = piece.mTransmittanceBefore * MediumTransmittance(medium, aT) /
+                                   (piece.mProbabilityBefore * FreeFlightProbability(medium, aT));
+                sum += reach * phase.EvaluatePathWithRoulette(vertex.mDirFix).mValue * vertex.mThroughput;
+            });
+        }
+        if (IsBlack(sum)) return {};
+        return Made(kMediumMerging, aCamera.mThroughput * sum * mBeamKernel, 1.f, -1, -1);
+    }
+
     // The stored light vertices of light sub-path aPath: [begin, end).
     size_t LightSubpathBegin(int aPath) const { return aPath == 0 ? 0 : mPathEnds[size_t(aPath) - 1]; }
     size_t LightSubpathEnd(int aPath) const { return mPathEnds[size_t(aPath)]; }
@@ -5317,6 +5408,7 @@ private:
     PathVertex mNextEventVertex;
 
     bool mUseVC = false, mUseVM = false, mPpm = false, mLightTraceOnly = false;
+    bool mBeamQueries = false;  // the beam radiance estimate: camera segments gather photon points
     float mBaseRadius = 0.f;
     VcmMisConstants mMisConstants;        // of this iteration, at surface vertices
     VcmMisConstants mMisConstantsMedium;  // the same at points in media (ForMedium)
@@ -5327,6 +5419,9 @@ private:
     RangeSearch<MergeData> mLightVertexSearch;   // the stored surface points
     RangeSearch<MergeData> mMediumVertexSearch;  // the stored points in media
     std::vector<uint32_t> mSurfaceVertexIndices, mMediumVertexIndices;  // each search's points in mLightVertices
+    RaySearch<MergeData> mPointsAlongRays;      // the stored points in media, for the beam radiance estimate
+    std::vector<SegmentPiece> mSegmentPieces;   // of the camera segment just traced (its beams)
+    float mBeamKernel = 0.f;                    // 1 / (pi r^2 N_L) of this iteration
     std::vector<Bsdf> mPixelLightBsdfs;         // PixelLightBsdf's cache, for the current pixel
     std::vector<uint64_t> mPixelLightBsdfPath;  // the camera sub-path each entry was built for
     uint64_t mCameraPathNumber = 0;             // of the current camera sub-path, from 1
@@ -6703,6 +6798,135 @@ void RangeSearch<Item>::Process(const Vec3& aPoint, Visit&& aVisit) const {
     if (mGrid) mGrid->Process(aPoint, aVisit);
 }
 
+// RaySearch: a bounding volume hierarchy over the points. Build splits the points at the
+// median of their box's longest axis until a node holds at most kLeafSize, and keeps
+// points and items in the tree's leaf order, so that a leaf's points are one run of the
+// arrays. A query walks the tree depth-first, entering a node whose box, grown by the
+// radius on every side, the ray's stretch [0, length] crosses (a point within r of the
+// stretch lies in that grown box); at a leaf, each point's projection and distance decide.
+template <class Item>
+class RaySearch<Item>::Tree {
+public:
+    template <class PositionOf, class ItemOf>
+    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf) {
+        mRadius = aRadius;
+        mGrow = aRadius;
+        mNodes.clear();
+        mPoints.resize(aCount);
+        mItems.resize(aCount);
+        if (aCount == 0) return;
+        std::vector<uint32_t> order(aCount);
+        std::vector<Vec3> positions(aCount);
+        for (size_t i = 0; i < aCount; i++) {
+            order[i] = uint32_t(i);
+            positions[i] = aPositionOf(i);
+            mGrow = std::max(mGrow, aRadius + 1e-5f * (aRadius + MaxComponent(glm::abs(positions[i]))));
+        }
+        mNodes.reserve(2 * (aCount / kLeafSize + 1));
+        BuildNode(order, positions, 0, uint32_t(aCount));
+        for (size_t k = 0; k < aCount; k++) {
+            mPoints[k] = positions[order[k]];
+            mItems[k] = aItemOf(order[k]);
+        }
+    }
+
+    template <class Visit>
+    void Process(const Vec3& aOrigin, const Vec3& aDirection, float aLength, Visit& aVisit) const {
+        if (mNodes.empty() || !(aLength >= 0.f)) return;
+        const float radiusSqr = Sqr(mRadius);
+        uint32_t stack[64];
+        int depth = 0;
+        stack[depth++] = 0;
+        while (depth > 0) {
+            const Node& node = mNodes[stack[--depth]];
+            if (!Crosses(node, aOrigin, aDirection, aLength)) continue;
+            if (node.mSecond == 0) {  // a leaf
+                for (uint32_t k = node.mBegin; k < node.mEnd; k++) {
+                    const Vec3 toPoint = mPoints[k] - aOrigin;
+                    const float t = glm::dot(toPoint, aDirection);
+                    if (t < 0.f || t > aLength) continue;
+                    const Vec3 across = toPoint - t * aDirection;
+                    if (glm::dot(across, across) <= radiusSqr) aVisit(mItems[k], t);
+                }
+                continue;
+            }
+            stack[depth++] = node.mSecond;
+            stack[depth++] = uint32_t(&node - mNodes.data()) + 1;  // the first child follows its parent
+        }
+    }
+
+private:
+    static constexpr uint32_t kLeafSize = 8;
+    struct Node {
+        Vec3 mLow, mHigh;          // the box of its points
+        uint32_t mBegin, mEnd;     // its points: [mBegin, mEnd) of the leaf order
+        uint32_t mSecond;          // its second child (the first is the next node); 0 at a leaf
+    };
+
+    // Depth: the median split halves the count, so a tree of 2^32 points is 32 deep and
+    // the query's stack of 64 never overflows (it holds at most one entry per level, plus one).
+    void BuildNode(std::vector<uint32_t>& aOrder, const std::vector<Vec3>& aPositions, uint32_t aBegin, uint32_t aEnd) {
+        const uint32_t index = uint32_t(mNodes.size());
+        mNodes.push_back(Node{});
+        Vec3 low(std::numeric_limits<float>::infinity()), high(-std::numeric_limits<float>::infinity());
+        for (uint32_t k = aBegin; k < aEnd; k++) {
+            low = glm::min(low, aPositions[aOrder[k]]);
+            high = glm::max(high, aPositions[aOrder[k]]);
+        }
+        mNodes[index] = Node{low, high, aBegin, aEnd, 0};
+        if (aEnd - aBegin <= kLeafSize) return;
+        const Vec3 extent = high - low;
+        const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+        const uint32_t middle = aBegin + (aEnd - aBegin) / 2;
+        std::nth_element(aOrder.begin() + aBegin, aOrder.begin() + middle, aOrder.begin() + aEnd,
+                         [&](uint32_t a, uint32_t b) { return aPositions[a][axis] < aPositions[b][axis]; });
+        BuildNode(aOrder, aPositions, aBegin, middle);
+        const uint32_t second = uint32_t(mNodes.size());
+        BuildNode(aOrder, aPositions, middle, aEnd);
+        mNodes[index].mSecond = second;
+    }
+
+    // Whether the stretch aOrigin + t aDirection, 0 <= t <= aLength, meets the node's box
+    // grown by the radius (slabs; an axis the ray runs parallel to only checks the origin),
+    // and by 1e-5 of the points' coordinates more, so that rounding here never drops a
+    // point the leaf's test would take.
+    bool Crosses(const Node& aNode, const Vec3& aOrigin, const Vec3& aDirection, float aLength) const {
+        float enter = 0.f, leave = aLength;
+        for (int a = 0; a < 3; a++) {
+            const float low = aNode.mLow[a] - mGrow, high = aNode.mHigh[a] + mGrow;
+            if (aDirection[a] == 0.f) {
+                if (aOrigin[a] < low || aOrigin[a] > high) return false;
+                continue;
+            }
+            const float inverse = 1.f / aDirection[a];
+            float t0 = (low - aOrigin[a]) * inverse, t1 = (high - aOrigin[a]) * inverse;
+            if (t0 > t1) std::swap(t0, t1);
+            enter = std::max(enter, t0);
+            leave = std::min(leave, t1);
+            if (enter > leave) return false;
+        }
+        return true;
+    }
+
+    float mRadius = 0.f, mGrow = 0.f;
+    std::vector<Node> mNodes;    // depth-first: a node, its first subtree, its second
+    std::vector<Vec3> mPoints;   // in leaf order
+    std::vector<Item> mItems;    // in the same order
+};
+
+template <class Item>
+template <class PositionOf, class ItemOf>
+void RaySearch<Item>::Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf) {
+    if (!mTree) mTree = std::make_shared<Tree>();
+    mTree->Build(aCount, aRadius, aPositionOf, aItemOf);
+}
+
+template <class Item>
+template <class Visit>
+void RaySearch<Item>::Process(const Vec3& aOrigin, const Vec3& aDirection, float aLength, Visit&& aVisit) const {
+    if (mTree) mTree->Process(aOrigin, aDirection, aLength, aVisit);
+}
+
 // The search over point indices: aVisit(index) for every point within the radius.
 class HashGrid : public RangeSearch<uint32_t> {
 public:
@@ -6975,6 +7199,12 @@ inline uint64_t PhotonMapBytes(const Camera&, const RenderOptions& aOptions) {
 inline uint64_t LightVertexBytes(const Camera& aCamera, const RenderOptions&) {
     return uint64_t(aCamera.PixelCount()) * (3 * (sizeof(VertexCM::LightVertex) + 16) + sizeof(int));
 }
+// pb2d: the same, plus the ray search's copy of every vertex as if all were in media
+// (a point, its item, its share of the tree's nodes, and the build's scratch).
+inline uint64_t BeamQueryBytes(const Camera& aCamera, const RenderOptions& aOptions) {
+    return LightVertexBytes(aCamera, aOptions) +
+           uint64_t(aCamera.PixelCount()) * 3 * (sizeof(Vec3) + sizeof(VertexCM::MergeData) + 8 + sizeof(Vec3) + 4);
+}
 
 // The built-ins in the order the header teaches them; the registry starts with these.
 inline std::deque<Integrator> BuiltInIntegrators() {
@@ -6996,6 +7226,9 @@ inline std::deque<Integrator> BuiltInIntegrators() {
                                     LightVertexBytes),
         MakeBuiltIn<VertexCM>(Algorithm::kVertexConnectionMerging, "vertex connection and merging (BPT + BPM under one MIS)",
                                     LightVertexBytes),
+        MakeBuiltIn<VertexCM>(Algorithm::kBeamRadianceEstimate,
+                                    "beam radiance estimate: ppm whose camera rays gather the photon points in media "
+                                    "within r (pb2d)", BeamQueryBytes),
     };
 }
 

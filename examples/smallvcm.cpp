@@ -106,7 +106,8 @@ void PrintHelp() {
         "  --max-path-length N longest path length rendered, in segments (default 10)\n"
         "  --radius-factor F   merging radius as a fraction of the scene radius (default 0.003, at most 0.25)\n"
         "  --medium-radius-factor F\n"
-        "                      the radius of merging photon points in media, likewise (default 0.03)\n"
+        "                      the radius of merging photon points in media, likewise (default 0.03);\n"
+        "                        pb2d: the radius of its camera beams\n"
         "  --radius-alpha A    radius shrinking exponent in (0, 1] (default 0.75)\n"
         "  --mis balance|power MIS heuristic (default balance)\n"
         "  --photons N         pm, pmfg: photons traced per iteration (default 200000)\n"
@@ -418,7 +419,8 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
     auto uses = [&](std::initializer_list<Algorithm> aAlgorithms) {
         return !builtIn || std::find(aAlgorithms.begin(), aAlgorithms.end(), o.mAlgorithm) != aAlgorithms.end();
     };
-    const bool merges = uses({Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping, Algorithm::kVertexConnectionMerging});
+    const bool merges = uses({Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping, Algorithm::kVertexConnectionMerging,
+                              Algorithm::kBeamRadianceEstimate});
     const bool photonMaps = uses({Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather});
     if (!builtIn || o.mAlgorithm != Algorithm::kEyeLight) {
         estimator["min_path_length"] = o.mMinPathLength;

@@ -324,7 +324,7 @@ TEST_CASE("--help lists every built-in and the linked-in integrators with their 
     }
     const Run unknown = RunProgram("-a nosuch -q");
     CHECK(unknown.mExitCode == 2);
-    CHECK(unknown.mStderr == "smallvcm: -a: unknown algorithm 'nosuch' (el, pt, lt, pm, pmfg, ppm, bpm, bpt, vcm, mypt)\n");
+    CHECK(unknown.mStderr == "smallvcm: -a: unknown algorithm 'nosuch' (el, pt, lt, pm, pmfg, ppm, bpm, bpt, vcm, pb2d, mypt)\n");
 }
 
 TEST_CASE("-a mypt renders the student's path tracer, the same image as Render in this process", "[cli][integrator_api]") {

@@ -281,6 +281,68 @@ TEST_CASE("The same seed and thread count give a bit-identical image", "[integra
     CHECK(std::memcmp(first.mPixels.data(), other.mPixels.data(), first.mPixels.size() * sizeof(Vec3)) != 0);
 }
 
+TEST_CASE("The beam radiance estimate's RaySearch visits exactly the points within r of a ray's stretch, each once", "[integrators]") {
+    // Brute force against RaySearch::Process: points uniform in a box, a cluster much
+    // smaller than r, copies of one point; rays from inside and outside the box, in random
+    // directions, along the axes (directions with zero components: the slab test's
+    // parallel case) and nearly so, of lengths 0, short, long and infinite. The brute force
+    // computes t and the distance as the contract states them, in the same float
+    // operations, so the visited sets and their t must be equal exactly.
+    Rng rng(47, 0);
+    const auto randomVec = [&]() { return Vec3(rng.GetFloat(), rng.GetFloat(), rng.GetFloat()) * 2.f - 1.f; };
+    for (const int count : {1, 9, 200, 5000}) {
+        for (const float radius : {0.003f, 0.05f, 0.4f}) {
+            std::vector<Vec3> points;
+            for (int i = 0; i < count; i++) {
+                const float kind = rng.GetFloat();
+                if (kind < 0.7f) points.push_back(randomVec());
+                else if (kind < 0.85f) points.push_back(Vec3(0.2f, -0.1f, 0.3f) + 0.1f * radius * randomVec());
+                else points.push_back(Vec3(-0.5f, 0.25f, 0.f));
+            }
+            RaySearch<int> search;
+            search.Build(points.size(), radius, [&](size_t i) { return points[i]; }, [](size_t i) { return int(i); });
+            int wrong = 0, visits = 0;
+            for (int q = 0; q < 200; q++) {
+                Vec3 origin = q % 2 ? randomVec() * 1.5f : points[size_t(q) % points.size()] + 0.5f * radius * randomVec();
+                Vec3 direction;
+                if (q % 5 == 0) {
+                    direction = Vec3(0.f);
+                    direction[q % 3] = q % 2 ? 1.f : -1.f;
+                } else if (q % 5 == 1) {
+                    direction = glm::normalize(Vec3(1.f, 1e-6f * rng.GetFloat(), 0.f));
+                } else {
+                    direction = glm::normalize(randomVec() + Vec3(1e-3f));
+                }
+                const float lengths[4] = {0.f, 0.1f, 2.5f, std::numeric_limits<float>::infinity()};
+                const float length = lengths[q % 4];
+                std::vector<int> seen(points.size(), 0);
+                std::vector<float> seenT(points.size(), -1.f);
+                search.Process(origin, direction, length, [&](int aIndex, float aT) {
+                    seen[size_t(aIndex)]++;
+                    seenT[size_t(aIndex)] = aT;
+                    visits++;
+                });
+                for (size_t i = 0; i < points.size(); i++) {
+                    const Vec3 toPoint = points[i] - origin;
+                    const float t = glm::dot(toPoint, direction);
+                    const Vec3 across = toPoint - t * direction;
+                    const int expected = t >= 0.f && t <= length && glm::dot(across, across) <= radius * radius ? 1 : 0;
+                    wrong += seen[i] != expected || (expected && seenT[i] != t);
+                }
+            }
+            INFO(count << " points, radius " << radius << ": " << visits << " visits");
+            CHECK(visits > 0);
+            CHECK(wrong == 0);
+        }
+    }
+    RaySearch<int> empty;
+    int calls = 0;
+    empty.Process(Vec3(0.f), Vec3(1.f, 0.f, 0.f), 1.f, [&](int, float) { calls++; });
+    empty.Build(0, 0.1f, [](size_t) { return Vec3(0.f); }, [](size_t i) { return int(i); });
+    empty.Process(Vec3(0.f), Vec3(1.f, 0.f, 0.f), 1.f, [&](int, float) { calls++; });
+    CHECK(calls == 0);
+}
+
 TEST_CASE("VCM's hash grid visits exactly the light vertices within the merge radius, each once", "[integrators]") {
     // Brute force against HashGrid::Process: points uniform in a box, plus a cluster much
     // smaller than a cell (a bucket with many points) and points exactly on cell borders

@@ -736,8 +736,9 @@ TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree wi
     // and s3_t2 at k = 4, whose unweighted variance is that of the edges (see above).
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kBidirectionalPhotonMapping,
-                        Algorithm::kVertexConnectionMerging};
-    setup.estimatorIterations = {{512, 256, 128, 128}, {512, 256, 128, 128}, {512, 256, 128, 128}, {512, 256, 128, 128}};
+                        Algorithm::kVertexConnectionMerging, Algorithm::kBeamRadianceEstimate};
+    setup.estimatorIterations = {{512, 256, 128, 128}, {512, 256, 128, 128}, {512, 256, 128, 128}, {512, 256, 128, 128},
+                                 {512, 256, 128, 128}};
     setup.references = {{1, 4, 512}};
     setup.allTechniques = true;
     setup.seed = 23;
