@@ -3724,10 +3724,12 @@ enum class Algorithm {
     kPhotonMapping,
     kPhotonMappingFinalGather,
     kBeamRadianceEstimate,
+    kPhotonBeams,
 };
 
-// SmallVCM's short names ("el", "pt", "lt", "ppm", "bpm", "bpt", "vcm"), and UPBP's name of
-// the beam radiance estimate ("pb2d": photon points queried by camera beams, 2D kernel).
+// SmallVCM's short names ("el", "pt", "lt", "ppm", "bpm", "bpt", "vcm"), and UPBP's names of
+// the beam radiance estimate ("pb2d": photon points queried by camera beams, 2D kernel)
+// and of photon beams queried by camera beams ("bb1d", 1D kernel).
 inline const char* AlgorithmShortName(Algorithm aAlgorithm) {
     switch (aAlgorithm) {
     case Algorithm::kEyeLight: return "el";
@@ -3740,6 +3742,7 @@ inline const char* AlgorithmShortName(Algorithm aAlgorithm) {
     case Algorithm::kPhotonMapping: return "pm";
     case Algorithm::kPhotonMappingFinalGather: return "pmfg";
     case Algorithm::kBeamRadianceEstimate: return "pb2d";
+    case Algorithm::kPhotonBeams: return "bb1d";
     }
     return "?";
 }
@@ -3747,7 +3750,8 @@ inline std::optional<Algorithm> ParseAlgorithm(const std::string& aName) {
     for (Algorithm a : {Algorithm::kEyeLight, Algorithm::kPathTracing, Algorithm::kLightTracing,
                         Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
                         Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging,
-                        Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather, Algorithm::kBeamRadianceEstimate})
+                        Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather, Algorithm::kBeamRadianceEstimate,
+                        Algorithm::kPhotonBeams})
         if (aName == AlgorithmShortName(a)) return a;
     return std::nullopt;
 }
@@ -3773,6 +3777,14 @@ struct RenderOptions {
     // The radius of merging at points in media, likewise: a ball holds far fewer photons
     // than a disc of the same radius, so it is larger (shrinking on the same schedule).
     float mMediumRadiusFactor = 0.03f;
+    // The radius of photon beams (bb1d), likewise: a camera ray meets a beam within r far
+    // more often than a point, and the 1D kernel's bias grows only with r^2 as the others'.
+    float mBeamRadiusFactor = 0.003f;
+    // bb1d: how many light sub-paths of an iteration store their segments as photon beams
+    // (N_B, at most all N_L of them). A camera ray meets every beam near it, so the cost of
+    // an iteration grows with N_L N_B: beams from all 262,144 light sub-paths of a 512 x 512
+    // iteration would make each camera ray test hundreds of thousands.
+    int mBeamPaths = 4096;
     float mRadiusAlpha = 0.75f;   // radius shrinks as r_i = r_0 (i+1)^((alpha-1)/2)
     MisHeuristic mMisHeuristic = MisHeuristic::kBalance;
     DirectLightSampling mDirectLight = DirectLightSampling::kMis;  // path tracing only
@@ -4670,6 +4682,57 @@ private:
     std::shared_ptr<Tree> mTree;  // null until Build
 };
 
+// A beam: the stretch mStart + t mDirection, 0 <= t <= mLength (a unit direction).
+struct Beam {
+    Vec3 mStart{0.f};
+    Vec3 mDirection{0.f, 0.f, 1.f};
+    float mLength = 0.f;
+};
+// Where a query ray passes a beam: the closest points of their lines, at t along the
+// query and u along the beam, and the sine of the angle between the lines.
+struct BeamPair {
+    float mT = 0.f, mU = 0.f, mSinTheta = 0.f;
+};
+
+// Search of beams along a ray, by its contract (the beam x beam estimate's query), in
+// [SECTION] Appendix: range search like RaySearch. Build(count, radius, beamOf, itemOf)
+// keeps a copy of itemOf(i) for the Beam beamOf(i). Process(origin, direction, length,
+// visit) calls visit(item, pair) once for every kept beam that Closest(origin, direction,
+// length, beam, radius) finds, in an order that depends only on the beams and the query.
+// A BeamSearch is used by one thread.
+template <class Item>
+class BeamSearch {
+public:
+    template <class BeamOf, class ItemOf>
+    void Build(size_t aCount, float aRadius, BeamOf&& aBeamOf, ItemOf&& aItemOf);
+    template <class Visit>
+    void Process(const Vec3& aOrigin, const Vec3& aDirection, float aLength, Visit&& aVisit) const;
+
+    // The closest points of the query's line, o + t w, and the beam's, a + u w_b: with
+    // d = o - a, b = w . w_b, p = w . d, q = w_b . d, they are at t = (b q - p) / (1 - b^2)
+    // and u = (q - b p) / (1 - b^2), and sin theta = sqrt(1 - b^2). The pair counts if the
+    // lines pass within aRadius of each other there, with 0 <= t <= aLength and 0 <= u <=
+    // the beam's length. Nearly parallel lines (sin theta < 1e-4) are left out: the
+    // estimate divides by sin theta, and their share of the directions is ~1e-8.
+    static std::optional<BeamPair> Closest(const Vec3& aOrigin, const Vec3& aDirection, float aLength, const Beam& aBeam,
+                                           float aRadius) {
+        const Vec3 d = aOrigin - aBeam.mStart;
+        const float b = glm::dot(aDirection, aBeam.mDirection);
+        const float sinSqr = 1.f - b * b;
+        if (!(sinSqr >= 1e-8f)) return std::nullopt;
+        const float p = glm::dot(aDirection, d), q = glm::dot(aBeam.mDirection, d);
+        const float t = (b * q - p) / sinSqr, u = (q - b * p) / sinSqr;
+        if (!(t >= 0.f && t <= aLength && u >= 0.f && u <= aBeam.mLength)) return std::nullopt;
+        const Vec3 gap = d + t * aDirection - u * aBeam.mDirection;
+        if (!(glm::dot(gap, gap) <= Sqr(aRadius))) return std::nullopt;
+        return BeamPair{t, u, std::sqrt(sinSqr)};
+    }
+
+private:
+    class Tree;
+    std::shared_ptr<Tree> mTree;  // null until Build
+};
+
 class VertexCM : public AbstractRenderer {
 public:
     // Technique classes, the layers of the VCM overview (F15) and the VC/VM shares (F17).
@@ -4689,6 +4752,9 @@ public:
         case Algorithm::kBidirectionalPathTracing: mUseVC = true; mUseVM = false; break;
         case Algorithm::kVertexConnectionMerging: mUseVC = true; mUseVM = true; break;
         case Algorithm::kBeamRadianceEstimate: mPpm = true; mUseVC = false; mUseVM = true; mBeamQueries = true; break;
+        case Algorithm::kPhotonBeams:
+            mPpm = true; mUseVC = false; mUseVM = true; mBeamQueries = true; mPhotonBeamsOn = true;
+            break;
         default: throw Error("VertexCM: algorithm '" + std::string(AlgorithmShortName(mOptions.mAlgorithm)) + "' is not of the VertexCM family");
         }
         mBaseRadius = mOptions.mRadiusFactor * mScene.GetSceneSphere().mRadius;
@@ -4722,7 +4788,9 @@ public:
         if (mUseVM) {
             BuildVertexSearch(mLightVertexSearch, mSurfaceVertexIndices, false, radius);
             if (mScene.HasMedia() && !mBeamQueries) BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, mediumRadius);
-            if (mScene.HasMedia() && mBeamQueries) BuildBeamQuerySearch(mediumRadius, pathCount);
+            if (mScene.HasMedia() && mBeamQueries && !mPhotonBeamsOn) BuildBeamQuerySearch(mediumRadius, pathCount);
+            if (mScene.HasMedia() && mPhotonBeamsOn)
+                BuildPhotonBeamSearch(radius * (mOptions.mBeamRadiusFactor / mOptions.mRadiusFactor), pathCount);
         }
 
         // 3. Camera sub-paths, one per pixel, each connecting to the light sub-path the
@@ -4770,6 +4838,15 @@ public:
         Vec3 mDirFix{0.f};  // the exact direction it arrived from (minus the ray direction)
         SubpathMis mMis;
     };
+    // A photon beam (bb1d): a light segment's piece in a scattering medium, as far as the
+    // light's flight went, and what it carries at its start: beta_L at the segment's start
+    // times T / P of the segment's earlier pieces.
+    struct PhotonBeam {
+        Beam mBeam;
+        Vec3 mThroughput{0.f};
+        int mPathLength = 0;  // segments of the light sub-path, this one included
+        int mMedium = -1;
+    };
     struct LightVertex : MergeData {
         Vec3 mHitPoint{0.f};
         int mPrimitiveId = -1;  // the primitive hit (see Scene); -1 for a point in a medium
@@ -4815,6 +4892,7 @@ private:
     // they go and stored for stage 3 (light sub-path p ends at mPathEnds[p]).
     void TraceLightSubpaths(Sampler& aSampler, int aPathCount) {
         mLightVertices.clear();
+        mPhotonBeams.clear();
         // Room for 4 stored vertices per light path before the first iteration, so the
         // vector does not grow by copying itself while it is filled (reserved pages that
         // are never written take no memory). Later iterations keep the capacity.
@@ -4823,6 +4901,7 @@ private:
         if (mPathRecords) mLightHistories.clear();
         for (int path = 0; path < aPathCount; path++) {
             aSampler.StartLightPath(path, aPathCount);
+            mStoreBeams = mPhotonBeamsOn && path < mOptions.mBeamPaths;
             TraceLightSubpath(aSampler);
             mPathEnds[size_t(path)] = mLightVertices.size();
         }
@@ -4839,7 +4918,9 @@ private:
         for (;;) {
             const Ray ray = LeaveVertex(mScene, light.mOrigin, light.mDirection, light.mInMedium);
             const PathSegment segment = TraceSegment(mScene, ray, light.mMedium, light.mInMedium, aSampler,
-                                                     GapOfVertex(mScene, light.mInMedium));
+                                                     GapOfVertex(mScene, light.mInMedium),
+                                                     mStoreBeams ? &mSegmentPieces : nullptr);
+            if (mStoreBeams) StorePhotonBeams(light, ray.mDirection);
             if (segment.Escaped()) return;
             light.mThroughput *= segment.mWeight;
             if (segment.mInMedium) bsdf.SetupInMedium(-ray.mDirection, mScene.GetMedium(segment.mMedium), Transport::kImportance);
@@ -4865,6 +4946,14 @@ private:
             if (!scatter) return;
             if (mPathRecords && scatter->IsSpecular()) mLightHistories.back().back().mEvent = scatter->mEvent;
         }
+    }
+
+    // The segment just traced, piece by piece in scattering media, as photon beams (bb1d).
+    void StorePhotonBeams(const SubpathState& aLight, const Vec3& aDirection) {
+        for (const SegmentPiece& piece : mSegmentPieces)
+            mPhotonBeams.push_back(PhotonBeam{Beam{piece.mStart, aDirection, piece.mLength},
+                                              aLight.mThroughput * piece.mTransmittanceBefore / piece.mProbabilityBefore,
+                                              aLight.mPathLength, piece.mMedium});
     }
 
     void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const PathSegment& aSegment) {
@@ -4907,6 +4996,12 @@ private:
                                [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[mMediumVertexIndices[i]]); });
         mBeamKernel = 1.f / (kPi * Sqr(aRadius) * float(aPathCount));
     }
+    // The photon beam estimate's search: the stored photon beams, queried along rays.
+    void BuildPhotonBeamSearch(float aRadius, int aPathCount) {
+        mBeamsAlongRays.Build(mPhotonBeams.size(), aRadius, [&](size_t i) { return mPhotonBeams[i].mBeam; },
+                              [&](size_t i) { return mPhotonBeams[i]; });
+        mBeamKernel = 1.f / (2.f * aRadius * float(std::min(aPathCount, mOptions.mBeamPaths)));
+    }
 
     // --- stage 3: camera sub-paths ---------------------------------------------------------
     // One camera sub-path through aPixel; at each vertex the techniques that complete a
@@ -4930,7 +5025,9 @@ private:
             const PathSegment segment = TraceSegment(mScene, ray, cam.mMedium, cam.mInMedium, aSampler,
                                                      cam.mPathLength > 1 ? GapOfVertex(mScene, cam.mInMedium) : 0.f,
                                                      mBeamQueries ? &mSegmentPieces : nullptr);
-            if (mBeamQueries) AddToFilm(aPixel, GatherAlongSegment(cam, ray.mDirection));
+            if (mBeamQueries)
+                AddToFilm(aPixel, mPhotonBeamsOn ? GatherBeamsAlongSegment(cam, ray.mDirection)
+                                                 : GatherPointsAlongSegment(cam, ray.mDirection));
             const SurfacePoint& hit = segment.mHit;
             cam.mThroughput *= segment.mWeight;
             if (segment.Escaped()) {
@@ -5265,7 +5362,7 @@ private:
     // with probability P and T / P leaves T). The camera sub-path then ends if it
     // scattered in the medium; at a surface it goes on as in ppm. Points in any medium
     // count, as photon points merge across boundaries (see MergeWithLightVertices).
-    Contribution GatherAlongSegment(const SubpathState& aCamera, const Vec3& aDirection) {
+    Contribution GatherPointsAlongSegment(const SubpathState& aCamera, const Vec3& aDirection) {
         Vec3 sum(0.f);
         for (const SegmentPiece& piece : mSegmentPieces) {
             const Medium& medium = mScene.GetMedium(piece.mMedium);
@@ -5277,6 +5374,37 @@ private:
                 const Vec3 reach = piece.mTransmittanceBefore * MediumTransmittance(medium, aT) /
                                    (piece.mProbabilityBefore * FreeFlightProbability(medium, aT));
                 sum += reach * phase.EvaluatePathWithRoulette(vertex.mDirFix).mValue * vertex.mThroughput;
+            });
+        }
+        if (IsBlack(sum)) return {};
+        return Made(kMediumMerging, aCamera.mThroughput * sum * mBeamKernel, 1.f, -1, -1);
+    }
+
+    // Photon beams along a camera beam (bb1d) [Jarosz et al. 2011; Křivánek et al. 2014,
+    // Table 1]: the camera segment just traced gathers every photon beam b whose line
+    // passes within r of its pieces' lines, at t on the camera's and u on the beam's
+    // closest points, theta the angle between them (BeamSearch::Closest):
+    //   C = beta_C sum_b T_C(t)/P_C(t) sigma_s rho(w_b, -w) beta_b T_L(u)/P_L(u) / (N_B 2r sin theta)
+    // Both beams are short (they end where their flights did: T / P as in pb2d). The 1D
+    // kernel 1 / (2r) spans the lines' offset; sliding the camera line along the beam by
+    // dv moves the closest point by dv / sin theta, hence the 1 / sin theta that turns
+    // the pair into a density along the beam. N_B: the light sub-paths that stored beams
+    // (the first RenderOptions::mBeamPaths of the iteration's N_L).
+    Contribution GatherBeamsAlongSegment(const SubpathState& aCamera, const Vec3& aDirection) {
+        Vec3 sum(0.f);
+        for (const SegmentPiece& piece : mSegmentPieces) {
+            const Medium& medium = mScene.GetMedium(piece.mMedium);
+            Bsdf phase;
+            phase.SetupInMedium(-aDirection, medium, Transport::kRadiance);
+            mBeamsAlongRays.Process(piece.mStart, aDirection, piece.mLength, [&](const PhotonBeam& beam, const BeamPair& pair) {
+                const int pathLength = beam.mPathLength + aCamera.mPathLength;
+                if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
+                const Medium& beamMedium = mScene.GetMedium(beam.mMedium);
+                const Vec3 cameraReach = piece.mTransmittanceBefore * MediumTransmittance(medium, pair.mT) /
+                                         (piece.mProbabilityBefore * FreeFlightProbability(medium, pair.mT));
+                const Vec3 lightReach = beam.mThroughput * MediumTransmittance(beamMedium, pair.mU) /
+                                        FreeFlightProbability(beamMedium, pair.mU);
+                sum += cameraReach * phase.EvaluatePathWithRoulette(-beam.mBeam.mDirection).mValue * lightReach / pair.mSinTheta;
             });
         }
         if (IsBlack(sum)) return {};
@@ -5408,7 +5536,9 @@ private:
     PathVertex mNextEventVertex;
 
     bool mUseVC = false, mUseVM = false, mPpm = false, mLightTraceOnly = false;
-    bool mBeamQueries = false;  // the beam radiance estimate: camera segments gather photon points
+    bool mBeamQueries = false;    // pb2d and bb1d: camera segments gather along their length
+    bool mPhotonBeamsOn = false;  // bb1d: light segments are stored as photon beams, and gathered
+    bool mStoreBeams = false;     // bb1d: the light sub-path being traced stores its beams
     float mBaseRadius = 0.f;
     VcmMisConstants mMisConstants;        // of this iteration, at surface vertices
     VcmMisConstants mMisConstantsMedium;  // the same at points in media (ForMedium)
@@ -5421,7 +5551,9 @@ private:
     std::vector<uint32_t> mSurfaceVertexIndices, mMediumVertexIndices;  // each search's points in mLightVertices
     RaySearch<MergeData> mPointsAlongRays;      // the stored points in media, for the beam radiance estimate
     std::vector<SegmentPiece> mSegmentPieces;   // of the camera segment just traced (its beams)
-    float mBeamKernel = 0.f;                    // 1 / (pi r^2 N_L) of this iteration
+    std::vector<PhotonBeam> mPhotonBeams;       // bb1d: this iteration's
+    BeamSearch<PhotonBeam> mBeamsAlongRays;     // bb1d: over mPhotonBeams
+    float mBeamKernel = 0.f;                    // 1 / (pi r^2 N_L) (pb2d) or 1 / (2 r N_B) (bb1d) of this iteration
     std::vector<Bsdf> mPixelLightBsdfs;         // PixelLightBsdf's cache, for the current pixel
     std::vector<uint64_t> mPixelLightBsdfPath;  // the camera sub-path each entry was built for
     uint64_t mCameraPathNumber = 0;             // of the current camera sub-path, from 1
@@ -6798,102 +6930,83 @@ void RangeSearch<Item>::Process(const Vec3& aPoint, Visit&& aVisit) const {
     if (mGrid) mGrid->Process(aPoint, aVisit);
 }
 
-// RaySearch: a bounding volume hierarchy over the points. Build splits the points at the
-// median of their box's longest axis until a node holds at most kLeafSize, and keeps
-// points and items in the tree's leaf order, so that a leaf's points are one run of the
-// arrays. A query walks the tree depth-first, entering a node whose box, grown by the
-// radius on every side, the ray's stretch [0, length] crosses (a point within r of the
-// stretch lies in that grown box); at a leaf, each point's projection and distance decide.
-template <class Item>
-class RaySearch<Item>::Tree {
+namespace detail {
+// The hierarchy behind RaySearch and BeamSearch: a bounding volume hierarchy over boxes
+// (a point's, or a beam's). Build splits the boxes at the median of their centres along
+// the longest axis of the node's box until a node holds at most kLeafSize, and returns
+// the leaf order (order[k]: the box at place k), in which the searches keep their copies,
+// so that a leaf is one run of their arrays. Visit walks the tree depth-first, entering a
+// node whose box, grown by aGrow on every side, the ray's stretch aOrigin + t aDirection,
+// 0 <= t <= aLength, crosses (anything within aGrow of the stretch lies in that grown
+// box), and calls aLeaf(begin, end) for the places of each leaf it reaches.
+class BoxTree {
 public:
-    template <class PositionOf, class ItemOf>
-    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf) {
-        mRadius = aRadius;
-        mGrow = aRadius;
+    std::vector<uint32_t> Build(const std::vector<Vec3>& aLows, const std::vector<Vec3>& aHighs) {
         mNodes.clear();
-        mPoints.resize(aCount);
-        mItems.resize(aCount);
-        if (aCount == 0) return;
-        std::vector<uint32_t> order(aCount);
-        std::vector<Vec3> positions(aCount);
-        for (size_t i = 0; i < aCount; i++) {
-            order[i] = uint32_t(i);
-            positions[i] = aPositionOf(i);
-            mGrow = std::max(mGrow, aRadius + 1e-5f * (aRadius + MaxComponent(glm::abs(positions[i]))));
-        }
-        mNodes.reserve(2 * (aCount / kLeafSize + 1));
-        BuildNode(order, positions, 0, uint32_t(aCount));
-        for (size_t k = 0; k < aCount; k++) {
-            mPoints[k] = positions[order[k]];
-            mItems[k] = aItemOf(order[k]);
-        }
+        std::vector<uint32_t> order(aLows.size());
+        for (size_t i = 0; i < order.size(); i++) order[i] = uint32_t(i);
+        if (order.empty()) return order;
+        mNodes.reserve(2 * (order.size() / kLeafSize + 1));
+        BuildNode(order, aLows, aHighs, 0, uint32_t(order.size()));
+        return order;
     }
 
-    template <class Visit>
-    void Process(const Vec3& aOrigin, const Vec3& aDirection, float aLength, Visit& aVisit) const {
+    template <class Leaf>
+    void Visit(const Vec3& aOrigin, const Vec3& aDirection, float aLength, float aGrow, Leaf&& aLeaf) const {
         if (mNodes.empty() || !(aLength >= 0.f)) return;
-        const float radiusSqr = Sqr(mRadius);
         uint32_t stack[64];
         int depth = 0;
         stack[depth++] = 0;
         while (depth > 0) {
-            const Node& node = mNodes[stack[--depth]];
-            if (!Crosses(node, aOrigin, aDirection, aLength)) continue;
-            if (node.mSecond == 0) {  // a leaf
-                for (uint32_t k = node.mBegin; k < node.mEnd; k++) {
-                    const Vec3 toPoint = mPoints[k] - aOrigin;
-                    const float t = glm::dot(toPoint, aDirection);
-                    if (t < 0.f || t > aLength) continue;
-                    const Vec3 across = toPoint - t * aDirection;
-                    if (glm::dot(across, across) <= radiusSqr) aVisit(mItems[k], t);
-                }
-                continue;
+            const uint32_t index = stack[--depth];
+            const Node& node = mNodes[index];
+            if (!Crosses(node, aOrigin, aDirection, aLength, aGrow)) continue;
+            if (node.mSecond == 0) aLeaf(node.mBegin, node.mEnd);
+            else {
+                stack[depth++] = node.mSecond;
+                stack[depth++] = index + 1;  // the first child follows its parent
             }
-            stack[depth++] = node.mSecond;
-            stack[depth++] = uint32_t(&node - mNodes.data()) + 1;  // the first child follows its parent
         }
     }
 
 private:
     static constexpr uint32_t kLeafSize = 8;
     struct Node {
-        Vec3 mLow, mHigh;          // the box of its points
-        uint32_t mBegin, mEnd;     // its points: [mBegin, mEnd) of the leaf order
-        uint32_t mSecond;          // its second child (the first is the next node); 0 at a leaf
+        Vec3 mLow, mHigh;       // the box of its boxes
+        uint32_t mBegin, mEnd;  // its boxes: places [mBegin, mEnd) of the leaf order
+        uint32_t mSecond;       // its second child (the first is the next node); 0 at a leaf
     };
 
-    // Depth: the median split halves the count, so a tree of 2^32 points is 32 deep and
-    // the query's stack of 64 never overflows (it holds at most one entry per level, plus one).
-    void BuildNode(std::vector<uint32_t>& aOrder, const std::vector<Vec3>& aPositions, uint32_t aBegin, uint32_t aEnd) {
+    // Depth: the median split halves the count, so a tree of 2^32 boxes is 32 deep and
+    // Visit's stack of 64 never overflows (it holds at most one entry per level, plus one).
+    void BuildNode(std::vector<uint32_t>& aOrder, const std::vector<Vec3>& aLows, const std::vector<Vec3>& aHighs,
+                   uint32_t aBegin, uint32_t aEnd) {
         const uint32_t index = uint32_t(mNodes.size());
         mNodes.push_back(Node{});
         Vec3 low(std::numeric_limits<float>::infinity()), high(-std::numeric_limits<float>::infinity());
         for (uint32_t k = aBegin; k < aEnd; k++) {
-            low = glm::min(low, aPositions[aOrder[k]]);
-            high = glm::max(high, aPositions[aOrder[k]]);
+            low = glm::min(low, aLows[aOrder[k]]);
+            high = glm::max(high, aHighs[aOrder[k]]);
         }
         mNodes[index] = Node{low, high, aBegin, aEnd, 0};
         if (aEnd - aBegin <= kLeafSize) return;
         const Vec3 extent = high - low;
         const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
         const uint32_t middle = aBegin + (aEnd - aBegin) / 2;
-        std::nth_element(aOrder.begin() + aBegin, aOrder.begin() + middle, aOrder.begin() + aEnd,
-                         [&](uint32_t a, uint32_t b) { return aPositions[a][axis] < aPositions[b][axis]; });
-        BuildNode(aOrder, aPositions, aBegin, middle);
+        std::nth_element(aOrder.begin() + aBegin, aOrder.begin() + middle, aOrder.begin() + aEnd, [&](uint32_t a, uint32_t b) {
+            return aLows[a][axis] + aHighs[a][axis] < aLows[b][axis] + aHighs[b][axis];
+        });
+        BuildNode(aOrder, aLows, aHighs, aBegin, middle);
         const uint32_t second = uint32_t(mNodes.size());
-        BuildNode(aOrder, aPositions, middle, aEnd);
+        BuildNode(aOrder, aLows, aHighs, middle, aEnd);
         mNodes[index].mSecond = second;
     }
 
-    // Whether the stretch aOrigin + t aDirection, 0 <= t <= aLength, meets the node's box
-    // grown by the radius (slabs; an axis the ray runs parallel to only checks the origin),
-    // and by 1e-5 of the points' coordinates more, so that rounding here never drops a
-    // point the leaf's test would take.
-    bool Crosses(const Node& aNode, const Vec3& aOrigin, const Vec3& aDirection, float aLength) const {
+    // Slabs; an axis the ray runs parallel to only checks the origin.
+    static bool Crosses(const Node& aNode, const Vec3& aOrigin, const Vec3& aDirection, float aLength, float aGrow) {
         float enter = 0.f, leave = aLength;
         for (int a = 0; a < 3; a++) {
-            const float low = aNode.mLow[a] - mGrow, high = aNode.mHigh[a] + mGrow;
+            const float low = aNode.mLow[a] - aGrow, high = aNode.mHigh[a] + aGrow;
             if (aDirection[a] == 0.f) {
                 if (aOrigin[a] < low || aOrigin[a] > high) return false;
                 continue;
@@ -6908,10 +7021,58 @@ private:
         return true;
     }
 
+    std::vector<Node> mNodes;  // depth-first: a node, its first subtree, its second
+};
+
+// How far a search grows the tree's boxes: the radius, and 1e-5 of the coordinates more,
+// so that rounding in the box test never drops what the exact test would take.
+inline float GrownRadius(float aRadius, const std::vector<Vec3>& aLows, const std::vector<Vec3>& aHighs) {
+    float largest = 0.f;
+    for (size_t i = 0; i < aLows.size(); i++)
+        largest = std::max(largest, std::max(MaxComponent(glm::abs(aLows[i])), MaxComponent(glm::abs(aHighs[i]))));
+    return aRadius + 1e-5f * (aRadius + largest);
+}
+} // namespace detail
+
+// RaySearch: the points in a detail::BoxTree (a point is its own box); at a leaf, each
+// point's projection and distance decide.
+template <class Item>
+class RaySearch<Item>::Tree {
+public:
+    template <class PositionOf, class ItemOf>
+    void Build(size_t aCount, float aRadius, PositionOf&& aPositionOf, ItemOf&& aItemOf) {
+        std::vector<Vec3> positions(aCount);
+        for (size_t i = 0; i < aCount; i++) positions[i] = aPositionOf(i);
+        const std::vector<uint32_t> order = mTree.Build(positions, positions);
+        mRadius = aRadius;
+        mGrow = detail::GrownRadius(aRadius, positions, positions);
+        mPoints.resize(aCount);
+        mItems.resize(aCount);
+        for (size_t k = 0; k < aCount; k++) {
+            mPoints[k] = positions[order[k]];
+            mItems[k] = aItemOf(order[k]);
+        }
+    }
+
+    template <class Visit>
+    void Process(const Vec3& aOrigin, const Vec3& aDirection, float aLength, Visit& aVisit) const {
+        const float radiusSqr = Sqr(mRadius);
+        mTree.Visit(aOrigin, aDirection, aLength, mGrow, [&](uint32_t aBegin, uint32_t aEnd) {
+            for (uint32_t k = aBegin; k < aEnd; k++) {
+                const Vec3 toPoint = mPoints[k] - aOrigin;
+                const float t = glm::dot(toPoint, aDirection);
+                if (t < 0.f || t > aLength) continue;
+                const Vec3 across = toPoint - t * aDirection;
+                if (glm::dot(across, across) <= radiusSqr) aVisit(mItems[k], t);
+            }
+        });
+    }
+
+private:
+    detail::BoxTree mTree;
     float mRadius = 0.f, mGrow = 0.f;
-    std::vector<Node> mNodes;    // depth-first: a node, its first subtree, its second
-    std::vector<Vec3> mPoints;   // in leaf order
-    std::vector<Item> mItems;    // in the same order
+    std::vector<Vec3> mPoints;  // in leaf order
+    std::vector<Item> mItems;   // in the same order
 };
 
 template <class Item>
@@ -6924,6 +7085,96 @@ void RaySearch<Item>::Build(size_t aCount, float aRadius, PositionOf&& aPosition
 template <class Item>
 template <class Visit>
 void RaySearch<Item>::Process(const Vec3& aOrigin, const Vec3& aDirection, float aLength, Visit&& aVisit) const {
+    if (mTree) mTree->Process(aOrigin, aDirection, aLength, aVisit);
+}
+
+// BeamSearch: the beams cut into pieces of at most 1/16 of the beams' extent (the
+// largest side of their box; and at least 4r), the pieces in a detail::BoxTree (a piece's
+// box is its two ends'): a long beam's own box would hold much space it does not pass,
+// and every query near it would test it. At a
+// leaf, each piece's beam has its closest point to the query's line found
+// (BeamSearch::Closest), and the piece whose stretch [u0, u1) holds that point's u (the
+// last piece: [u0, u1]) visits it: each beam once, as the pieces part its length.
+template <class Item>
+class BeamSearch<Item>::Tree {
+public:
+    template <class BeamOf, class ItemOf>
+    void Build(size_t aCount, float aRadius, BeamOf&& aBeamOf, ItemOf&& aItemOf) {
+        mBeams.resize(aCount);
+        mItems.resize(aCount);
+        for (size_t i = 0; i < aCount; i++) {
+            mBeams[i] = aBeamOf(i);
+            mItems[i] = aItemOf(i);
+        }
+        Vec3 low(std::numeric_limits<float>::max()), high(-std::numeric_limits<float>::max());
+        for (const Beam& beam : mBeams) {
+            const Vec3 end = beam.mStart + beam.mLength * beam.mDirection;
+            low = glm::min(low, glm::min(beam.mStart, end));
+            high = glm::max(high, glm::max(beam.mStart, end));
+        }
+        const float pieceLength = std::max(4.f * aRadius, MaxComponent(high - low) / 16.f);
+        std::vector<Piece> pieces;
+        std::vector<Vec3> lows, highs;
+        for (size_t i = 0; i < aCount; i++) {
+            const Beam& beam = mBeams[i];
+            const float wanted = std::ceil(beam.mLength / pieceLength);
+            const uint32_t count = wanted >= float(kMaxPieces) ? kMaxPieces : std::max(1u, uint32_t(wanted));
+            for (uint32_t k = 0; k < count; k++) {
+                const Piece piece{uint32_t(i), PieceEnd(beam, k, count), PieceEnd(beam, k + 1, count), k + 1 == count};
+                const Vec3 a = beam.mStart + piece.mBegin * beam.mDirection, b = beam.mStart + piece.mEnd * beam.mDirection;
+                pieces.push_back(piece);
+                lows.push_back(glm::min(a, b));
+                highs.push_back(glm::max(a, b));
+            }
+        }
+        const std::vector<uint32_t> order = mTree.Build(lows, highs);
+        mRadius = aRadius;
+        mGrow = detail::GrownRadius(aRadius, lows, highs);
+        mPieces.resize(pieces.size());
+        for (size_t k = 0; k < pieces.size(); k++) mPieces[k] = pieces[order[k]];
+    }
+
+    template <class Visit>
+    void Process(const Vec3& aOrigin, const Vec3& aDirection, float aLength, Visit& aVisit) const {
+        mTree.Visit(aOrigin, aDirection, aLength, mGrow, [&](uint32_t aBegin, uint32_t aEnd) {
+            for (uint32_t k = aBegin; k < aEnd; k++) {
+                const Piece& piece = mPieces[k];
+                const std::optional<BeamPair> pair = Closest(aOrigin, aDirection, aLength, mBeams[piece.mBeam], mRadius);
+                if (pair && pair->mU >= piece.mBegin && (pair->mU < piece.mEnd || (piece.mLast && pair->mU <= piece.mEnd)))
+                    aVisit(mItems[piece.mBeam], *pair);
+            }
+        });
+    }
+
+private:
+    static constexpr uint32_t kMaxPieces = 64;
+    struct Piece {
+        uint32_t mBeam;
+        float mBegin, mEnd;  // its stretch of the beam, u in [mBegin, mEnd)
+        bool mLast;          // the beam's last piece, which takes u = mEnd too
+    };
+    // One expression for both pieces that share an end, so that they agree on it exactly.
+    static float PieceEnd(const Beam& aBeam, uint32_t aK, uint32_t aCount) {
+        return aK == aCount ? aBeam.mLength : aBeam.mLength * float(aK) / float(aCount);
+    }
+
+    detail::BoxTree mTree;
+    float mRadius = 0.f, mGrow = 0.f;
+    std::vector<Beam> mBeams;    // as built
+    std::vector<Item> mItems;    // in the same order
+    std::vector<Piece> mPieces;  // in leaf order
+};
+
+template <class Item>
+template <class BeamOf, class ItemOf>
+void BeamSearch<Item>::Build(size_t aCount, float aRadius, BeamOf&& aBeamOf, ItemOf&& aItemOf) {
+    if (!mTree) mTree = std::make_shared<Tree>();
+    mTree->Build(aCount, aRadius, aBeamOf, aItemOf);
+}
+
+template <class Item>
+template <class Visit>
+void BeamSearch<Item>::Process(const Vec3& aOrigin, const Vec3& aDirection, float aLength, Visit&& aVisit) const {
     if (mTree) mTree->Process(aOrigin, aDirection, aLength, aVisit);
 }
 
@@ -7199,11 +7450,13 @@ inline uint64_t PhotonMapBytes(const Camera&, const RenderOptions& aOptions) {
 inline uint64_t LightVertexBytes(const Camera& aCamera, const RenderOptions&) {
     return uint64_t(aCamera.PixelCount()) * (3 * (sizeof(VertexCM::LightVertex) + 16) + sizeof(int));
 }
-// pb2d: the same, plus the ray search's copy of every vertex as if all were in media
-// (a point, its item, its share of the tree's nodes, and the build's scratch).
+// pb2d and bb1d: the same, plus the ray search's copy of every vertex as if all were in
+// media (a point, its item, its share of the tree's nodes, the build's scratch), and the
+// photon beams, as many, twice (stored, and in the beam search with their boxes).
 inline uint64_t BeamQueryBytes(const Camera& aCamera, const RenderOptions& aOptions) {
     return LightVertexBytes(aCamera, aOptions) +
-           uint64_t(aCamera.PixelCount()) * 3 * (sizeof(Vec3) + sizeof(VertexCM::MergeData) + 8 + sizeof(Vec3) + 4);
+           uint64_t(aCamera.PixelCount()) * 3 * (sizeof(Vec3) + sizeof(VertexCM::MergeData) + 8 + sizeof(Vec3) + 4) +
+           uint64_t(aCamera.PixelCount()) * 3 * (2 * sizeof(VertexCM::PhotonBeam) + 2 * sizeof(Vec3) + 12);
 }
 
 // The built-ins in the order the header teaches them; the registry starts with these.
@@ -7229,6 +7482,9 @@ inline std::deque<Integrator> BuiltInIntegrators() {
         MakeBuiltIn<VertexCM>(Algorithm::kBeamRadianceEstimate,
                                     "beam radiance estimate: ppm whose camera rays gather the photon points in media "
                                     "within r (pb2d)", BeamQueryBytes),
+        MakeBuiltIn<VertexCM>(Algorithm::kPhotonBeams,
+                                    "photon beams: ppm whose camera rays gather the light sub-paths' segments in media "
+                                    "passing within r (bb1d)", BeamQueryBytes),
     };
 }
 
@@ -7336,6 +7592,9 @@ inline void ValidateRenderOptions(const RenderOptions& aOptions) {
                     " (a merging radius that large blurs light across whole surfaces and makes every lookup visit most light vertices)");
     if (!(aOptions.mMediumRadiusFactor > 0.f) || !(aOptions.mMediumRadiusFactor <= kMaxRadiusFactor))
         throw Error("medium radius factor: must be a number in (0, " + std::to_string(kMaxRadiusFactor) + "]");
+    if (!(aOptions.mBeamRadiusFactor > 0.f) || !(aOptions.mBeamRadiusFactor <= kMaxRadiusFactor))
+        throw Error("beam radius factor: must be a number in (0, " + std::to_string(kMaxRadiusFactor) + "]");
+    if (aOptions.mBeamPaths < 1) throw Error("beam paths: must be >= 1");
     if (!(aOptions.mRadiusAlpha > 0.f && aOptions.mRadiusAlpha <= 1.f)) throw Error("radius alpha: must be in (0, 1]");
     if (aOptions.mPhotonCount < 1) throw Error("photon count: must be >= 1");
     if (aOptions.mNearestPhotons < 1) throw Error("nearest photons: must be >= 1");

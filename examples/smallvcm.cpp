@@ -108,6 +108,9 @@ void PrintHelp() {
         "  --medium-radius-factor F\n"
         "                      the radius of merging photon points in media, likewise (default 0.03);\n"
         "                        pb2d: the radius of its camera beams\n"
+        "  --beam-radius-factor F\n"
+        "                      bb1d: the radius of photon beams, likewise (default 0.003)\n"
+        "  --beam-paths N      bb1d: light sub-paths per iteration that store photon beams (default 4096)\n"
         "  --radius-alpha A    radius shrinking exponent in (0, 1] (default 0.75)\n"
         "  --mis balance|power MIS heuristic (default balance)\n"
         "  --photons N         pm, pmfg: photons traced per iteration (default 200000)\n"
@@ -326,6 +329,11 @@ CommandLine Parse(int argc, char** argv) {
         else if (arg == "--medium-radius-factor")
             cl.mOptions.mMediumRadiusFactor = ParseNumber<float>(arg, value(i), 1e-7f, smallvcm::kMaxRadiusFactor,
                 "a number in [1e-7, 0.25]");
+        else if (arg == "--beam-radius-factor")
+            cl.mOptions.mBeamRadiusFactor = ParseNumber<float>(arg, value(i), 1e-7f, smallvcm::kMaxRadiusFactor,
+                "a number in [1e-7, 0.25]");
+        else if (arg == "--beam-paths")
+            cl.mOptions.mBeamPaths = ParseNumber<int>(arg, value(i), 1, 1 << 30, "an integer in [1, 2^30]");
         else if (arg == "--radius-alpha") {
             cl.mOptions.mRadiusAlpha = ParseNumber<float>(arg, value(i), 0.f, 1.f, "a number in (0, 1]");
             if (!(cl.mOptions.mRadiusAlpha > 0.f)) throw Error("--radius-alpha: '0' is not a number in (0, 1]");
@@ -420,7 +428,7 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
         return !builtIn || std::find(aAlgorithms.begin(), aAlgorithms.end(), o.mAlgorithm) != aAlgorithms.end();
     };
     const bool merges = uses({Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping, Algorithm::kVertexConnectionMerging,
-                              Algorithm::kBeamRadianceEstimate});
+                              Algorithm::kBeamRadianceEstimate, Algorithm::kPhotonBeams});
     const bool photonMaps = uses({Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather});
     if (!builtIn || o.mAlgorithm != Algorithm::kEyeLight) {
         estimator["min_path_length"] = o.mMinPathLength;
@@ -430,6 +438,8 @@ sidecar::Json RenderRecord(const CommandLine& aCl, const smallvcm::GltfLoadRepor
     if (merges) {
         estimator["radius_factor"] = Shortest(o.mRadiusFactor);
         estimator["medium_radius_factor"] = Shortest(o.mMediumRadiusFactor);
+        estimator["beam_radius_factor"] = Shortest(o.mBeamRadiusFactor);
+        estimator["beam_paths"] = o.mBeamPaths;
         estimator["radius_alpha"] = Shortest(o.mRadiusAlpha);
     }
     if (photonMaps) {

@@ -324,7 +324,7 @@ TEST_CASE("--help lists every built-in and the linked-in integrators with their 
     }
     const Run unknown = RunProgram("-a nosuch -q");
     CHECK(unknown.mExitCode == 2);
-    CHECK(unknown.mStderr == "smallvcm: -a: unknown algorithm 'nosuch' (el, pt, lt, pm, pmfg, ppm, bpm, bpt, vcm, pb2d, mypt)\n");
+    CHECK(unknown.mStderr == "smallvcm: -a: unknown algorithm 'nosuch' (el, pt, lt, pm, pmfg, ppm, bpm, bpt, vcm, pb2d, bb1d, mypt)\n");
 }
 
 TEST_CASE("-a mypt renders the student's path tracer, the same image as Render in this process", "[cli][integrator_api]") {
@@ -559,6 +559,13 @@ TEST_CASE("Resource options beyond what the machine can do are refused with the 
     CheckFailure(radius, 2, "--radius-factor", output);
     CHECK(radius.mStderr.find("hundreds of times slower") != std::string::npos);
     CheckFailure(RunProgram(Tiny(output) + " -s 2 --max-radius 10"), 2, "--max-radius", output);
+    // The beams' radii and count: zero, NaN, negative and huge are refused by name.
+    for (const char* bad : {"--beam-radius-factor 0", "--beam-radius-factor nan", "--beam-radius-factor 1",
+                            "--medium-radius-factor 0", "--medium-radius-factor nan", "--beam-paths 0",
+                            "--beam-paths -5", "--beam-paths 99999999999"}) {
+        const std::string option = std::string(bad).substr(0, std::string(bad).find(' '));
+        CheckFailure(RunProgram(Tiny(output) + " -s 2 -a bb1d " + bad), 2, option, output);
+    }
     // 2^28 pixels of VCM: refused before any allocation wherever it would not fit in 3/4
     // of the memory (the estimate is the library's own, EstimateRenderBytes).
     smallvcm::Camera camera;

@@ -93,7 +93,7 @@ Scene SmallCornell() { return LoadCornell(4, 12, 8); }
 } // namespace
 
 TEST_CASE("The built-in estimators are registered under their short names, in teaching order", "[integrator_api]") {
-    const std::vector<std::string> expected = {"el", "pt", "lt", "pm", "pmfg", "ppm", "bpm", "bpt", "vcm", "pb2d"};
+    const std::vector<std::string> expected = {"el", "pt", "lt", "pm", "pmfg", "ppm", "bpm", "bpt", "vcm", "pb2d", "bb1d"};
     const std::vector<const Integrator*> all = RegisteredIntegrators();
     REQUIRE(all.size() >= expected.size());
     for (size_t i = 0; i < expected.size(); i++) {

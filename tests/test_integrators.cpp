@@ -343,6 +343,72 @@ TEST_CASE("The beam radiance estimate's RaySearch visits exactly the points with
     CHECK(calls == 0);
 }
 
+TEST_CASE("The photon beams' BeamSearch visits exactly the beams BeamSearch::Closest takes, each once", "[integrators]") {
+    // Brute force against BeamSearch::Process: beams of random directions and lengths
+    // (short, long across the box, of length 0), axis-parallel ones, copies of one beam;
+    // queries as for RaySearch. The brute force applies Closest to every beam, so the
+    // visited sets and their pairs must be equal exactly; beams are cut into pieces inside
+    // the search, so a beam visited twice (from two pieces) or never shows here. Closest
+    // itself against the closest points of the lines in double: t, u, the distance and
+    // sin theta.
+    Rng rng(53, 0);
+    const auto randomVec = [&]() { return Vec3(rng.GetFloat(), rng.GetFloat(), rng.GetFloat()) * 2.f - 1.f; };
+    int closestChecked = 0;
+    for (const int count : {1, 9, 200, 3000}) {
+        for (const float radius : {0.003f, 0.05f, 0.4f}) {
+            std::vector<Beam> beams;
+            for (int i = 0; i < count; i++) {
+                Beam beam;
+                beam.mStart = randomVec();
+                beam.mDirection = glm::normalize(randomVec() + Vec3(1e-3f));
+                const float kind = rng.GetFloat();
+                if (kind < 0.1f) beam.mDirection = Vec3(0.f, 0.f, 1.f);
+                beam.mLength = kind < 0.05f ? 0.f : (kind < 0.5f ? 0.2f * rng.GetFloat() : 3.f * rng.GetFloat());
+                if (kind > 0.9f && !beams.empty()) beam = beams.front();
+                beams.push_back(beam);
+            }
+            BeamSearch<int> search;
+            search.Build(beams.size(), radius, [&](size_t i) { return beams[i]; }, [](size_t i) { return int(i); });
+            int wrong = 0, visits = 0;
+            for (int q = 0; q < 150; q++) {
+                const Beam& near = beams[size_t(q) % beams.size()];
+                const Vec3 origin = q % 2 ? randomVec() * 1.5f : near.mStart + 0.5f * near.mLength * near.mDirection - randomVec();
+                Vec3 direction = glm::normalize(randomVec() + Vec3(1e-3f));
+                if (q % 7 == 0) direction = Vec3(1.f, 0.f, 0.f);
+                const float lengths[4] = {0.f, 0.5f, 3.f, std::numeric_limits<float>::infinity()};
+                const float length = lengths[q % 4];
+                std::vector<int> seen(beams.size(), 0);
+                std::vector<BeamPair> pairs(beams.size());
+                search.Process(origin, direction, length, [&](int aIndex, const BeamPair& aPair) {
+                    seen[size_t(aIndex)]++;
+                    pairs[size_t(aIndex)] = aPair;
+                    visits++;
+                });
+                for (size_t i = 0; i < beams.size(); i++) {
+                    const std::optional<BeamPair> expected = BeamSearch<int>::Closest(origin, direction, length, beams[i], radius);
+                    wrong += seen[i] != (expected ? 1 : 0);
+                    if (expected && seen[i] == 1)
+                        wrong += pairs[i].mT != expected->mT || pairs[i].mU != expected->mU || pairs[i].mSinTheta != expected->mSinTheta;
+                    if (!expected || !(length < 1e30f)) continue;
+                    // Closest against double precision.
+                    const glm::dvec3 o(origin), w(direction), a(beams[i].mStart), wb(beams[i].mDirection);
+                    const double b = glm::dot(w, wb), p = glm::dot(w, o - a), qq = glm::dot(wb, o - a);
+                    const double t = (b * qq - p) / (1.0 - b * b), u = (qq - b * p) / (1.0 - b * b);
+                    const double distance = glm::length(o + t * w - a - u * wb);
+                    const double scale = 1.0 + std::abs(t) + std::abs(u);
+                    wrong += std::abs(t - expected->mT) > 1e-3 * scale || std::abs(u - expected->mU) > 1e-3 * scale;
+                    wrong += distance > double(radius) * (1.0 + 1e-3) + 1e-4 * scale;
+                    wrong += std::abs(std::sqrt(1.0 - b * b) - expected->mSinTheta) > 1e-4;
+                    closestChecked++;
+                }
+            }
+            INFO(count << " beams, radius " << radius << ": " << visits << " visits");
+            CHECK(wrong == 0);
+        }
+    }
+    CHECK(closestChecked > 100);
+}
+
 TEST_CASE("VCM's hash grid visits exactly the light vertices within the merge radius, each once", "[integrators]") {
     // Brute force against HashGrid::Process: points uniform in a box, plus a cluster much
     // smaller than a cell (a bucket with many points) and points exactly on cell borders

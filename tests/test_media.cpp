@@ -473,6 +473,72 @@ TEST_CASE("The beam radiance estimate (pb2d) matches single scattering's quadrat
     }
 }
 
+TEST_CASE("Photon beams (bb1d) match single scattering's quadrature along one ray, within their kernel's bias", "[media]") {
+    // The scene of the tests above at 32 x 32 pixels (one ray to within 2e-4 rad): the
+    // camera ray gathers the photon beams of every light sub-path's first segment (N_B =
+    // N_L = 1024) passing within r = 0.01 of it. Expected: the quadrature of the first test
+    // (Simpson, 400,000 steps; the limit r -> 0). The 1D kernel averages the in-scattered
+    // radiance f over offsets in [-r, r] across the two lines, which changes it by
+    // r^2/6 |f''| + O(r^4); with f ~ exp(-sigma_t d) / d^2 times the phase at d >= 0.6 from
+    // the light (sigma_t <= 1, g = 0.4), |f''| / f < 40 along any direction (radial 6/d^2,
+    // 4 sigma_t/d, sigma_t^2, the phase's change ~8, their cross terms): at most 7 r^2 =
+    // 7e-4 of it. Tolerance: that, plus 4 standard errors of the mean of 16 renders.
+    Scene scene;
+    scene.mName = "single scattering";
+    const Vec3 sigmaA(0.2f, 0.4f, 0.8f), sigmaS(0.6f, 0.5f, 0.3f);
+    const float g = 0.4f;
+    scene.mSceneMedium = scene.AddMedium(MakeMedium(sigmaA, sigmaS, g, "absorbing fog"));
+    scene.AddSphere(Vec3(0.f), 50.f, scene.AddMaterial(Material()));
+    const Vec3 light(1.f, 0.6f, 0.f), camera(0.f, 0.f, 0.f), direction(1.f, 0.f, 0.f);
+    scene.AddPointLight(light, Vec3(2.f));
+    scene.mCamera.Setup(camera, direction, Vec3(0.f, 1.f, 0.f), 0.01f);
+    scene.mCamera.SetResolution(32, 32);
+    scene.Finalize();
+    const double radius = 0.01;
+    Vec3 expected(0.f);
+    for (int c = 0; c < 3; c++) {
+        const double st = double(sigmaA[c] + sigmaS[c]);
+        const auto integrand = [&](double aT) {
+            const glm::dvec3 x = glm::dvec3(camera) + aT * glm::dvec3(direction);
+            const glm::dvec3 toLight = glm::dvec3(light) - x;
+            const double d = glm::length(toLight);
+            const double cosTheta = glm::dot(glm::dvec3(direction), toLight / d);
+            const double phase = (1.0 - g * g) / (4.0 * 3.14159265358979 * std::pow(1.0 + g * g - 2.0 * g * cosTheta, 1.5));
+            return std::exp(-st * aT) * double(sigmaS[c]) * phase * 2.0 * std::exp(-st * d) / (d * d);
+        };
+        const int n = 400000;
+        const double end = 50.0, h = end / n;
+        double sum = integrand(0.0) + integrand(end);
+        for (int i = 1; i < n; i++) sum += (i % 2 ? 4.0 : 2.0) * integrand(i * h);
+        expected[c] = float(sum * h / 3.0);
+    }
+    std::vector<double> channel[3];
+    for (int r = 0; r < 16; r++) {
+        RenderOptions options;
+        options.mAlgorithm = Algorithm::kPhotonBeams;
+        options.mIterations = 320;
+        options.mSeed = 2900 + uint64_t(r);
+        options.mMinPathLength = 2;
+        options.mMaxPathLength = 2;
+        options.mBeamRadiusFactor = float(radius) / scene.GetSceneSphere().mRadius;
+        options.mRadiusAlpha = 1.f;
+        options.mProgress = false;
+        options.mThreads = 1;
+        const Image image = Render(scene, options).mImage;
+        Vec3 mean(0.f);
+        for (const Vec3& pixel : image.mPixels) mean += pixel / float(image.mPixels.size());
+        for (int c = 0; c < 3; c++) channel[c].push_back(mean[c]);
+    }
+    for (int c = 0; c < 3; c++) {
+        const MeanAndError e = MeanOf(channel[c]);
+        std::printf("[media] bb1d single scattering, channel %d: %.6f +- %.6f, expected %.6f\n", c, e.mean, e.standardError,
+                    double(expected[c]));
+        INFO("bb1d channel " << c << ": " << e.mean << " +- " << e.standardError << ", expected " << expected[c]);
+        CHECK(std::abs(e.mean - expected[c]) <= 4.0 * e.standardError + 7.0 * radius * radius * expected[c]);
+        CHECK(e.standardError < 0.015 * expected[c]);  // the check resolves a few percent
+    }
+}
+
 TEST_CASE("A medium that neither absorbs nor scatters renders as empty space, within noise", "[media]") {
     // The glossy room with an index-matched ball of a clear medium at its centre: paths
     // step through its boundary (no random number is drawn in a clear medium), so the
