@@ -5025,9 +5025,7 @@ private:
             const PathSegment segment = TraceSegment(mScene, ray, cam.mMedium, cam.mInMedium, aSampler,
                                                      cam.mPathLength > 1 ? GapOfVertex(mScene, cam.mInMedium) : 0.f,
                                                      mBeamQueries ? &mSegmentPieces : nullptr);
-            if (mBeamQueries)
-                AddToFilm(aPixel, mPhotonBeamsOn ? GatherBeamsAlongSegment(cam, ray.mDirection)
-                                                 : GatherPointsAlongSegment(cam, ray.mDirection));
+            if (mBeamQueries) GatherAlongSegment(aPixel, cam, ray.mDirection);
             const SurfacePoint& hit = segment.mHit;
             cam.mThroughput *= segment.mWeight;
             if (segment.Escaped()) {
@@ -5378,6 +5376,11 @@ private:
         }
         if (IsBlack(sum)) return {};
         return Made(kMediumMerging, aCamera.mThroughput * sum * mBeamKernel, 1.f, -1, -1);
+    }
+
+    // pb2d and bb1d: what the camera segment just traced gathers along its length.
+    SMALLVCM_NOINLINE void GatherAlongSegment(int aPixel, const SubpathState& aCamera, const Vec3& aDirection) {
+        AddToFilm(aPixel, mPhotonBeamsOn ? GatherBeamsAlongSegment(aCamera, aDirection) : GatherPointsAlongSegment(aCamera, aDirection));
     }
 
     // Photon beams along a camera beam (bb1d) [Jarosz et al. 2011; Křivánek et al. 2014,
