@@ -248,12 +248,20 @@ def implementation_lines(shared):
     return lines
 
 
+# The line table names the line an instruction came from, and an optimized unit often
+# gives a declaration's arithmetic to the lines that use it (M89's `up = -dPdv / vLength`
+# is on no line of the table; the two after it are): a mutant within this many lines of
+# code in the unit counts as reaching it.
+IMPL_LINE_WINDOW = 5
+
+
 def needs_implementation_unit(header, mutant, impl_lines):
     """Whether the mutant's lines reach the implementation unit: listed so (impl=True), or
-    one of its lines has code there."""
+    one of its lines, or one within IMPL_LINE_WINDOW of them, has code there."""
     first = line_of(header, mutant)
+    last = first + mutant["find"].count("\n")
     return bool(mutant.get("impl")) or any(
-        line in impl_lines for line in range(first, first + mutant["find"].count("\n") + 1))
+        line in impl_lines for line in range(first - IMPL_LINE_WINDOW, last + IMPL_LINE_WINDOW + 1))
 
 
 IMPL_LINES = set()  # implementation_lines of the unmutated header, filled by main
