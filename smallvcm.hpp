@@ -4783,14 +4783,20 @@ public:
         if (mLightTraceOnly) return;
 
         // 2. The range searches over the stored vertices, for merging: the surface points,
-        //    and the points in media (each merges only with its own kind), or, for the
-        //    beam radiance estimate, the points in media along camera rays.
+        //    and the points in media (each merges only with its own kind); for the beam
+        //    estimates, the points in media (pb2d) or the photon beams (bb1d) along rays.
         if (mUseVM) {
             BuildVertexSearch(mLightVertexSearch, mSurfaceVertexIndices, false, radius);
-            if (mScene.HasMedia() && !mBeamQueries) BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, mediumRadius);
-            if (mScene.HasMedia() && mBeamQueries && !mPhotonBeamsOn) BuildBeamQuerySearch(mediumRadius, pathCount);
-            if (mScene.HasMedia() && mPhotonBeamsOn)
-                BuildPhotonBeamSearch(radius * (mOptions.mBeamRadiusFactor / mOptions.mRadiusFactor), pathCount);
+            if (mScene.HasMedia()) {
+                if (mPhotonBeamsOn) {
+                    BuildPhotonBeamSearch(radius * (mOptions.mBeamRadiusFactor / mOptions.mRadiusFactor), pathCount);
+                } else if (mBeamQueries) {
+                    BuildVertexSearch(mPointsAlongRays, mMediumVertexIndices, true, mediumRadius);
+                    mBeamKernel = 1.f / (kPi * Sqr(mediumRadius) * float(pathCount));
+                } else {
+                    BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, mediumRadius);
+                }
+            }
         }
 
         // 3. Camera sub-paths, one per pixel, each connecting to the light sub-path the
@@ -4978,7 +4984,9 @@ private:
     // --- stage 2: the range searches ------------------------------------------------------
     // The range search over the stored vertices of one kind (surface or medium points);
     // aIndices maps its points to mLightVertices.
-    void BuildVertexSearch(RangeSearch<MergeData>& aSearch, std::vector<uint32_t>& aIndices, bool aInMedium, float aRadius) {
+    // (A RaySearch too: pb2d's points in media, queried along rays.)
+    template <class Search>
+    void BuildVertexSearch(Search& aSearch, std::vector<uint32_t>& aIndices, bool aInMedium, float aRadius) {
         aIndices.clear();
         for (size_t i = 0; i < mLightVertices.size(); i++)
             if (mLightVertices[i].mInMedium == aInMedium) aIndices.push_back(uint32_t(i));
@@ -4986,16 +4994,6 @@ private:
                       [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[aIndices[i]]); });
     }
 
-    // The beam radiance estimate's search: the stored points in media, queried along rays.
-    void BuildBeamQuerySearch(float aRadius, int aPathCount) {
-        mMediumVertexIndices.clear();
-        for (size_t i = 0; i < mLightVertices.size(); i++)
-            if (mLightVertices[i].mInMedium) mMediumVertexIndices.push_back(uint32_t(i));
-        mPointsAlongRays.Build(mMediumVertexIndices.size(), aRadius,
-                               [&](size_t i) { return mLightVertices[mMediumVertexIndices[i]].mHitPoint; },
-                               [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[mMediumVertexIndices[i]]); });
-        mBeamKernel = 1.f / (kPi * Sqr(aRadius) * float(aPathCount));
-    }
     // The photon beam estimate's search: the stored photon beams, queried along rays.
     void BuildPhotonBeamSearch(float aRadius, int aPathCount) {
         mBeamsAlongRays.Build(mPhotonBeams.size(), aRadius, [&](size_t i) { return mPhotonBeams[i].mBeam; },
