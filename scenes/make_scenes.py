@@ -1144,11 +1144,57 @@ def build_absorbing_glass():
     return scene.finish(look_at_camera((0.0, -2.3, 1.0), (0.0, 0.0, 0.3), 40.0), [])
 
 
+# F21's media: the same grey medium, albedo 0.95, isotropic, at two densities (per unit).
+# Thin: a fog filling the room, a mean free path of 10 (the room is 3.5 deep: the light
+# crosses it nearly unscattered). Dense: a block of mean free path 0.1 (0.8 across: most
+# light scatters many times before it leaves), in a room of clear air.
+THIN_FOG = {"sigmaA": [0.005, 0.005, 0.005], "sigmaS": [0.095, 0.095, 0.095], "g": 0.0}
+DENSE_BLOCK = {"sigmaA": [0.5, 0.5, 0.5], "sigmaS": [9.5, 9.5, 9.5], "g": 0.0}
+
+
+def closed_box_mesh(low, high):
+    """The box low..high as 12 triangles wound outwards; asserts it is closed."""
+    positions = [(x, y, z) for z in (low[2], high[2]) for y in (low[1], high[1]) for x in (low[0], high[0])]
+    faces = [(0, 2, 3), (3, 1, 0), (4, 5, 7), (7, 6, 4), (0, 1, 5), (5, 4, 0),
+             (2, 6, 7), (7, 3, 2), (0, 4, 6), (6, 2, 0), (1, 3, 7), (7, 5, 1)]
+    check_closed([f32_point(p) for p in positions], faces)
+    return positions, faces
+
+
+def build_spot_in_medium(dense):
+    """F21: one spot light in a dark room, its cone crossing the view from the upper left
+    down to the right: through a thin fog filling the room, or into a dense block (an
+    index-matched closed box: rays cross its surface unbent) standing where the cone meets
+    the floor. The walls are black (diffuse, reflectance 0), so all the light in the image
+    was scattered in the medium: photon points and photon beams are compared on the
+    medium alone (both merge on surfaces alike)."""
+    density = "dense" if dense else "thin"
+    scene = MediaScene("spot in a %s medium: one light's cone in a dark room" % density,
+                       "F21: a spot light into a %s medium, black walls." % (
+                           "dense block (SMALLVCM_medium on a closed box)" if dense else "thin fog (scene-wide SMALLVCM_medium)"))
+    scene.material("black", lambert("black wall", (0.0, 0.0, 0.0)))
+    scene.room((-1.0, 1.0), (-2.5, 1.0), (0.0, 2.0), ("black",) * 6)
+    scene.spot("spot light (across the room, down onto the middle)", (-0.8, 0.6, 1.85), normalize((0.8, -0.6, -1.05)),
+               100.0, math.radians(8.0), math.radians(11.0))
+    camera = look_at_camera((0.0, -2.3, 1.0), (0.0, 0.2, 0.9), 50.0)
+    if not dense:
+        return scene.finish(camera, ["F21"], {"SMALLVCM_medium": THIN_FOG})
+    scene.material("block", {"name": "dense medium (index-matched boundary)",
+                             "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0],
+                                                      "metallicFactor": 0.0, "roughnessFactor": 0.6},
+                             "extensions": {"SMALLVCM_medium": DENSE_BLOCK}})
+    positions, faces = closed_box_mesh((-0.4, -0.4, 0.001), (0.4, 0.4, 0.8))
+    scene.mesh("dense block (closed box)", positions, faces, "block")
+    return scene.finish(camera, ["F21"])
+
+
 # (file name, builder) of the media scenes: builders return the glTF document.
 MEDIA_SCENES = [
     ("fog_caustic_box.gltf", build_fog_caustic_box),
     ("dense_scattering_sphere.gltf", build_dense_scattering_sphere),
     ("absorbing_glass.gltf", build_absorbing_glass),
+    ("spot_in_thin_fog.gltf", lambda: build_spot_in_medium(False)),
+    ("spot_in_dense_block.gltf", lambda: build_spot_in_medium(True)),
 ]
 
 

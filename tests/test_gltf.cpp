@@ -2300,6 +2300,33 @@ TEST_CASE("The media scenes load with their media, and each medium's mesh is clo
         }
         CHECK(glass == 1);
     }
+    SECTION("spot_in_thin_fog and spot_in_dense_block (F21): one spot, black walls, a thin scene medium or a dense closed block") {
+        const Scene thin = LoadGltfScene("../scenes/spot_in_thin_fog.gltf");
+        REQUIRE(thin.mMedia.size() == 1);
+        CHECK(thin.mSceneMedium == 0);
+        CHECK_VEC3(thin.mMedia[0].SigmaT(), Vec3(0.1f), 1e-6f);
+        const Scene dense = LoadGltfScene("../scenes/spot_in_dense_block.gltf");
+        REQUIRE(dense.mMedia.size() == 1);
+        CHECK(dense.mSceneMedium == -1);
+        CHECK_VEC3(dense.mMedia[0].SigmaT(), Vec3(10.f), 1e-5f);
+        for (const Scene* scene : {&thin, &dense}) {
+            CHECK(scene->mMedia[0].mSigmaS.x / scene->mMedia[0].SigmaT().x == Approx(0.95f));
+            REQUIRE(scene->mLights.size() == 1);
+            CHECK(scene->mLights[0].IsDelta());
+            for (size_t m = 0; m < scene->mMaterials.size(); m++)
+                if (scene->mMaterials[m].mMedium < 0) CHECK(IsBlack(scene->mMaterials[m].mDiffuseReflectance));
+        }
+        int blocks = 0;
+        for (size_t m = 0; m < dense.mMaterials.size(); m++) {
+            if (dense.mMaterials[m].mMedium < 0) continue;
+            blocks++;
+            CHECK(dense.mMaterials[m].IsIndexMatchedBoundary());
+            double volume = 0.0;
+            CHECK(ClosedAndOutwards(dense, int(m), &volume));
+            CHECK(volume == Approx(0.8 * 0.8 * 0.799).epsilon(1e-4));
+        }
+        CHECK(blocks == 1);
+    }
 }
 
 TEST_CASE("A metallicRoughnessTexture makes each texel the written rule's material of its metal and roughness", "[gltf]") {
