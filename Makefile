@@ -379,7 +379,7 @@ ENSURE_MATPLOTLIB = dpkg-query -W -f='$${Status}' python3-matplotlib 2>/dev/null
 	  { if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
 	    $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q python3-matplotlib; }
 
-# make figures: every course figure (F01-F20) at publication settings into docs/figures/,
+# make figures: every course figure (F01-F21) at publication settings into docs/figures/,
 # then the charts and the gallery docs/figures.md (docs/figures.md says how long it takes;
 # references missing from docs/figures/references/ are rendered first).
 # make figures QUICK=1: the same programs at tiny settings into build/figures-quick/ (a

@@ -370,6 +370,11 @@ inline ReferenceSpec StandardReference(const Kit& aKit, const std::string& aScen
         spec.mMaxPathLength = 2;
         spec.mWhy = "path tracing with MIS of light and BSDF sampling: unbiased, and on this scene (direct light "
                     "only, path length 2) each highlight is found well by one of its two techniques";
+    } else if (aScene == "spot_in_thin_fog.gltf" || aScene == "spot_in_dense_block.gltf") {
+        spec.mAlgorithm = Algorithm::kBidirectionalPathTracing;
+        spec.mIterations = aKit.Pick(aScene == "spot_in_thin_fog.gltf" ? 8192 : 2048, 256);
+        spec.mWhy = "BPT: unbiased; the spot is a delta light, but no surface is specular (black walls, an "
+                    "index-matched boundary), so every path has a BPT technique: the medium's vertices connect";
     } else if (deltaLight) {
         spec.mAlgorithm = Algorithm::kVertexConnectionMerging;
         spec.mIterations = aKit.Pick(512, 256);
