@@ -103,6 +103,21 @@ double MaskedMean(const Image& aImage, const Mask& aMask) {
     return sum / std::max(1, CountOf(aMask));
 }
 
+// A render in two halves of the budget with independent seeds (the second's 1000
+// higher): mBoth, their average, is the image, and the halves' difference its noise.
+struct Halves { RenderResult mA, mB, mBoth; };
+Halves RenderHalves(const Scene& aScene, RenderOptions aOptions, double aSeconds) {
+    Halves halves;
+    halves.mA = RenderSeconds(aScene, aOptions, 0.5 * aSeconds);
+    aOptions.mSeed += 1000;
+    halves.mB = RenderSeconds(aScene, aOptions, 0.5 * aSeconds);
+    halves.mBoth = halves.mA;
+    halves.mBoth.mImage = Scaled(Sum({&halves.mA.mImage, &halves.mB.mImage}), 0.5f);
+    halves.mBoth.mIterations = halves.mA.mIterations + halves.mB.mIterations;
+    halves.mBoth.mSeconds = halves.mA.mSeconds + halves.mB.mSeconds;
+    return halves;
+}
+
 void FigureVolumetricCaustic(const Kit& aKit, int aSize) {
     Figure figure(aKit, "F20", "Volumetric caustic: paths vs. photon points",
                   "Extension to volumetric scattering (VCM course talk, seed 000)",
@@ -137,20 +152,16 @@ void FigureVolumetricCaustic(const Kit& aKit, int aSize) {
     std::map<std::string, std::pair<double, double>> shortfalls;  // name -> mirror mean's shortfall and its SE
     const double referenceMirror = MaskedMean(reference.mImage, regions.mMirror);
     for (const Run& run : runs) {
-        // Two halves of the budget with independent seeds: their average is the image,
-        // their difference the noise of its masked means (pixels taken as independent).
+        // The halves' difference is the noise of the masked means (pixels taken as independent).
         RenderOptions options = BaseOptions(aKit, run.mAlgorithm);
         options.mSeed = run.mSeed;
-        const RenderResult a = RenderSeconds(scene, options, 0.5 * seconds);
-        options.mSeed += 1000;
-        const RenderResult b = RenderSeconds(scene, options, 0.5 * seconds);
-        RenderResult result = a;
-        result.mImage = Scaled(Sum({&a.mImage, &b.mImage}), 0.5f);
-        result.mIterations = a.mIterations + b.mIterations;
-        result.mSeconds = a.mSeconds + b.mSeconds;
+        const Halves halves = RenderHalves(scene, options, seconds);
+        const Image& first = halves.mA.mImage;
+        const Image& second = halves.mB.mImage;
+        const RenderResult& result = halves.mBoth;
         double variance = 0.0;
         for (size_t i = 0; i < regions.mMirror.size(); i++)
-            if (regions.mMirror[i]) variance += std::pow(ChannelMean(a.mImage.mPixels[i]) - ChannelMean(b.mImage.mPixels[i]), 2.0) / 4.0;
+            if (regions.mMirror[i]) variance += std::pow(ChannelMean(first.mPixels[i]) - ChannelMean(second.mPixels[i]), 2.0) / 4.0;
         const double meanError = std::sqrt(variance) / std::max(1, CountOf(regions.mMirror));
         const double referenceError = reference.mNoiseRmse / std::sqrt(std::max(1.0, double(CountOf(regions.mMirror))));
         shortfalls[run.mName] = {(referenceMirror - MaskedMean(result.mImage, regions.mMirror)) / referenceMirror,
@@ -233,25 +244,19 @@ void FigurePointsVersusBeams(const Kit& aKit, int aSize) {
         const double referenceMean = smallvcm::MeanValue(reference.mImage);
         Json numbers;
         for (const bool beams : {false, true}) {
-            // Two halves of the budget with independent seeds: their average is the image,
-            // and half their RMSE to each other the noise of that average, so that the
-            // error splits into noise and what remains (the kernel's bias, and the
+            // Half the halves' RMSE to each other is the noise of their average, so that
+            // the error splits into noise and what remains (the kernel's bias, and the
             // reference's own noise): rmse^2 = noise^2 + rest^2.
             RenderOptions options = BaseOptions(aKit, beams ? Algorithm::kPhotonBeams : Algorithm::kProgressivePhotonMapping);
             options.mSeed = beams ? 32 : 31;
-            const RenderResult a = RenderSeconds(scene, options, 0.5 * seconds);
-            options.mSeed += 1000;
-            const RenderResult b = RenderSeconds(scene, options, 0.5 * seconds);
-            RenderResult result = a;
-            result.mImage = Scaled(Sum({&a.mImage, &b.mImage}), 0.5f);
-            result.mIterations = a.mIterations + b.mIterations;
-            result.mSeconds = a.mSeconds + b.mSeconds;
+            const Halves halves = RenderHalves(scene, options, seconds);
+            const RenderResult& result = halves.mBoth;
             const char* what = beams ? "beams" : "points";
             Json& panel = figure.AddRender(std::string(medium.mName) + "_" + what, result,
                                            std::string(medium.mCaption) + ": photon " + what + ", " + Num(seconds, "%.0f") + " s",
                                            &reference.mImage);
             const double rmse = smallvcm::Rmse(result.mImage, reference.mImage);
-            const double noise = 0.5 * smallvcm::Rmse(a.mImage, b.mImage);
+            const double noise = 0.5 * smallvcm::Rmse(halves.mA.mImage, halves.mB.mImage);
             const double rest = std::sqrt(std::max(0.0, rmse * rmse - noise * noise));
             const double meanOffset = smallvcm::MeanValue(result.mImage) / referenceMean - 1.0;
             panel["noise_rmse"] = noise;
