@@ -2743,6 +2743,14 @@ inline float FreeFlightProbability(const Medium& aMedium, float aDistance) {
     const Vec3 t = MediumTransmittance(aMedium, aDistance);
     return (t.x + t.y + t.z) / 3.f;
 }
+// A short beam's coverage over the free-flight density, R(t) = P(t) / p(t), at distance
+// aT into a piece of a medium [Krivanek et al. 2014, sec. 5]: a beam technique integrates
+// along the segment where a point technique sampled a free flight, so in its pdf the
+// density p(t) of the point becomes the probability P(t) that the beam reaches it.
+// 1 / sigma_t in a grey medium.
+inline float BeamCoverageRatio(const Medium& aMedium, float aT) {
+    return FreeFlightProbability(aMedium, aT) / FreeFlightDensity(aMedium, aT);
+}
 // A free-flight distance: aRnd picks the channel (its third) and the exponential
 // distance in it; infinity for a clear channel.
 inline float SampleFreeFlight(const Medium& aMedium, float aRnd) {
@@ -2796,6 +2804,9 @@ struct PathSegment {
     int mMedium = -1;         // the medium it ends in (the last piece's)
     Vec3 mWeight{1.f};        // T / (its distance pdf), per channel
     SegmentPdfs mPdfs;
+    // The lengths of its first and last pieces in an attenuating medium (UPBP's beam
+    // ratios at its two ends: BeamCoverageRatio).
+    float mFirstPiece = 0.f, mLastPiece = 0.f;
     const Vec3& Position() const { return mHit.mPosition; }
     float Length() const { return mHit.mDist + mGap; }
     bool Escaped() const { return !mHit.IsValid() && !mInMedium; }
@@ -2811,6 +2822,7 @@ struct SegmentPiece {
     int mMedium = -1;
     Vec3 mTransmittanceBefore{1.f};
     float mProbabilityBefore = 1.f;
+    float mOffset = 0.f;  // from the segment's vertex to the piece's start
 };
 
 // The next vertex from aRay's origin, a vertex in medium aMedium (aFromMedium: a medium
@@ -2853,9 +2865,11 @@ inline PathSegment TraceSegmentThroughMedia(const Scene& aScene, Ray aRay, int a
             segment.mWeight *= MediumTransmittance(medium, d) / forward;
             segment.mPdfs.mForward *= forward;
             segment.mPdfs.mReverse *= piece == 0 && aFromMedium ? FreeFlightDensity(medium, d) : FreeFlightProbability(medium, d);
+            if (piece == 0) segment.mFirstPiece = d;
+            segment.mLastPiece = d;
             if (aPieces) {
                 if (medium.Scatters())
-                    aPieces->push_back(SegmentPiece{aRay.mOrigin - offset * aRay.mDirection, d, aMedium, transmittance, probability});
+                    aPieces->push_back(SegmentPiece{aRay.mOrigin - offset * aRay.mDirection, d, aMedium, transmittance, probability, length});
                 transmittance *= MediumTransmittance(medium, d);
                 probability *= FreeFlightProbability(medium, d);
             }
@@ -2899,6 +2913,9 @@ struct SegmentMedia {
     // medium point) or flown through, and the product of the pieces between them.
     float mFirstDensity = 1.f, mFirstProbability = 1.f, mLastDensity = 1.f, mLastProbability = 1.f, mMiddle = 1.f;
     int mPieces = 0;
+    // UPBP's beam ratios (BeamCoverageRatio) at the start and at the end, for end points in media.
+    float FirstRatio() const { return mFirstProbability / mFirstDensity; }
+    float LastRatio() const { return mLastProbability / mLastDensity; }
     // The segment's forward and reverse pdfs, for ends that are medium points or surfaces.
     SegmentPdfs Pdfs(bool aStartInMedium, bool aEndInMedium) const {
         if (mPieces <= 1)
@@ -3725,6 +3742,7 @@ enum class Algorithm {
     kPhotonMappingFinalGather,
     kBeamRadianceEstimate,
     kPhotonBeams,
+    kUpbp,
 };
 
 // SmallVCM's short names ("el", "pt", "lt", "ppm", "bpm", "bpt", "vcm"), and UPBP's names of
@@ -3743,6 +3761,7 @@ inline const char* AlgorithmShortName(Algorithm aAlgorithm) {
     case Algorithm::kPhotonMappingFinalGather: return "pmfg";
     case Algorithm::kBeamRadianceEstimate: return "pb2d";
     case Algorithm::kPhotonBeams: return "bb1d";
+    case Algorithm::kUpbp: return "upbp";
     }
     return "?";
 }
@@ -3751,12 +3770,36 @@ inline std::optional<Algorithm> ParseAlgorithm(const std::string& aName) {
                         Algorithm::kProgressivePhotonMapping, Algorithm::kBidirectionalPhotonMapping,
                         Algorithm::kBidirectionalPathTracing, Algorithm::kVertexConnectionMerging,
                         Algorithm::kPhotonMapping, Algorithm::kPhotonMappingFinalGather, Algorithm::kBeamRadianceEstimate,
-                        Algorithm::kPhotonBeams})
+                        Algorithm::kPhotonBeams, Algorithm::kUpbp})
         if (aName == AlgorithmShortName(a)) return a;
     return std::nullopt;
 }
 
 enum class MisHeuristic { kBalance, kPower };
+
+// The techniques UPBP combines under one MIS (-a upbp), by the names of its paper and of
+// --techniques: bpt (light tracing, next-event estimation, connections), surf (merging on
+// surfaces), pp3d (photon points at camera points in media), pb2d (photon points along
+// camera segments), bb1d (photon beams along camera segments). A camera path hitting a
+// light is always on.
+enum UpbpTechnique : uint32_t { kUpbpBpt = 1, kUpbpSurface = 2, kUpbpPp3d = 4, kUpbpPb2d = 8, kUpbpBb1d = 16, kUpbpAll = 31 };
+inline constexpr const char* kUpbpTechniqueNames[5] = {"bpt", "surf", "pp3d", "pb2d", "bb1d"};
+// "bpt,surf,pb2d" as a set; nothing for an empty list, an unknown or a repeated name.
+inline std::optional<uint32_t> ParseUpbpTechniques(const std::string& aList) {
+    uint32_t set = 0;
+    size_t start = 0;
+    for (;;) {
+        const size_t comma = aList.find(',', start);
+        const std::string name = aList.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+        uint32_t bit = 0;
+        for (int i = 0; i < 5; i++)
+            if (name == kUpbpTechniqueNames[i]) bit = 1u << i;
+        if (bit == 0 || (set & bit)) return std::nullopt;
+        set |= bit;
+        if (comma == std::string::npos) return set;
+        start = comma + 1;
+    }
+}
 
 // Path tracing only: the techniques that estimate direct light. kMis combines light
 // sampling (next-event estimation) and BSDF sampling; the other two keep one of them
@@ -3785,6 +3828,7 @@ struct RenderOptions {
     // an iteration grows with N_L N_B: beams from all 262,144 light sub-paths of a 512 x 512
     // iteration would make each camera ray test hundreds of thousands.
     int mBeamPaths = 4096;
+    uint32_t mUpbpTechniques = kUpbpAll;  // upbp: the techniques it combines (UpbpTechnique)
     float mRadiusAlpha = 0.75f;   // radius shrinks as r_i = r_0 (i+1)^((alpha-1)/2)
     MisHeuristic mMisHeuristic = MisHeuristic::kBalance;
     DirectLightSampling mDirectLight = DirectLightSampling::kMis;  // path tracing only
@@ -4437,6 +4481,11 @@ struct VcmMisConstants {
     // surface. ForMedium() gives the constants of a medium vertex.
     float mMergeHere = 1.f;
     float mInvMergeHere = 1.f;
+    // UPBP's merges along beams at a point in a medium (VcmMis::BeamMerges): eta of the
+    // beam radiance estimate (pb2d), N_L pi r^2, and of photon beams (bb1d), N_B 2 r; 0
+    // where the technique is off (every algorithm but upbp).
+    float mEtaPb2d = 0.f, mEtaBb1d = 0.f;
+    bool HasBeamMerges() const { return mEtaPb2d > 0.f || mEtaBb1d > 0.f; }
 
     float Mis(float aPdf) const { return MisPower(mHeuristic, aPdf); }
 
@@ -4571,6 +4620,35 @@ inline void ThroughMedia(const VcmMisConstants& c, SubpathMis& m, float aForward
     m.dVM *= reverse;
 }
 
+// UPBP [Krivanek et al. 2014, sec. 5]. A path with a medium vertex x_i could also have
+// been made by merging along a beam there: pb2d (photon point x_i, the camera's segment
+// into x_i as a beam) and bb1d (the light's segment and the camera's segment as beams).
+// Their pdfs are the point merge's, both sub-paths sampling x_i, times their eta, with a
+// beam's coverage in place of the free-flight density of each side that integrates along
+// its segment (R = P / p, BeamCoverageRatio), and bb1d's 1D kernel across two lines at
+// angle theta: eta_pb R_camera and eta_bb sin(theta) R_light R_camera. This is their sum,
+// in the units of mVmWeightFactor (a connection's pdf times eta).
+inline float BeamMerges(const VcmMisConstants& c, float aRatioLight, float aRatioCamera, float aSinTheta) {
+    float merges = 0.f;
+    if (c.mEtaPb2d > 0.f) merges += c.Mis(c.mEtaPb2d * aRatioCamera);
+    if (c.mEtaBb1d > 0.f) merges += c.Mis(c.mEtaBb1d * aSinTheta * aRatioLight * aRatioCamera);
+    return merges;
+}
+
+// The beam merges of a sub-path's medium vertex x_i enter its dVC and dVM as the point
+// merges do (AfterScatter's mVmWeightFactor term), but R at x_i from the other side needs
+// the segment after x_i: so they are added once that segment is traced, after
+// ThroughMedia. AfterScatter's term reaches the next vertex as dVCM_(i+1) times
+// aReverseGeometry = the reverse free-flight pdf of the segment / d^2 (cos = 1 in a
+// medium; no d^2 for a segment that left the scene), so the beam merges' term is the same
+// product; dVM = dVC / eta_surface as in (36).
+inline void AfterBeamMergesBehind(const VcmMisConstants& c, SubpathMis& m, float aReverseGeometry, float aBeamMerges) {
+    if (!(aReverseGeometry > 0.f)) return;  // a segment that nothing could sample back
+    const float merges = m.dVCM * c.Mis(aReverseGeometry) * aBeamMerges;
+    m.dVC += merges;
+    m.dVM += merges * c.mInvEtaWeight;
+}
+
 // Camera sub-path hits a light (s = 0) [tech. rep. (42), (43)]. Pdfs include the pick
 // probability: aDirectPdfA is NEE's area pdf of the point (solid angle for a background),
 // aEmissionPdfW the emission pdf of the point and the reversed ray direction.
@@ -4586,14 +4664,15 @@ inline float WeightCameraHitsLight(const VcmMisConstants& c, const SubpathMis& a
 // Next-event estimation (s = 1) [tech. rep. (44), (45)]. aBsdfDirPdfW / aBsdfRevPdfW: the
 // camera vertex's BSDF pdfs towards the light / towards the previous camera vertex
 // (with continuation probability); aDirectPdfW, aEmissionPdfW with the pick probability.
+// aBeamMerges: UPBP's merges along beams at the camera vertex (BeamMerges; 0 elsewhere).
 inline float WeightNextEvent(const VcmMisConstants& c, const SubpathMis& aCamera, float aBsdfDirPdfW,
                              float aBsdfRevPdfW, float aDirectPdfW, float aEmissionPdfW, float aCosToLight,
-                             float aCosAtLight, bool aIsDeltaLight) {
+                             float aCosAtLight, bool aIsDeltaLight, float aBeamMerges = 0.f) {
     // BEGIN EXERCISE bpt_mis/weight_next_event
     // The unidirectional technique that would hit the same light point; none for delta lights.
     const float wLight = aIsDeltaLight ? 0.f : c.Mis(aBsdfDirPdfW / aDirectPdfW);
     const float wCamera = c.Mis(aEmissionPdfW * aCosToLight / (aDirectPdfW * aCosAtLight)) *
-                          (c.mVmWeightFactor + aCamera.dVCM + aCamera.dVC * c.Mis(aBsdfRevPdfW));
+                          (c.mVmWeightFactor + aBeamMerges + aCamera.dVCM + aCamera.dVC * c.Mis(aBsdfRevPdfW));
     return 1.f / (wLight + 1.f + wCamera);
     // END EXERCISE bpt_mis/weight_next_event
 }
@@ -4601,11 +4680,12 @@ inline float WeightNextEvent(const VcmMisConstants& c, const SubpathMis& aCamera
 // Light tracing: a light vertex connected to the camera (t = 1) [tech. rep. (46), (47)].
 // aCameraPdfA: the camera's pdf of generating this vertex (per pixel area, in area
 // measure); aBsdfRevPdfW: the light vertex's BSDF pdf towards its predecessor.
+// aBeamMerges: UPBP's merges along beams at the light vertex (BeamMerges; 0 elsewhere).
 inline float WeightLightTracing(const VcmMisConstants& c, const SubpathMis& aLight, float aCameraPdfA,
-                                float aBsdfRevPdfW) {
+                                float aBsdfRevPdfW, float aBeamMerges = 0.f) {
     // BEGIN EXERCISE bpt_mis/weight_light_tracing
     const float wLight = c.Mis(aCameraPdfA / c.mLightPathCount) *
-                         (c.mVmWeightFactor + aLight.dVCM + aLight.dVC * c.Mis(aBsdfRevPdfW));
+                         (c.mVmWeightFactor + aBeamMerges + aLight.dVCM + aLight.dVC * c.Mis(aBsdfRevPdfW));
     return 1.f / (wLight + 1.f);
     // END EXERCISE bpt_mis/weight_light_tracing
 }
@@ -4638,6 +4718,18 @@ inline float WeightMerge(const VcmMisConstants& c, const SubpathMis& aLight, con
     const float wCamera = (aCamera.dVCM * c.mVcWeightFactor + aCamera.dVM * c.Mis(aCameraBsdfRevPdfW)) * c.mInvMergeHere;
     return 1.f / (wLight + 1.f + wCamera);
     // END EXERCISE vcm_mis/merge_weight
+}
+
+// UPBP: one of several merges at a medium vertex, aThisMerge of aMergesHere (the point
+// merge's mVmWeightFactor plus BeamMerges, each with the vertex's R and theta), against
+// the techniques each sub-path stands for: (38), (39) multiplied out by eta_surface, as
+// dVM = dVC / eta_surface.
+inline float WeightMergeAmong(const VcmMisConstants& c, const SubpathMis& aLight, const SubpathMis& aCamera,
+                              float aCameraBsdfDirPdfW, float aCameraBsdfRevPdfW, float aMergesHere, float aThisMerge) {
+    const float connectHere = c.mUseVC ? 1.f : 0.f;
+    const float wLight = aLight.dVCM * connectHere + aLight.dVC * c.Mis(aCameraBsdfDirPdfW);
+    const float wCamera = aCamera.dVCM * connectHere + aCamera.dVC * c.Mis(aCameraBsdfRevPdfW);
+    return aThisMerge / (aMergesHere + wLight + wCamera);
 }
 
 } // namespace VcmMis
@@ -4738,9 +4830,13 @@ public:
     // Technique classes, the layers of the VCM overview (F15) and the VC/VM shares (F17).
     // Merging at points in a medium (photon points) is its own class; its layer exists only
     // in a scene with media.
-    enum Technique { kUnidirectional = 0, kNextEvent, kLightTracing, kConnection, kMerging, kMediumMerging, kTechniqueCount };
+    // pb2d and bb1d, merging along camera segments in media, are their own classes too.
+    enum Technique {
+        kUnidirectional = 0, kNextEvent, kLightTracing, kConnection, kMerging, kMediumMerging, kPointBeamMerging, kBeamBeamMerging,
+        kTechniqueCount
+    };
     static constexpr const char* kTechniqueLayerNames[kTechniqueCount] = {
-        "unidirectional", "nee", "light_tracing", "connection", "merging", "merging_in_media"};
+        "unidirectional", "nee", "light_tracing", "connection", "merging", "merging_in_media", "pb2d", "bb1d"};
     // BPT's path pyramid: one layer per (s, t) up to this path length.
     static constexpr int kPyramidMaxLength = 5;
 
@@ -4751,11 +4847,26 @@ public:
         case Algorithm::kBidirectionalPhotonMapping: mUseVC = false; mUseVM = true; break;
         case Algorithm::kBidirectionalPathTracing: mUseVC = true; mUseVM = false; break;
         case Algorithm::kVertexConnectionMerging: mUseVC = true; mUseVM = true; break;
-        case Algorithm::kBeamRadianceEstimate: mPpm = true; mUseVC = false; mUseVM = true; mBeamQueries = true; break;
-        case Algorithm::kPhotonBeams:
-            mPpm = true; mUseVC = false; mUseVM = true; mBeamQueries = true; mPhotonBeamsOn = true;
+        case Algorithm::kBeamRadianceEstimate: mPpm = true; mUseVC = false; mUseVM = true; mPointsAlongRaysOn = true; break;
+        case Algorithm::kPhotonBeams: mPpm = true; mUseVC = false; mUseVM = true; mPhotonBeamsOn = true; break;
+        case Algorithm::kUpbp: {
+            const uint32_t techniques = mOptions.mUpbpTechniques;
+            mUpbp = true;
+            mUseVC = (techniques & kUpbpBpt) != 0;
+            mMergeSurfaces = (techniques & kUpbpSurface) != 0;
+            mMergeMediumPoints = (techniques & kUpbpPp3d) != 0;
+            mPointsAlongRaysOn = (techniques & kUpbpPb2d) != 0;
+            mPhotonBeamsOn = (techniques & kUpbpBb1d) != 0;
+            mUseVM = mMergeSurfaces || mMergeMediumPoints || mPointsAlongRaysOn || mPhotonBeamsOn;
             break;
+        }
         default: throw Error("VertexCM: algorithm '" + std::string(AlgorithmShortName(mOptions.mAlgorithm)) + "' is not of the VertexCM family");
+        }
+        mBeamQueries = mPointsAlongRaysOn || mPhotonBeamsOn;
+        mBeamMis = mUpbp && mBeamQueries && mScene.HasMedia();
+        if (!mUpbp) {  // the others merge at every kind of point they merge at (pb2d and bb1d: not at camera points in media)
+            mMergeSurfaces = mUseVM;
+            mMergeMediumPoints = mUseVM && !mBeamQueries;
         }
         mBaseRadius = mOptions.mRadiusFactor * mScene.GetSceneSphere().mRadius;
         if (mOptions.mTechniqueLayers) AddTechniqueLayers();
@@ -4776,7 +4887,9 @@ public:
         const float radius = MergeRadius(aIteration);
         mMisConstants = VcmMisConstants::Make(mOptions.mMisHeuristic, mUseVC, mUseVM, float(pathCount), radius);
         const float mediumRadius = radius * (mOptions.mMediumRadiusFactor / mOptions.mRadiusFactor);
+        const float beamRadius = radius * (mOptions.mBeamRadiusFactor / mOptions.mRadiusFactor);
         mMisConstantsMedium = mMisConstants.ForMedium(mediumRadius);
+        if (mUpbp) SetUpbpConstants(pathCount, mediumRadius, beamRadius);
 
         // 1. Light sub-paths: traced, connected to the camera, their vertices stored.
         TraceLightSubpaths(aSampler, pathCount);
@@ -4786,16 +4899,11 @@ public:
         //    and the points in media (each merges only with its own kind); for the beam
         //    estimates, the points in media (pb2d) or the photon beams (bb1d) along rays.
         if (mUseVM) {
-            BuildVertexSearch(mLightVertexSearch, mSurfaceVertexIndices, false, radius);
+            if (mMergeSurfaces) BuildVertexSearch(mLightVertexSearch, mSurfaceVertexIndices, false, radius);
             if (mScene.HasMedia()) {
-                if (mPhotonBeamsOn) {
-                    BuildPhotonBeamSearch(radius * (mOptions.mBeamRadiusFactor / mOptions.mRadiusFactor), pathCount);
-                } else if (mBeamQueries) {
-                    BuildVertexSearch(mPointsAlongRays, mMediumVertexIndices, true, mediumRadius);
-                    mBeamKernel = 1.f / (kPi * Sqr(mediumRadius) * float(pathCount));
-                } else {
-                    BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, mediumRadius);
-                }
+                if (mMergeMediumPoints) BuildVertexSearch(mMediumVertexSearch, mMediumVertexIndices, true, mediumRadius);
+                if (mPointsAlongRaysOn) BuildPointsAlongRays(mediumRadius, pathCount);
+                if (mPhotonBeamsOn) BuildPhotonBeamSearch(beamRadius, pathCount);
             }
         }
 
@@ -4803,6 +4911,18 @@ public:
         //    sampler pairs it with (the pixel's own, or a permutation: see Sampler).
         for (int pixel = 0; pixel < pathCount; pixel++)
             TraceCameraSubpath(aSampler, pixel, aSampler.LightPathOfPixel(pixel, pathCount));
+    }
+
+    // UPBP's MIS constants: eta of pb2d (its radius is the one of points in media) and of
+    // bb1d (N_B light sub-paths store beams); a technique that is off has eta 0, so its
+    // terms drop out of every sum exactly (and the point merges: mVmWeightFactor 0).
+    void SetUpbpConstants(int aPathCount, float aMediumRadius, float aBeamRadius) {
+        for (VcmMisConstants* c : {&mMisConstants, &mMisConstantsMedium}) {
+            c->mEtaPb2d = mPointsAlongRaysOn ? kPi * Sqr(aMediumRadius) * float(aPathCount) : 0.f;
+            c->mEtaBb1d = mPhotonBeamsOn ? 2.f * aBeamRadius * float(std::min(aPathCount, mOptions.mBeamPaths)) : 0.f;
+        }
+        if (!mMergeSurfaces) mMisConstants.mVmWeightFactor = mMisConstants.mMergeHere = 0.f;
+        if (!mMergeMediumPoints) mMisConstantsMedium.mVmWeightFactor = mMisConstantsMedium.mMergeHere = 0.f;
     }
 
     // --- what tests and tools may inspect ----------------------------------------------
@@ -4847,11 +4967,28 @@ public:
     // A photon beam (bb1d): a light segment's piece in a scattering medium, as far as the
     // light's flight went, and what it carries at its start: beta_L at the segment's start
     // times T / P of the segment's earlier pieces.
+    // UPBP: what the MIS weight of a point on a beam (a photon beam, or a camera segment as
+    // a query) needs of the segment the beam is a piece of (MisOnBeam).
+    struct BeamMis {
+        SubpathMis mMis;                 // the sub-path's, after scattering at the segment's start
+        float mOffset = 0.f;             // from the start vertex to the piece
+        float mProbabilityBefore = 1.f;  // forward: the pieces before this one flown through
+        float mReverseBefore = 1.f;      // reverse: the same, but reaching a start in a medium with density
+        float mRatioAtStart = 0.f;       // R at a start in a medium, when this is not its first piece
+        float mRatioIn = 0.f, mSinOut = 0.f;  // the start vertex's (SubpathState)
+        bool mFirstPiece = true, mStartInMedium = false, mApplyDistance = true;
+    };
     struct PhotonBeam {
         Beam mBeam;
         Vec3 mThroughput{0.f};
         int mPathLength = 0;  // segments of the light sub-path, this one included
         int mMedium = -1;
+        int mLightPath = -1;  // which light sub-path of the iteration stored it
+        BeamMis mMis;         // upbp only
+    };
+    // A stored point in a medium as pb2d's search keeps it, with its place in mLightVertices.
+    struct PhotonPoint : MergeData {
+        uint32_t mVertex = 0;
     };
     struct LightVertex : MergeData {
         Vec3 mHitPoint{0.f};
@@ -4872,6 +5009,9 @@ private:
         int mMedium = -1;           // the medium the next segment starts in
         bool mInMedium = false;     // the last vertex is a point in a medium
         SubpathMis mMis;
+        // upbp: at the last vertex, if in a medium, R of the segment that reached it
+        // (BeamCoverageRatio) and sin theta between that segment and the next.
+        float mRatioIn = 0.f, mSinOut = 0.f;
     };
 
     // What one technique adds to one pixel: the path's f/p and its MIS weight; the film
@@ -4898,6 +5038,7 @@ private:
     // they go and stored for stage 3 (light sub-path p ends at mPathEnds[p]).
     void TraceLightSubpaths(Sampler& aSampler, int aPathCount) {
         mLightVertices.clear();
+        mLightRatios.clear();
         mPhotonBeams.clear();
         // Room for 4 stored vertices per light path before the first iteration, so the
         // vector does not grow by copying itself while it is filled (reserved pages that
@@ -4908,6 +5049,7 @@ private:
         for (int path = 0; path < aPathCount; path++) {
             aSampler.StartLightPath(path, aPathCount);
             mStoreBeams = mPhotonBeamsOn && path < mOptions.mBeamPaths;
+            mLightPath = path;
             TraceLightSubpath(aSampler);
             mPathEnds[size_t(path)] = mLightVertices.size();
         }
@@ -4937,6 +5079,7 @@ private:
             VcmMis::AfterSegment(mMisConstants, light.mMis, segment.Length(), bsdf.CosThetaFixGeometric(),
                                  light.mPathLength > 1 || light.mIsFiniteLight);
             if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, light.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
+            if (mBeamMis) FollowBeamMerges(light, segment, false, light.mPathLength > 1 || light.mIsFiniteLight);
             if (mPathRecords) mLightHistories.back().push_back(RecordedVertex(segment));
 
             if (!bsdf.IsDelta()) {
@@ -4956,10 +5099,13 @@ private:
 
     // The segment just traced, piece by piece in scattering media, as photon beams (bb1d).
     void StorePhotonBeams(const SubpathState& aLight, const Vec3& aDirection) {
-        for (const SegmentPiece& piece : mSegmentPieces)
+        for (size_t p = 0; p < mSegmentPieces.size(); p++) {
+            const SegmentPiece& piece = mSegmentPieces[p];
             mPhotonBeams.push_back(PhotonBeam{Beam{piece.mStart, aDirection, piece.mLength},
                                               aLight.mThroughput * piece.mTransmittanceBefore / piece.mProbabilityBefore,
-                                              aLight.mPathLength, piece.mMedium});
+                                              aLight.mPathLength, piece.mMedium, mLightPath, BeamMis{}});
+            if (mUpbp) mPhotonBeams.back().mMis = BeamMisOf(aLight, p, aLight.mPathLength > 1 || aLight.mIsFiniteLight);
+        }
     }
 
     void StoreLightVertex(const SubpathState& aLight, const Ray& aRay, const PathSegment& aSegment) {
@@ -4972,6 +5118,7 @@ private:
         vertex.mInMedium = aSegment.mInMedium;
         vertex.mDirFix = -aRay.mDirection;
         vertex.mMis = aLight.mMis;
+        if (mUpbp) mLightRatios.push_back(aLight.mRatioIn);
     }
     // What the test hook records of a vertex a segment ended at.
     // (A light sub-path's records leave the light of an emitter it hits out.)
@@ -4994,11 +5141,21 @@ private:
                       [&](size_t i) { return static_cast<const MergeData&>(mLightVertices[aIndices[i]]); });
     }
 
+    // The beam radiance estimate's search: the stored points in media, queried along rays.
+    void BuildPointsAlongRays(float aRadius, int aPathCount) {
+        std::vector<uint32_t>& indices = mMediumVertexIndices;
+        indices.clear();
+        for (size_t i = 0; i < mLightVertices.size(); i++)
+            if (mLightVertices[i].mInMedium) indices.push_back(uint32_t(i));
+        mPointsAlongRays.Build(indices.size(), aRadius, [&](size_t i) { return mLightVertices[indices[i]].mHitPoint; },
+                               [&](size_t i) { return PhotonPoint{static_cast<const MergeData&>(mLightVertices[indices[i]]), indices[i]}; });
+        mPointBeamKernel = 1.f / (kPi * Sqr(aRadius) * float(aPathCount));
+    }
     // The photon beam estimate's search: the stored photon beams, queried along rays.
     void BuildPhotonBeamSearch(float aRadius, int aPathCount) {
         mBeamsAlongRays.Build(mPhotonBeams.size(), aRadius, [&](size_t i) { return mPhotonBeams[i].mBeam; },
                               [&](size_t i) { return mPhotonBeams[i]; });
-        mBeamKernel = 1.f / (2.f * aRadius * float(std::min(aPathCount, mOptions.mBeamPaths)));
+        mBeamBeamKernel = 1.f / (2.f * aRadius * float(std::min(aPathCount, mOptions.mBeamPaths)));
     }
 
     // --- stage 3: camera sub-paths ---------------------------------------------------------
@@ -5031,6 +5188,7 @@ private:
                 // apply (a background's pdfs are per solid angle), but the free flights were
                 // sampled, as next-event estimation's connection to the background knows.
                 if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, cam.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
+                if (mBeamMis) FollowBeamMerges(cam, segment, true, false);
                 AddToFilm(aPixel, BackgroundHit(cam, ray.mDirection));
                 return;
             }
@@ -5038,10 +5196,11 @@ private:
             const float distance = segment.Length();
             VcmMis::AfterSegment(mMisConstants, cam.mMis, distance, cosAtHit, true);
             if (mScene.HasMedia()) VcmMis::ThroughMedia(mMisConstants, cam.mMis, segment.mPdfs.mForward, segment.mPdfs.mReverse);
+            if (mBeamMis) FollowBeamMerges(cam, segment, true, true);
             if (mPathRecords) mCameraHistory.push_back(RecordedVertex(segment, true));
 
             if (segment.mInMedium) {
-                if (mBeamQueries) return;  // the scattering here was gathered along the segment
+                if (mBeamQueries && mPpm) return;  // the scattering here was gathered along the segment
                 bsdf.SetupInMedium(-ray.mDirection, mScene.GetMedium(segment.mMedium), Transport::kRadiance);
             } else {
                 // Continues after a light only if the emitter's material reflects (see PathTracer).
@@ -5077,10 +5236,10 @@ private:
                 const int pathLength = vertex.mPathLength + aCamera.mPathLength + 1;
                 if (pathLength > mOptions.mMaxPathLength) break;  // the sub-path's vertices only get longer
                 if (pathLength < mOptions.mMinPathLength) continue;
-                AddToFilm(aPixel, ConnectVertices(aCamera, aVertex, aBsdf, vertex, PixelLightBsdf(i - begin, vertex)));
+                AddToFilm(aPixel, ConnectVertices(aCamera, aVertex, aBsdf, vertex, PixelLightBsdf(i - begin, vertex), i));
             }
         }
-        if (mUseVM) AddToFilm(aPixel, MergeWithLightVertices(aCamera, aVertex.Position(), aBsdf));
+        if (aVertex.mInMedium ? mMergeMediumPoints : mMergeSurfaces) AddToFilm(aPixel, MergeWithLightVertices(aCamera, aVertex.Position(), aBsdf));
     }
 
     // --- sub-path starts and steps -----------------------------------------------------------
@@ -5150,6 +5309,7 @@ private:
         // The cosine converts the reverse pdf at this vertex to area: the geometric one.
         VcmMis::AfterScatter(MisAt(aBsdf), aState.mMis, aBsdf.GeometricCos(scatter->mDirection, scatter->mCosThetaOut),
                              scatter->mPdfW, scatter->mReversePdfW, specular);
+        if (mBeamMis && aVertex.mInMedium) aState.mSinOut = SinBetween(aState.mDirection, scatter->mDirection);
         aState.mOrigin = aVertex.Position();
         aState.mDirection = scatter->mDirection;
         aState.mMedium = MediumTowards(mScene, aVertex, scatter->mDirection);
@@ -5196,7 +5356,10 @@ private:
         // importance, f_s times the adjoint factor; Bsdf notes). Equal on flat surfaces.
         const float cameraPdfA = CameraPdfA(dirToCamera, distance, aBsdf.GeometricCos(dirToCamera, toCamera.mCosThetaGen)) *
                                  media.Pdfs(aVertex.mInMedium, false).mReverse;
-        const float weight = mLightTraceOnly ? 1.f : VcmMis::WeightLightTracing(MisAt(aBsdf), aLight.mMis, cameraPdfA, toCamera.mRevPdfW);
+        const float beamMerges = mBeamMis && aVertex.mInMedium
+                                     ? VcmMis::BeamMerges(mMisConstants, aLight.mRatioIn, media.FirstRatio(), SinBetween(aLight.mDirection, dirToCamera))
+                                     : 0.f;
+        const float weight = mLightTraceOnly ? 1.f : VcmMis::WeightLightTracing(MisAt(aBsdf), aLight.mMis, cameraPdfA, toCamera.mRevPdfW, beamMerges);
         // Each of the N_L light sub-paths estimates the whole image: divide by N_L.
         const Vec3 unweighted = aLight.mThroughput * toCamera.mValue * media.mTransmittance *
                                 (CameraPdfA(dirToCamera, distance, toCamera.mCosThetaGen) / mMisConstants.mLightPathCount);
@@ -5274,12 +5437,16 @@ private:
         if (media.mOccluded) return {};
         const SegmentPdfs flight = media.Pdfs(aVertex.mInMedium, false);
         const float directPdfW = sample->mDirectPdfW * pick.mProb;
+        const float beamMerges = mBeamMis && aVertex.mInMedium
+                                     ? VcmMis::BeamMerges(mMisConstants, media.FirstRatio(), aCamera.mRatioIn,
+                                                          SinBetween(aCamera.mDirection, sample->mDirToLight))
+                                     : 0.f;
         // The MIS weight converts the emission pdf to area at this vertex: geometric cosine;
         // the contribution's cosine is the shading one that goes with f (Bsdf notes).
         const float weight = VcmMis::WeightNextEvent(MisAt(aBsdf), aCamera.mMis, toLight.mDirPdfW * flight.mForward, toLight.mRevPdfW,
                                                      directPdfW, sample->mEmissionPdfW * pick.mProb * flight.mReverse,
                                                      aBsdf.GeometricCos(sample->mDirToLight, toLight.mCosThetaGen),
-                                                     sample->mCosAtLight, light.IsDelta());
+                                                     sample->mCosAtLight, light.IsDelta(), beamMerges);
         const Vec3 unweighted = aCamera.mThroughput * toLight.mValue * sample->mRadiance * media.mTransmittance *
                                 (toLight.mCosThetaGen / directPdfW);
         return Made(kNextEvent, unweighted, weight, 1, aCamera.mPathLength + 1);
@@ -5288,8 +5455,9 @@ private:
     // Vertex connection (s, t >= 2) of the camera vertex with one vertex of this pixel's
     // own light sub-path, weighted by [tech. rep. (40), (41)].
     // Through media: the transmittance, and the free-flight pdfs of both directions.
+    // aIndex: the light vertex's place in mLightVertices.
     SMALLVCM_ALWAYS_INLINE Contribution ConnectVertices(const SubpathState& aCamera, const PathSegment& aCameraVertex, const Bsdf& aBsdf,
-                                                const LightVertex& aVertex, const Bsdf& aLightBsdf) const {
+                                                const LightVertex& aVertex, const Bsdf& aLightBsdf, size_t aIndex) const {
         const Vec3& point = aCameraVertex.Position();
         Vec3 direction = aVertex.mHitPoint - point;
         const float distanceSqr = glm::dot(direction, direction);
@@ -5309,12 +5477,20 @@ private:
         // carries the adjoint factor, so f cos is f_path |cos_geometric|: Bsdf notes);
         // the pdfs change measure at the other vertex by its geometric cosine.
         const float geometryTerm = cameraSide.mCosThetaGen * lightSide.mCosThetaGen / distanceSqr;
+        // The merges each end could have made: UPBP's beam merges at ends in media too.
+        float lightMerges = MisAt(aLightBsdf).mVmWeightFactor, cameraMerges = MisAt(aBsdf).mVmWeightFactor;
+        if (mBeamMis) {
+            if (aVertex.mInMedium)
+                lightMerges += VcmMis::BeamMerges(mMisConstants, mLightRatios[aIndex], media.LastRatio(), SinBetween(aVertex.mDirFix, direction));
+            if (aCameraVertex.mInMedium)
+                cameraMerges += VcmMis::BeamMerges(mMisConstants, media.FirstRatio(), aCamera.mRatioIn, SinBetween(aCamera.mDirection, direction));
+        }
         const float weight = VcmMis::WeightConnection(
             mMisConstants, aVertex.mMis, aCamera.mMis,
             PdfWtoA(cameraSide.mDirPdfW, distance, aLightBsdf.GeometricCos(-direction, lightSide.mCosThetaGen)) * flight.mForward,
             cameraSide.mRevPdfW,
             PdfWtoA(lightSide.mDirPdfW, distance, aBsdf.GeometricCos(direction, cameraSide.mCosThetaGen)) * flight.mReverse,
-            lightSide.mRevPdfW, MisAt(aLightBsdf).mVmWeightFactor, MisAt(aBsdf).mVmWeightFactor);
+            lightSide.mRevPdfW, lightMerges, cameraMerges);
         const Vec3 unweighted = aCamera.mThroughput * aVertex.mThroughput * cameraSide.mValue * lightSide.mValue * media.mTransmittance *
                                 geometryTerm;
         return Made(kConnection, unweighted, weight, aVertex.mPathLength + 1, aVertex.mPathLength + aCamera.mPathLength + 1);
@@ -5337,8 +5513,9 @@ private:
             // as the density estimate spreads flux over geometric area (Bsdf notes).
             const BsdfEval cameraSide = aBsdf.EvaluatePathWithRoulette(vertex.mDirFix);
             if (cameraSide.IsBlack()) return;
-            const float weight = mPpm ? 1.f : VcmMis::WeightMerge(mis, vertex.mMis, aCamera.mMis,
-                                                                 cameraSide.mDirPdfW, cameraSide.mRevPdfW);
+            const float weight = mPpm ? 1.f
+                                 : mBeamMis && inMedium ? PointMergeWeightUpbp(vertex, aCamera, cameraSide, mMediumVertexIndices[aIndex])
+                                 : VcmMis::WeightMerge(mis, vertex.mMis, aCamera.mMis, cameraSide.mDirPdfW, cameraSide.mRevPdfW);
             if (mPathRecords) RecordMerge((inMedium ? mMediumVertexIndices : mSurfaceVertexIndices)[aIndex], weight);
             sum += cameraSide.mValue * vertex.mThroughput * weight;
         });
@@ -5358,27 +5535,37 @@ private:
     // with probability P and T / P leaves T). The camera sub-path then ends if it
     // scattered in the medium; at a surface it goes on as in ppm. Points in any medium
     // count, as photon points merge across boundaries (see MergeWithLightVertices).
+    // Under UPBP's MIS (upbp) each photon's share is weighted (PointAlongBeamWeight).
     Contribution GatherPointsAlongSegment(const SubpathState& aCamera, const Vec3& aDirection) {
         Vec3 sum(0.f);
-        for (const SegmentPiece& piece : mSegmentPieces) {
+        for (size_t p = 0; p < mSegmentPieces.size(); p++) {
+            const SegmentPiece& piece = mSegmentPieces[p];
             const Medium& medium = mScene.GetMedium(piece.mMedium);
             Bsdf phase;
             phase.SetupInMedium(-aDirection, medium, Transport::kRadiance);
-            mPointsAlongRays.Process(piece.mStart, aDirection, piece.mLength, [&](const MergeData& vertex, float aT) {
+            const BeamMis query = mBeamMis ? BeamMisOf(aCamera, p, true) : BeamMis{};
+            mPointsAlongRays.Process(piece.mStart, aDirection, piece.mLength, [&](const PhotonPoint& vertex, float aT) {
                 const int pathLength = vertex.mPathLength + aCamera.mPathLength;
                 if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
                 const Vec3 reach = piece.mTransmittanceBefore * MediumTransmittance(medium, aT) /
                                    (piece.mProbabilityBefore * FreeFlightProbability(medium, aT));
-                sum += reach * phase.EvaluatePathWithRoulette(vertex.mDirFix).mValue * vertex.mThroughput;
+                const BsdfEval cameraSide = phase.EvaluatePathWithRoulette(vertex.mDirFix);
+                float weight = 1.f;
+                if (mBeamMis) {
+                    weight = PointAlongBeamWeight(vertex, query, medium, aT, aDirection, cameraSide);
+                    if (mPathRecords) RecordBeamMerge(kPointBeamMerging, vertex.mVertex, nullptr, piece, aT, aDirection, weight);
+                }
+                sum += reach * cameraSide.mValue * vertex.mThroughput * weight;
             });
         }
         if (IsBlack(sum)) return {};
-        return Made(kMediumMerging, aCamera.mThroughput * sum * mBeamKernel, 1.f, -1, -1);
+        return Made(kPointBeamMerging, aCamera.mThroughput * sum * mPointBeamKernel, 1.f, -1, -1);
     }
 
     // pb2d and bb1d: what the camera segment just traced gathers along its length.
     SMALLVCM_NOINLINE void GatherAlongSegment(int aPixel, const SubpathState& aCamera, const Vec3& aDirection) {
-        AddToFilm(aPixel, mPhotonBeamsOn ? GatherBeamsAlongSegment(aCamera, aDirection) : GatherPointsAlongSegment(aCamera, aDirection));
+        if (mPointsAlongRaysOn) AddToFilm(aPixel, GatherPointsAlongSegment(aCamera, aDirection));
+        if (mPhotonBeamsOn) AddToFilm(aPixel, GatherBeamsAlongSegment(aCamera, aDirection));
     }
 
     // Photon beams along a camera beam (bb1d) [Jarosz et al. 2011; Křivánek et al. 2014,
@@ -5391,12 +5578,15 @@ private:
     // dv moves the closest point by dv / sin theta, hence the 1 / sin theta that turns
     // the pair into a density along the beam. N_B: the light sub-paths that stored beams
     // (the first RenderOptions::mBeamPaths of the iteration's N_L).
+    // Under UPBP's MIS (upbp) each pair's share is weighted (BeamAlongBeamWeight).
     Contribution GatherBeamsAlongSegment(const SubpathState& aCamera, const Vec3& aDirection) {
         Vec3 sum(0.f);
-        for (const SegmentPiece& piece : mSegmentPieces) {
+        for (size_t p = 0; p < mSegmentPieces.size(); p++) {
+            const SegmentPiece& piece = mSegmentPieces[p];
             const Medium& medium = mScene.GetMedium(piece.mMedium);
             Bsdf phase;
             phase.SetupInMedium(-aDirection, medium, Transport::kRadiance);
+            const BeamMis query = mBeamMis ? BeamMisOf(aCamera, p, true) : BeamMis{};
             mBeamsAlongRays.Process(piece.mStart, aDirection, piece.mLength, [&](const PhotonBeam& beam, const BeamPair& pair) {
                 const int pathLength = beam.mPathLength + aCamera.mPathLength;
                 if (pathLength > mOptions.mMaxPathLength || pathLength < mOptions.mMinPathLength) return;
@@ -5405,11 +5595,114 @@ private:
                                          (piece.mProbabilityBefore * FreeFlightProbability(medium, pair.mT));
                 const Vec3 lightReach = beam.mThroughput * MediumTransmittance(beamMedium, pair.mU) /
                                         FreeFlightProbability(beamMedium, pair.mU);
-                sum += cameraReach * phase.EvaluatePathWithRoulette(-beam.mBeam.mDirection).mValue * lightReach / pair.mSinTheta;
+                const BsdfEval cameraSide = phase.EvaluatePathWithRoulette(-beam.mBeam.mDirection);
+                float weight = 1.f;
+                if (mBeamMis) {
+                    weight = BeamAlongBeamWeight(beam, pair, query, medium, cameraSide);
+                    if (mPathRecords) RecordBeamMerge(kBeamBeamMerging, 0, &beam, piece, pair.mT, aDirection, weight, pair.mU);
+                }
+                sum += cameraReach * cameraSide.mValue * lightReach / pair.mSinTheta * weight;
             });
         }
         if (IsBlack(sum)) return {};
-        return Made(kMediumMerging, aCamera.mThroughput * sum * mBeamKernel, 1.f, -1, -1);
+        return Made(kBeamBeamMerging, aCamera.mThroughput * sum * mBeamBeamKernel, 1.f, -1, -1);
+    }
+
+    // --- UPBP's MIS along beams [Krivanek et al. 2014, sec. 5] -------------------------------
+    // A beam merge meets at a point x_i that one or both sub-paths did not sample: they
+    // passed it on a segment. Each such side's MIS state at x_i is the one it would have
+    // had had it sampled x_i there: the segment replayed up to x_i (MisOnBeam). Then the
+    // weight is the point merge's (WeightMergeAmong), among all the merges x_i allows.
+    static float SinBetween(const Vec3& aA, const Vec3& aB) { return glm::length(glm::cross(aA, aB)); }
+
+    // What MisOnBeam needs of piece aPiece of the segment just traced (mSegmentPieces) from
+    // aState's last vertex.
+    BeamMis BeamMisOf(const SubpathState& aState, size_t aPiece, bool aApplyDistance) const {
+        const SegmentPiece& piece = mSegmentPieces[aPiece];
+        BeamMis b;
+        b.mMis = aState.mMis;
+        b.mOffset = piece.mOffset;
+        b.mProbabilityBefore = b.mReverseBefore = piece.mProbabilityBefore;
+        b.mRatioIn = aState.mRatioIn;
+        b.mSinOut = aState.mSinOut;
+        b.mStartInMedium = aState.mInMedium;
+        b.mApplyDistance = aApplyDistance;
+        // From a point in a medium the first piece is its medium's: the reversed flight
+        // reaches the start with density there, not with probability.
+        b.mFirstPiece = aPiece == 0;
+        if (aState.mInMedium && aPiece > 0) {
+            const SegmentPiece& first = mSegmentPieces[0];
+            const Medium& medium = mScene.GetMedium(first.mMedium);
+            b.mReverseBefore *= FreeFlightDensity(medium, first.mLength) / FreeFlightProbability(medium, first.mLength);
+            b.mRatioAtStart = BeamCoverageRatio(medium, first.mLength);
+        }
+        return b;
+    }
+
+    // The MIS state at the point aT into a beam's piece (in aMedium), as if its sub-path had
+    // sampled it there, and oRatio, R there (BeamCoverageRatio).
+    SubpathMis MisOnBeam(const BeamMis& aBeam, const Medium& aMedium, float aT, bool aCamera, float& oRatio) const {
+        SubpathMis m = aBeam.mMis;
+        const bool reachStartWithDensity = aBeam.mFirstPiece && aBeam.mStartInMedium;
+        const float forward = aBeam.mProbabilityBefore * FreeFlightDensity(aMedium, aT);
+        const float reverse = aBeam.mReverseBefore * (reachStartWithDensity ? FreeFlightDensity(aMedium, aT) : FreeFlightProbability(aMedium, aT));
+        const float distance = aBeam.mOffset + aT;
+        VcmMis::AfterSegment(mMisConstants, m, distance, 1.f, aBeam.mApplyDistance);
+        VcmMis::ThroughMedia(mMisConstants, m, forward, reverse);
+        if (aBeam.mStartInMedium) {  // the start vertex's own beam merges (FollowBeamMerges)
+            const float ratioOut = aBeam.mFirstPiece ? BeamCoverageRatio(aMedium, aT) : aBeam.mRatioAtStart;
+            const float merges = aCamera ? VcmMis::BeamMerges(mMisConstants, ratioOut, aBeam.mRatioIn, aBeam.mSinOut)
+                                         : VcmMis::BeamMerges(mMisConstants, aBeam.mRatioIn, ratioOut, aBeam.mSinOut);
+            VcmMis::AfterBeamMergesBehind(mMisConstants, m, reverse / Sqr(distance), merges);
+        }
+        oRatio = BeamCoverageRatio(aMedium, aT);
+        return m;
+    }
+
+    // After a segment of a sub-path under UPBP's MIS: the beam merges of the vertex it left
+    // (VcmMis::AfterBeamMergesBehind, which needs this segment's R at that vertex), and
+    // R of this segment at the vertex it reached.
+    void FollowBeamMerges(SubpathState& aState, const PathSegment& aSegment, bool aCamera, bool aApplyDistance) const {
+        if (aState.mInMedium) {
+            const float ratioOut = BeamCoverageRatio(mScene.GetMedium(aState.mMedium), aSegment.mFirstPiece);
+            const float merges = aCamera ? VcmMis::BeamMerges(mMisConstants, ratioOut, aState.mRatioIn, aState.mSinOut)
+                                         : VcmMis::BeamMerges(mMisConstants, aState.mRatioIn, ratioOut, aState.mSinOut);
+            const float geometry = aSegment.mPdfs.mReverse / (aApplyDistance ? Sqr(aSegment.Length()) : 1.f);
+            VcmMis::AfterBeamMergesBehind(mMisConstants, aState.mMis, geometry, merges);
+        }
+        aState.mRatioIn = aSegment.mInMedium ? BeamCoverageRatio(mScene.GetMedium(aSegment.mMedium), aSegment.mLastPiece) : 0.f;
+    }
+
+    // The merges a medium vertex allows: the point merge (pp3d, if on) and the beam merges.
+    float MergesAt(float aRatioLight, float aRatioCamera, float aSinTheta) const {
+        return mMisConstantsMedium.mVmWeightFactor + VcmMis::BeamMerges(mMisConstantsMedium, aRatioLight, aRatioCamera, aSinTheta);
+    }
+    // pp3d: both sub-paths sampled x_i.
+    float PointMergeWeightUpbp(const MergeData& aVertex, const SubpathState& aCamera, const BsdfEval& aCameraSide, uint32_t aIndex) const {
+        const VcmMisConstants& c = mMisConstantsMedium;
+        const float merges = MergesAt(mLightRatios[aIndex], aCamera.mRatioIn, SinBetween(aVertex.mDirFix, aCamera.mDirection));
+        return VcmMis::WeightMergeAmong(c, aVertex.mMis, aCamera.mMis, aCameraSide.mDirPdfW, aCameraSide.mRevPdfW, merges, c.mVmWeightFactor);
+    }
+    // pb2d: the light sampled x_i, the camera passed it.
+    float PointAlongBeamWeight(const PhotonPoint& aVertex, const BeamMis& aQuery, const Medium& aMedium, float aT, const Vec3& aDirection,
+                               const BsdfEval& aCameraSide) const {
+        const VcmMisConstants& c = mMisConstantsMedium;
+        float ratioCamera = 0.f;
+        const SubpathMis camera = MisOnBeam(aQuery, aMedium, aT, true, ratioCamera);
+        const float merges = MergesAt(mLightRatios[aVertex.mVertex], ratioCamera, SinBetween(aVertex.mDirFix, aDirection));
+        return VcmMis::WeightMergeAmong(c, aVertex.mMis, camera, aCameraSide.mDirPdfW, aCameraSide.mRevPdfW, merges,
+                                        c.Mis(c.mEtaPb2d * ratioCamera));
+    }
+    // bb1d: both passed it.
+    float BeamAlongBeamWeight(const PhotonBeam& aBeam, const BeamPair& aPair, const BeamMis& aQuery, const Medium& aMedium,
+                              const BsdfEval& aCameraSide) const {
+        const VcmMisConstants& c = mMisConstantsMedium;
+        float ratioCamera = 0.f, ratioLight = 0.f;
+        const SubpathMis camera = MisOnBeam(aQuery, aMedium, aPair.mT, true, ratioCamera);
+        const SubpathMis light = MisOnBeam(aBeam.mMis, mScene.GetMedium(aBeam.mMedium), aPair.mU, false, ratioLight);
+        const float merges = MergesAt(ratioLight, ratioCamera, aPair.mSinTheta);
+        return VcmMis::WeightMergeAmong(c, light, camera, aCameraSide.mDirPdfW, aCameraSide.mRevPdfW, merges,
+                                        c.Mis(c.mEtaBb1d * aPair.mSinTheta * ratioLight * ratioCamera));
     }
 
     // The stored light vertices of light sub-path aPath: [begin, end).
@@ -5466,7 +5759,7 @@ private:
 
     void AddTechniqueLayers() {
         for (int t = 0; t < kTechniqueCount; t++)
-            if (t != kMediumMerging || mScene.HasMedia()) mTechniqueLayers[t] = mFilm.AddLayer(kTechniqueLayerNames[t]);
+            if (t < kMediumMerging || mScene.HasMedia()) mTechniqueLayers[t] = mFilm.AddLayer(kTechniqueLayerNames[t]);
         if (mOptions.mAlgorithm != Algorithm::kBidirectionalPathTracing) return;
         for (int length = 1; length <= kPyramidMaxLength; length++)
             for (int s = 0; s <= length; s++) {
@@ -5519,14 +5812,38 @@ private:
     // light sub-path it ends (s = its path length), then the whole camera sub-path
     // backwards, so the merged point appears twice, once from each side.
     void RecordMerge(uint32_t aVertex, float aWeight) {
-        const size_t lightPath = size_t(std::upper_bound(mPathEnds.begin(), mPathEnds.end(), size_t(aVertex)) - mPathEnds.begin());
-        const std::vector<PathVertex>& light = mLightHistories[lightPath];
+        const std::vector<PathVertex>& light = mLightHistories[LightPathOfVertex(aVertex)];
         PathRecord record;
         record.mTechnique = kMerging;
         record.mLightVertexCount = mLightVertices[aVertex].mPathLength + 1;
         record.mWeight = aWeight;
         record.mVertices.assign(light.begin(), light.begin() + record.mLightVertexCount);
         record.mVertices.insert(record.mVertices.end(), mCameraHistory.rbegin(), mCameraHistory.rend());
+        mPathRecords->push_back(std::move(record));
+    }
+    size_t LightPathOfVertex(uint32_t aVertex) const {
+        return size_t(std::upper_bound(mPathEnds.begin(), mPathEnds.end(), size_t(aVertex)) - mPathEnds.begin());
+    }
+    // The same for pb2d and bb1d under upbp: the light side up to the photon point aVertex
+    // (pb2d) or up to the point at aU on photon beam aBeam (bb1d), then the point at aT on
+    // the camera's segment (piece aPiece, along aDirection) and the camera sub-path backwards.
+    void RecordBeamMerge(Technique aTechnique, uint32_t aVertex, const PhotonBeam* aBeam, const SegmentPiece& aPiece, float aT,
+                         const Vec3& aDirection, float aWeight, float aU = 0.f) {
+        PathRecord record;
+        record.mTechnique = aTechnique;
+        record.mWeight = aWeight;
+        std::vector<PathVertex>& path = record.mVertices;
+        if (aBeam) {
+            const std::vector<PathVertex>& light = mLightHistories[size_t(aBeam->mLightPath)];
+            path.assign(light.begin(), light.begin() + aBeam->mPathLength);
+            path.push_back(PathVertex{aBeam->mBeam.mStart + aU * aBeam->mBeam.mDirection, Vec3(0.f), -1, -1, kEventMedium, false, aBeam->mMedium});
+        } else {
+            const std::vector<PathVertex>& light = mLightHistories[LightPathOfVertex(aVertex)];
+            path.assign(light.begin(), light.begin() + mLightVertices[aVertex].mPathLength + 1);
+        }
+        record.mLightVertexCount = int(path.size());
+        path.push_back(PathVertex{aPiece.mStart + aT * aDirection, Vec3(0.f), -1, -1, kEventMedium, false, aPiece.mMedium});
+        path.insert(path.end(), mCameraHistory.rbegin(), mCameraHistory.rend());
         mPathRecords->push_back(std::move(record));
     }
 
@@ -5537,28 +5854,36 @@ private:
     PathVertex mNextEventVertex;
 
     bool mUseVC = false, mUseVM = false, mPpm = false, mLightTraceOnly = false;
-    bool mBeamQueries = false;    // pb2d and bb1d: camera segments gather along their length
+    bool mMergeSurfaces = false;      // merging at camera points on surfaces
+    bool mMergeMediumPoints = false;  // merging at camera points in media (pp3d)
+    bool mPointsAlongRaysOn = false;  // pb2d: camera segments gather the stored points in media
     bool mPhotonBeamsOn = false;  // bb1d: light segments are stored as photon beams, and gathered
+    bool mBeamQueries = false;    // pb2d or bb1d: camera segments gather along their length
+    bool mUpbp = false;           // upbp: all of the above that --techniques names, under one MIS
+    bool mBeamMis = false;        // upbp with pb2d or bb1d in a scene with media: the MIS knows beam merges
     bool mStoreBeams = false;     // bb1d: the light sub-path being traced stores its beams
+    int mLightPath = 0;           // the light sub-path being traced
     float mBaseRadius = 0.f;
     VcmMisConstants mMisConstants;        // of this iteration, at surface vertices
     VcmMisConstants mMisConstantsMedium;  // the same at points in media (ForMedium)
     // The MIS constants of the vertex a Bsdf was set up at (a surface or a medium point).
     const VcmMisConstants& MisAt(const Bsdf& aBsdf) const { return aBsdf.IsInMedium() ? mMisConstantsMedium : mMisConstants; }
     std::vector<LightVertex> mLightVertices;
+    std::vector<float> mLightRatios;  // upbp: each light vertex's mRatioIn (SubpathState), as mLightVertices
     std::vector<size_t> mPathEnds;  // mPathEnds[p]: one past the last vertex of light sub-path p
     RangeSearch<MergeData> mLightVertexSearch;   // the stored surface points
     RangeSearch<MergeData> mMediumVertexSearch;  // the stored points in media
     std::vector<uint32_t> mSurfaceVertexIndices, mMediumVertexIndices;  // each search's points in mLightVertices
-    RaySearch<MergeData> mPointsAlongRays;      // the stored points in media, for the beam radiance estimate
+    RaySearch<PhotonPoint> mPointsAlongRays;    // the stored points in media, for the beam radiance estimate
     std::vector<SegmentPiece> mSegmentPieces;   // of the camera segment just traced (its beams)
     std::vector<PhotonBeam> mPhotonBeams;       // bb1d: this iteration's
     BeamSearch<PhotonBeam> mBeamsAlongRays;     // bb1d: over mPhotonBeams
-    float mBeamKernel = 0.f;                    // 1 / (pi r^2 N_L) (pb2d) or 1 / (2 r N_B) (bb1d) of this iteration
+    float mPointBeamKernel = 0.f;               // pb2d's 1 / (pi r^2 N_L) of this iteration
+    float mBeamBeamKernel = 0.f;                // bb1d's 1 / (2 r N_B)
     std::vector<Bsdf> mPixelLightBsdfs;         // PixelLightBsdf's cache, for the current pixel
     std::vector<uint64_t> mPixelLightBsdfPath;  // the camera sub-path each entry was built for
     uint64_t mCameraPathNumber = 0;             // of the current camera sub-path, from 1
-    int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1, -1};
+    int mTechniqueLayers[kTechniqueCount] = {-1, -1, -1, -1, -1, -1, -1, -1};
     int mPyramidLayers[kPyramidMaxLength + 1][kPyramidMaxLength + 1][2] = {};
     int mLongerPathsLayer = -1;
 };
@@ -7486,6 +7811,9 @@ inline std::deque<Integrator> BuiltInIntegrators() {
         MakeBuiltIn<VertexCM>(Algorithm::kPhotonBeams,
                                     "photon beams: ppm whose camera rays gather the light sub-paths' segments in media "
                                     "passing within r (bb1d)", BeamQueryBytes),
+        MakeBuiltIn<VertexCM>(Algorithm::kUpbp,
+                                    "unified points, beams and paths: bpt, merging on surfaces and the point and beam "
+                                    "merges in media under one MIS (--techniques)", BeamQueryBytes),
     };
 }
 
@@ -7596,6 +7924,8 @@ inline void ValidateRenderOptions(const RenderOptions& aOptions) {
     if (!(aOptions.mBeamRadiusFactor > 0.f) || !(aOptions.mBeamRadiusFactor <= kMaxRadiusFactor))
         throw Error("beam radius factor: must be a number in (0, " + std::to_string(kMaxRadiusFactor) + "]");
     if (aOptions.mBeamPaths < 1) throw Error("beam paths: must be >= 1");
+    if (aOptions.mUpbpTechniques == 0 || (aOptions.mUpbpTechniques & ~uint32_t(kUpbpAll)) != 0)
+        throw Error("techniques: must be a non-empty subset of bpt,surf,pp3d,pb2d,bb1d");
     if (!(aOptions.mRadiusAlpha > 0.f && aOptions.mRadiusAlpha <= 1.f)) throw Error("radius alpha: must be in (0, 1]");
     if (aOptions.mPhotonCount < 1) throw Error("photon count: must be >= 1");
     if (aOptions.mNearestPhotons < 1) throw Error("nearest photons: must be >= 1");

@@ -111,6 +111,8 @@ void PrintHelp() {
         "  --beam-radius-factor F\n"
         "                      bb1d: the radius of photon beams, likewise (default 0.003)\n"
         "  --beam-paths N      bb1d: light sub-paths per iteration that store photon beams (default 4096)\n"
+        "  --techniques LIST   upbp: the techniques it combines, of bpt,surf,pp3d,pb2d,bb1d (default all);\n"
+        "                        a camera path hitting a light always counts\n"
         "  --radius-alpha A    radius shrinking exponent in (0, 1] (default 0.75)\n"
         "  --mis balance|power MIS heuristic (default balance)\n"
         "  --photons N         pm, pmfg: photons traced per iteration (default 200000)\n"
@@ -334,6 +336,13 @@ CommandLine Parse(int argc, char** argv) {
                 "a number in [1e-7, 0.25]");
         else if (arg == "--beam-paths")
             cl.mOptions.mBeamPaths = ParseNumber<int>(arg, value(i), 1, 1 << 30, "an integer in [1, 2^30]");
+        else if (arg == "--techniques") {
+            const std::string list = value(i);
+            const std::optional<uint32_t> techniques = smallvcm::ParseUpbpTechniques(list);
+            if (!techniques)
+                throw Error("--techniques: '" + list + "' is not a comma-separated list of distinct names of bpt, surf, pp3d, pb2d, bb1d");
+            cl.mOptions.mUpbpTechniques = *techniques;
+        }
         else if (arg == "--radius-alpha") {
             cl.mOptions.mRadiusAlpha = ParseNumber<float>(arg, value(i), 0.f, 1.f, "a number in (0, 1]");
             if (!(cl.mOptions.mRadiusAlpha > 0.f)) throw Error("--radius-alpha: '0' is not a number in (0, 1]");

@@ -417,7 +417,8 @@ inline bool TryGeneratePath(const Scene& aScene, Rng& aRng, FullPath& oPath) {
 // Techniques
 // ---------------------------------------------------------------------------------------
 
-enum class Kind { kCameraHitsLight, kNextEvent, kConnection, kLightTracing, kMerge };
+// kMergePb2d, kMergeBb1d: UPBP's merges along beams at a medium vertex (-a upbp).
+enum class Kind { kCameraHitsLight, kNextEvent, kConnection, kLightTracing, kMerge, kMergePb2d, kMergeBb1d };
 
 struct Technique {
     Kind kind;
@@ -431,6 +432,8 @@ inline std::string TechniqueName(const Technique& aTechnique) {
     case Kind::kConnection: return "s=" + std::to_string(aTechnique.index) + " (connection)";
     case Kind::kLightTracing: return "s=" + std::to_string(aTechnique.index) + " (light tracing)";
     case Kind::kMerge: return "merge at x_" + std::to_string(aTechnique.index);
+    case Kind::kMergePb2d: return "pb2d at x_" + std::to_string(aTechnique.index);
+    case Kind::kMergeBb1d: return "bb1d at x_" + std::to_string(aTechnique.index);
     }
     return "?";
 }
@@ -450,6 +453,22 @@ inline std::vector<Technique> Techniques(const FullPath& aPath, bool aUseVC, boo
     if (aUseVM)
         for (int i = 1; i <= k - 1; i++)
             if (!aPath.Specular(i)) techniques.push_back({Kind::kMerge, i});
+    return techniques;
+}
+// The same for UPBP with the techniques aSet (UpbpTechnique bits): bpt, merges on surfaces
+// (surf), and at medium vertices the point merge (pp3d) and the merges along beams.
+inline std::vector<Technique> UpbpTechniques(const FullPath& aPath, uint32_t aSet) {
+    std::vector<Technique> techniques = Techniques(aPath, (aSet & kUpbpBpt) != 0, false);
+    for (int i = 1; i <= aPath.K() - 1; i++) {
+        if (aPath.Specular(i)) continue;
+        if (!aPath.InMedium(i)) {
+            if (aSet & kUpbpSurface) techniques.push_back({Kind::kMerge, i});
+            continue;
+        }
+        if (aSet & kUpbpPp3d) techniques.push_back({Kind::kMerge, i});
+        if (aSet & kUpbpPb2d) techniques.push_back({Kind::kMergePb2d, i});
+        if (aSet & kUpbpBb1d) techniques.push_back({Kind::kMergeBb1d, i});
+    }
     return techniques;
 }
 
@@ -508,6 +527,10 @@ struct SegmentFlight {
     bool ok = false;       // unoccluded, and it ends where the path says
     double forward = 1.0;  // F_i: into p->(x_i)
     double reverse = 1.0;  // R_i: into p<-(x_{i-1})
+    // UPBP: a short beam's coverage over the free-flight density, P / (sigma_t T) averaged
+    // over the channels, of the last piece at x_i and of the first piece at x_{i-1} (the
+    // beam ratios R of the segment at each end in a medium; 0 otherwise).
+    double ratioEnd = 0.0, ratioStart = 0.0;
     int pieces = 0;
     int endMedium = -1;
     SurfacePoint endHit;   // the surface x_i is on (invalid for a medium point or the camera)
@@ -529,7 +552,10 @@ inline SegmentFlight WalkSegment(const Scene& aScene, const FullPath& aPath, int
     int medium = aStartMedium;
     for (int crossing = 0;; crossing++) {
         const double remaining = glm::length(DVec3(to) - DVec3(origin));
-        const SurfacePoint hit = aScene.Intersect(aScene.SpawnRay(origin, direction));
+        // From a point in a medium the walk starts at the point itself, as the renderer's
+        // LeaveVertex does (a boundary closer than the ray epsilon must not be skipped).
+        const bool fromMediumPoint = crossing == 0 && aI > 1 && aPath.InMedium(aI - 1);
+        const SurfacePoint hit = aScene.Intersect(fromMediumPoint ? Ray{origin, direction} : aScene.SpawnRay(origin, direction));
         if (hit.IsValid() && double(hit.mDist) < remaining - 2.0 * double(eps)) {
             // Something before the end: only an index-matched boundary lets the path through.
             if (!aScene.IsIndexMatchedBoundary(hit) || crossing >= kMaxMediumCrossings) return flight;
@@ -553,6 +579,8 @@ inline SegmentFlight WalkSegment(const Scene& aScene, const FullPath& aPath, int
         const FreeFlight f = DFreeFlight(aScene, pieces[p].second, pieces[p].first);
         flight.forward *= p == last && aPath.InMedium(aI) ? f.density : f.probability;
         flight.reverse *= p == 0 && aPath.InMedium(aI - 1) ? f.density : f.probability;
+        if (p == last && aPath.InMedium(aI)) flight.ratioEnd = f.probability / f.density;
+        if (p == 0 && aI > 1 && aPath.InMedium(aI - 1)) flight.ratioStart = f.probability / f.density;
     }
     flight.pieces = int(pieces.size());
     flight.endMedium = medium;
@@ -564,11 +592,15 @@ inline SegmentFlight WalkSegment(const Scene& aScene, const FullPath& aPath, int
 // the light; all 1 in a scene without media. False when a segment is occluded, does not
 // end where the path says, or the walk disagrees with a medium the renderer recorded (a
 // medium point's, or the camera's at the end).
+// oRatioEnd, oRatioStart (if given): SegmentFlight's beam ratios of each segment.
 inline bool SegmentFlights(const Scene& aScene, const FullPath& aPath, std::vector<double>& oForward, std::vector<double>& oReverse,
-                           int* oCrossingSegments = nullptr) {
+                           int* oCrossingSegments = nullptr, std::vector<double>* oRatioEnd = nullptr,
+                           std::vector<double>* oRatioStart = nullptr) {
     const int k = aPath.K();
     oForward.assign(size_t(k + 1), 1.0);
     oReverse.assign(size_t(k + 1), 1.0);
+    if (oRatioEnd) oRatioEnd->assign(size_t(k + 2), 0.0);
+    if (oRatioStart) oRatioStart->assign(size_t(k + 2), 0.0);
     if (!aScene.HasMedia()) return true;
     int medium = aScene.LightMedium(aPath.lightId);
     // Light from infinity is extinguished in an attenuating scene medium: no such path.
@@ -583,6 +615,8 @@ inline bool SegmentFlights(const Scene& aScene, const FullPath& aPath, std::vect
         if (oCrossingSegments && flight.pieces > 1) (*oCrossingSegments)++;
         oForward[size_t(i)] = flight.forward;
         oReverse[size_t(i)] = flight.reverse;
+        if (oRatioEnd) (*oRatioEnd)[size_t(i)] = flight.ratioEnd;
+        if (oRatioStart) (*oRatioStart)[size_t(i)] = flight.ratioStart;
         medium = flight.endMedium;
         previousHit = flight.endHit;
     }
@@ -598,6 +632,10 @@ struct BruteForcePdfs {
     // are points in a medium (whose merges have the 3D kernel).
     std::vector<double> flightForward, flightReverse;
     std::vector<char> inMedium;
+    // UPBP: per segment i its beam ratios at x_i (ratioEnd) and at x_{i-1} (ratioStart), so
+    // R->(x_i) = ratioEnd[i], R<-(x_i) = ratioStart[i+1]; per medium vertex sin theta between
+    // the segments into it from either side.
+    std::vector<double> ratioEnd, ratioStart, sinTheta;
 };
 
 inline bool ComputeBruteForcePdfs(const Scene& aScene, const FullPath& aPath, const PathBsdfs& aBsdfs, BruteForcePdfs& oPdfs) {
@@ -612,7 +650,11 @@ inline bool ComputeBruteForcePdfs(const Scene& aScene, const FullPath& aPath, co
     oPdfs.rev.assign(size_t(k + 1), 0.0);
     oPdfs.inMedium.assign(size_t(k + 1), 0);
     for (int i = 1; i < k; i++) oPdfs.inMedium[size_t(i)] = aPath.InMedium(i);
-    if (!SegmentFlights(aScene, aPath, oPdfs.flightForward, oPdfs.flightReverse)) return false;
+    if (!SegmentFlights(aScene, aPath, oPdfs.flightForward, oPdfs.flightReverse, nullptr, &oPdfs.ratioEnd, &oPdfs.ratioStart))
+        return false;
+    oPdfs.sinTheta.assign(size_t(k + 1), 0.0);
+    for (int i = 1; i < k; i++)
+        if (aPath.InMedium(i)) oPdfs.sinTheta[size_t(i)] = glm::length(glm::cross(DDir(aPath, i - 1, i), DDir(aPath, i, i + 1)));
     const std::vector<double>& flightF = oPdfs.flightForward;
     const std::vector<double>& flightR = oPdfs.flightReverse;
 
@@ -687,9 +729,12 @@ inline bool ComputeBruteForcePdfs(const Scene& aScene, const FullPath& aPath, co
     return true;
 }
 
-// aEta: pi r^2 N_L of a merge on a surface; aEtaMedium: (4/3) pi r_m^3 N_L of one in a medium.
+// aEta: pi r^2 N_L of a merge on a surface; aEtaMedium: (4/3) pi r_m^3 N_L of one in a medium;
+// UPBP's aEtaPb2d = pi r_m^2 N_L and aEtaBb1d = 2 r_b N_B, which the merges along beams
+// multiply by the beam ratio of each side that integrates along its segment (R<- for pb2d,
+// R-> R<- sin theta for bb1d) [Krivanek et al. 2014, sec. 5].
 inline double TechniquePdf(const BruteForcePdfs& aPdfs, const Technique& aTechnique, int aK, double aLightPathCount, double aEta,
-                           double aEtaMedium = 0.0) {
+                           double aEtaMedium = 0.0, double aEtaPb2d = 0.0, double aEtaBb1d = 0.0) {
     auto forwardProduct = [&](int aLast) {  // p->(x_0) .. p->(x_aLast), aLast >= 1
         double p = aPdfs.forward01;
         for (int i = 2; i <= aLast; i++) p *= aPdfs.fwd[size_t(i)];
@@ -708,16 +753,26 @@ inline double TechniquePdf(const BruteForcePdfs& aPdfs, const Technique& aTechni
     case Kind::kMerge:
         return (aPdfs.inMedium[size_t(aTechnique.index)] ? aEtaMedium : aEta) * forwardProduct(aTechnique.index) *
                reverseProduct(aTechnique.index);
+    case Kind::kMergePb2d: {
+        const size_t i = size_t(aTechnique.index);
+        return aEtaPb2d * aPdfs.ratioStart[i + 1] * forwardProduct(aTechnique.index) * reverseProduct(aTechnique.index);
+    }
+    case Kind::kMergeBb1d: {
+        const size_t i = size_t(aTechnique.index);
+        return aEtaBb1d * aPdfs.sinTheta[i] * aPdfs.ratioEnd[i] * aPdfs.ratioStart[i + 1] * forwardProduct(aTechnique.index) *
+               reverseProduct(aTechnique.index);
+    }
     }
     return 0.0;
 }
 
 inline std::vector<double> BruteForceWeights(const BruteForcePdfs& aPdfs, const std::vector<Technique>& aTechniques, int aK,
-                                      MisHeuristic aHeuristic, double aLightPathCount, double aEta, double aEtaMedium = 0.0) {
+                                      MisHeuristic aHeuristic, double aLightPathCount, double aEta, double aEtaMedium = 0.0,
+                                      double aEtaPb2d = 0.0, double aEtaBb1d = 0.0) {
     std::vector<double> weights;
     double sum = 0.0;
     for (const Technique& t : aTechniques) {
-        const double p = TechniquePdf(aPdfs, t, aK, aLightPathCount, aEta, aEtaMedium);
+        const double p = TechniquePdf(aPdfs, t, aK, aLightPathCount, aEta, aEtaMedium, aEtaPb2d, aEtaBb1d);
         weights.push_back(aHeuristic == MisHeuristic::kPower ? p * p : p);
         sum += weights.back();
     }
@@ -825,6 +880,8 @@ public:
             const float cameraRevPdfW = cameraEval.mRevPdfW * cameraBsdf.ContinuationProb();
             return VcmMis::WeightMerge(MisAt(i), mLightMis[size_t(i)], mCameraMis[size_t(i)], cameraDirPdfW, cameraRevPdfW);
         }
+        case Kind::kMergePb2d:
+        case Kind::kMergeBb1d: break;  // not replayed: the replay knows no beams (the recorded weights are checked)
         }
         return -1.f;
     }
@@ -1191,13 +1248,19 @@ inline bool PathFromVertices(const Scene& aScene, const std::vector<VertexCM::Pa
 // the scene).
 inline bool PathFromRecord(const Scene& aScene, const VertexCM::PathRecord& aRecord, FullPath& oPath, Technique& oTechnique) {
     const std::vector<VertexCM::PathVertex>& v = aRecord.mVertices;
-    if (aRecord.mTechnique == VertexCM::kMerging) {
+    // (pb2d and bb1d, under upbp, likewise: the light's point on its beam or its photon
+    // point, and the camera's point on its segment.)
+    const VertexCM::Technique recorded = aRecord.mTechnique;
+    if (recorded == VertexCM::kMerging || recorded == VertexCM::kPointBeamMerging || recorded == VertexCM::kBeamBeamMerging) {
         const size_t s = size_t(aRecord.mLightVertexCount);  // v[s - 1]: the light vertex, v[s]: the camera's
         if (s < 2 || s + 1 >= v.size()) return false;
         if (v[s - 1].mMaterialId != v[s].mMaterialId || v[s - 1].mMedium != v[s].mMedium) return false;
         std::vector<VertexCM::PathVertex> joined = v;
         joined.erase(joined.begin() + std::ptrdiff_t(s));
-        oTechnique = {Kind::kMerge, int(s) - 1};
+        const Kind kind = recorded == VertexCM::kPointBeamMerging  ? Kind::kMergePb2d
+                          : recorded == VertexCM::kBeamBeamMerging ? Kind::kMergeBb1d
+                                                                   : Kind::kMerge;
+        oTechnique = {kind, int(s) - 1};
         if (!PathFromVertices(aScene, joined, oPath)) return false;
         oPath.mergeAt = int(s) - 1;
         oPath.cameraX = v[s].mPosition;

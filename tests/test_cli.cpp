@@ -324,7 +324,7 @@ TEST_CASE("--help lists every built-in and the linked-in integrators with their 
     }
     const Run unknown = RunProgram("-a nosuch -q");
     CHECK(unknown.mExitCode == 2);
-    CHECK(unknown.mStderr == "smallvcm: -a: unknown algorithm 'nosuch' (el, pt, lt, pm, pmfg, ppm, bpm, bpt, vcm, pb2d, bb1d, mypt)\n");
+    CHECK(unknown.mStderr == "smallvcm: -a: unknown algorithm 'nosuch' (el, pt, lt, pm, pmfg, ppm, bpm, bpt, vcm, pb2d, bb1d, upbp, mypt)\n");
 }
 
 TEST_CASE("-a mypt renders the student's path tracer, the same image as Render in this process", "[cli][integrator_api]") {
@@ -566,6 +566,11 @@ TEST_CASE("Resource options beyond what the machine can do are refused with the 
         const std::string option = std::string(bad).substr(0, std::string(bad).find(' '));
         CheckFailure(RunProgram(Tiny(output) + " -s 2 -a bb1d " + bad), 2, option, output);
     }
+    // upbp's techniques: an empty list, unknown, repeated or empty names.
+    for (const char* bad : {"''", "bpt,", "bpt,bpt", "bpt,beams", "BPT", ",surf", "bpt,,pb2d"})
+        CheckFailure(RunProgram(Tiny(output) + " -s 2 -a upbp --techniques " + bad), 2, "--techniques", output);
+    CHECK(smallvcm::ParseUpbpTechniques("bb1d,bpt") == std::optional<uint32_t>(smallvcm::kUpbpBb1d | smallvcm::kUpbpBpt));
+    CHECK(smallvcm::ParseUpbpTechniques("bpt,surf,pp3d,pb2d,bb1d") == std::optional<uint32_t>(smallvcm::kUpbpAll));
     // 2^28 pixels of VCM: refused before any allocation wherever it would not fit in 3/4
     // of the memory (the estimate is the library's own, EstimateRenderBytes).
     smallvcm::Camera camera;

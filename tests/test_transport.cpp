@@ -736,9 +736,10 @@ TEST_CASE("Per length k = 1..4, every estimator and every BPT technique agree wi
     // and s3_t2 at k = 4, whose unweighted variance is that of the edges (see above).
     LengthAgreementSetup setup;
     setup.estimators = {Algorithm::kPathTracing, Algorithm::kLightTracing, Algorithm::kBidirectionalPhotonMapping,
-                        Algorithm::kVertexConnectionMerging, Algorithm::kBeamRadianceEstimate, Algorithm::kPhotonBeams};
+                        Algorithm::kVertexConnectionMerging, Algorithm::kBeamRadianceEstimate, Algorithm::kPhotonBeams,
+                        Algorithm::kUpbp};
     setup.estimatorIterations = {{512, 256, 128, 128}, {512, 256, 128, 128}, {512, 256, 128, 128}, {512, 256, 128, 128},
-                                 {512, 256, 128, 128}, {512, 256, 128, 128}};
+                                 {512, 256, 128, 128}, {512, 256, 128, 128}, {512, 256, 128, 128}};
     setup.references = {{1, 4, 512}};
     setup.allTechniques = true;
     setup.seed = 23;

@@ -315,7 +315,7 @@ Scene MediaScene(int aIndex, int aSize) {
 
 struct MediaComparison {
     int records = 0, compared = 0, unusable = 0, failures = 0, acrossEdges = 0;
-    int byTechnique[5] = {};
+    int byTechnique[7] = {};
     int withMediumVertex = 0, mediumMerges = 0, crossingPaths = 0;
     int replayed = 0, notReplayed = 0, replayFailures = 0;
     double maxRelError = 0.0, maxReplayRelError = 0.0, maxSumError = 0.0;
@@ -328,13 +328,22 @@ struct MediaComparison {
 // replayed (RecursiveWeights with VertexCM's media arguments: a merge's path taken
 // through the light's end of the merged vertex) against the brute force (kRelTolerance)
 // with the replayed weights of all techniques summing to one.
+// With aUpbp (a set of UpbpTechnique bits) the algorithm is upbp with those techniques
+// instead (aCase's heuristic and radius; photon beams of radius aBeamRadiusFactor from
+// every light sub-path), and the replay is left out (RecursiveWeights knows no beams).
 MediaComparison CompareRecordedWeightsInMedia(int aSceneIndex, const MisCase& aCase, float aMediumRadiusFactor, int aSize,
-                                              uint64_t aSeed) {
+                                              uint64_t aSeed, uint32_t aUpbp = 0, float aBeamRadiusFactor = 0.f) {
     const Scene scene = MediaScene(aSceneIndex, aSize);
     RenderOptions options;
     options.mAlgorithm = aCase.useVC && aCase.useVM ? Algorithm::kVertexConnectionMerging
                          : aCase.useVC             ? Algorithm::kBidirectionalPathTracing
                                                    : Algorithm::kBidirectionalPhotonMapping;
+    if (aUpbp) {
+        options.mAlgorithm = Algorithm::kUpbp;
+        options.mUpbpTechniques = aUpbp;
+        options.mBeamRadiusFactor = aBeamRadiusFactor;
+        options.mBeamPaths = aSize * aSize;
+    }
     options.mMisHeuristic = aCase.heuristic;
     options.mRadiusFactor = aCase.radiusFactor;
     options.mMediumRadiusFactor = aMediumRadiusFactor;
@@ -356,6 +365,8 @@ MediaComparison CompareRecordedWeightsInMedia(int aSceneIndex, const MisCase& aC
     const double radius = double(aCase.radiusFactor) * sceneRadius, mediumRadius = double(aMediumRadiusFactor) * sceneRadius;
     const double eta = pi * radius * radius * lightPathCount;
     const double etaMedium = 4.0 / 3.0 * pi * mediumRadius * mediumRadius * mediumRadius * lightPathCount;
+    const double beamRadius = double(aBeamRadiusFactor) * sceneRadius;
+    const double etaPb2d = pi * mediumRadius * mediumRadius * lightPathCount, etaBb1d = 2.0 * beamRadius * lightPathCount;
     const float floatRadius = aCase.radiusFactor * scene.GetSceneSphere().mRadius;
     const VcmMisConstants mis = VcmMisConstants::Make(aCase.heuristic, aCase.useVC, aCase.useVM, float(aSize * aSize), floatRadius);
     const VcmMisConstants misMedium = mis.ForMedium(floatRadius * (aMediumRadiusFactor / aCase.radiusFactor));
@@ -365,8 +376,9 @@ MediaComparison CompareRecordedWeightsInMedia(int aSceneIndex, const MisCase& aC
         result.records++;
         const std::vector<VertexCM::PathVertex>& v = record.mVertices;
         const size_t s = size_t(record.mLightVertexCount);
-        if (record.mTechnique == VertexCM::kMerging && s >= 1 && s < v.size() &&
-            (v[s - 1].mMaterialId != v[s].mMaterialId || v[s - 1].mMedium != v[s].mMedium)) {
+        const bool merge = record.mTechnique == VertexCM::kMerging || record.mTechnique == VertexCM::kPointBeamMerging ||
+                           record.mTechnique == VertexCM::kBeamBeamMerging;
+        if (merge && s >= 1 && s < v.size() && (v[s - 1].mMaterialId != v[s].mMaterialId || v[s - 1].mMedium != v[s].mMedium)) {
             result.acrossEdges++;  // two surfaces, or two media, within the radius: no single path
             continue;
         }
@@ -379,20 +391,20 @@ MediaComparison CompareRecordedWeightsInMedia(int aSceneIndex, const MisCase& aC
             result.unusable++;
             continue;
         }
-        const std::vector<Technique> techniques = Techniques(path, aCase.useVC, aCase.useVM);
+        const std::vector<Technique> techniques = aUpbp ? UpbpTechniques(path, aUpbp) : Techniques(path, aCase.useVC, aCase.useVM);
         size_t index = techniques.size();
         for (size_t t = 0; t < techniques.size(); t++)
             if (techniques[t].kind == technique.kind && techniques[t].index == technique.index) index = t;
         const double w = double(record.mWeight);
         double expected = -1.0;
         if (index < techniques.size())
-            expected = BruteForceWeights(pdfs, techniques, path.K(), aCase.heuristic, lightPathCount, eta, etaMedium)[index];
+            expected = BruteForceWeights(pdfs, techniques, path.K(), aCase.heuristic, lightPathCount, eta, etaMedium, etaPb2d, etaBb1d)[index];
         result.compared++;
         result.byTechnique[int(technique.kind)]++;
         bool anyMedium = false;
         for (int i = 1; i < path.K(); i++) anyMedium = anyMedium || path.InMedium(i);
         if (anyMedium) result.withMediumVertex++;
-        if (technique.kind == Kind::kMerge && path.InMedium(technique.index)) result.mediumMerges++;
+        if (technique.kind != Kind::kCameraHitsLight && technique.kind >= Kind::kMerge && path.InMedium(technique.index)) result.mediumMerges++;
         {
             std::vector<double> f, r;
             int crossing = 0;
@@ -413,7 +425,7 @@ MediaComparison CompareRecordedWeightsInMedia(int aSceneIndex, const MisCase& aC
         // The replay of every technique of the path. A merged vertex is taken at its light
         // end, which keeps the path a path unless a neighbour is specular (its specular
         // direction then misses the camera's end): those merges are left out of the replay.
-        if (path.mergeAt >= 0 && (path.Specular(path.mergeAt - 1) || path.Specular(path.mergeAt + 1))) {
+        if (aUpbp || (path.mergeAt >= 0 && (path.Specular(path.mergeAt - 1) || path.Specular(path.mergeAt + 1)))) {
             result.notReplayed++;
             continue;
         }
@@ -499,6 +511,41 @@ TEST_CASE("In scenes with media the weights VertexCM gives its own paths equal a
     CHECK(mediumPaths >= 5000);
     CHECK(mediumMerges >= 500);
     CHECK(crossing >= 500);
+}
+
+TEST_CASE("Under UPBP the weights VertexCM gives its own paths equal a brute-force sum over all techniques, merges along beams included", "[mis][media][upbp]") {
+    // -a upbp in the four media scenes with every technique (bpt, surf, pp3d, pb2d, bb1d)
+    // and with subsets, balance and power heuristic, one iteration at 24 x 24; radii larger
+    // than the defaults (points and pb2d 10 %, bb1d 3 % of the scene radius) so that many
+    // paths are made by merges along beams. Each recorded weight against the brute force
+    // (kRecordedRelTolerance: the recursion of VcmMis with the beam merges' deferred terms
+    // and the replayed segments of points on beams, against explicit products in double).
+    // A weight equal to the brute force for every technique that made a path is what makes
+    // the weights of all techniques of a path sum to one.
+    const uint32_t sets[] = {kUpbpAll, kUpbpBpt | kUpbpPb2d, kUpbpBpt | kUpbpBb1d, kUpbpSurface | kUpbpPp3d | kUpbpBb1d,
+                             kUpbpPb2d | kUpbpBb1d};
+    int total = 0, beamMerges[2] = {0, 0};
+    for (int s = 0; s < kMediaSceneCount; s++)
+        for (const MisCase& misCase : {kMisCases[0], kMisCases[1]})
+            for (uint32_t set : sets) {
+                if (misCase.heuristic == MisHeuristic::kPower && set != kUpbpAll) continue;
+                const MediaComparison c = CompareRecordedWeightsInMedia(s, misCase, 0.1f, 24, 201u + uint64_t(s), set, 0.03f);
+                total += c.compared;
+                beamMerges[0] += c.byTechnique[int(Kind::kMergePb2d)];
+                beamMerges[1] += c.byTechnique[int(Kind::kMergeBb1d)];
+                std::printf("[mis] upbp: scene %-22s %-12s techniques %2u: %5d paths (merges %d, pb2d %d, bb1d %d; %d across edges), "
+                            "%d unusable, max rel. error %.2e, %d failures\n",
+                            kMediaSceneNames[s], misCase.name, set, c.compared, c.byTechnique[int(Kind::kMerge)],
+                            c.byTechnique[int(Kind::kMergePb2d)], c.byTechnique[int(Kind::kMergeBb1d)], c.acrossEdges, c.unusable,
+                            c.maxRelError, c.failures);
+                INFO("scene " << kMediaSceneNames[s] << ", " << misCase.name << ", techniques " << set << ": " << c.compared
+                              << " recorded paths, " << c.failures << " disagree; largest relative error: " << c.worst);
+                CHECK(c.failures == 0);
+                CHECK(c.unusable <= c.records / 100 + 5);
+            }
+    std::printf("[mis] upbp: %d recorded paths, %d made by pb2d, %d by bb1d\n", total, beamMerges[0], beamMerges[1]);
+    CHECK(beamMerges[0] >= 1000);
+    CHECK(beamMerges[1] >= 1000);
 }
 
 TEST_CASE("With Sobol points, each pixel connecting to the light sub-path the sampler pairs it with, the recorded weights equal the brute force", "[mis]") {
