@@ -537,3 +537,71 @@ TEST_CASE("An integrator that does not say it traces media refuses a scene with 
     scene.Finalize();
     CHECK_NOTHROW(Render(scene, options));
 }
+
+TEST_CASE("UPBP: without its beam techniques it is bpt or vcm bit for bit; with them its technique layers sum to its image", "[media][upbp]") {
+    // The glass sphere in fog (a caustic in the medium, surfaces and glass): --techniques
+    // bpt is bpt, bpt,surf,pp3d is vcm (the beam merges' eta is 0, and nothing else
+    // changes), exactly, pixel by pixel. With every technique the layers (unidirectional,
+    // nee, light tracing, connection, merging, merging in media, pb2d, bb1d) partition the
+    // contributions, so they sum to the image within float rounding (1e-5 relative).
+    Scene scene = LoadGltfScene("../scenes/fog_caustic_box.gltf");
+    scene.mCamera.SetResolution(24, 24);
+    scene.Finalize();
+    RenderOptions options;
+    options.mIterations = 2;
+    options.mThreads = 1;
+    options.mProgress = false;
+    const auto render = [&](Algorithm aAlgorithm, uint32_t aTechniques) {
+        RenderOptions o = options;
+        o.mAlgorithm = aAlgorithm;
+        o.mUpbpTechniques = aTechniques;
+        return Render(scene, o);
+    };
+    const std::pair<Algorithm, uint32_t> pairs[] = {{Algorithm::kBidirectionalPathTracing, kUpbpBpt},
+                                                    {Algorithm::kVertexConnectionMerging, kUpbpBpt | kUpbpSurface | kUpbpPp3d}};
+    for (const auto& [algorithm, techniques] : pairs) {
+        const Image expected = render(algorithm, kUpbpAll).mImage;
+        const Image upbp = render(Algorithm::kUpbp, techniques).mImage;
+        int different = 0;
+        for (int y = 0; y < 24; y++)
+            for (int x = 0; x < 24; x++) different += expected.At(x, y) != upbp.At(x, y);
+        INFO(AlgorithmShortName(algorithm) << ": " << different << " of 576 pixels differ");
+        CHECK(different == 0);
+    }
+    options.mTechniqueLayers = true;
+    const RenderResult all = render(Algorithm::kUpbp, kUpbpAll);
+    std::vector<std::string> names;
+    for (const auto& layer : all.mLayers) names.push_back(layer.first);
+    for (const char* name : {"pb2d", "bb1d", "merging_in_media", "connection"})
+        CHECK(std::find(names.begin(), names.end(), name) != names.end());
+    double worst = 0.0;
+    for (int y = 0; y < 24; y++)
+        for (int x = 0; x < 24; x++) {
+            Vec3 sum(0.f);
+            for (const auto& layer : all.mLayers) sum += layer.second.At(x, y);
+            const Vec3 pixel = all.mImage.At(x, y);
+            for (int c = 0; c < 3; c++) worst = std::max(worst, std::abs(double(sum[c]) - double(pixel[c])) / (std::abs(double(pixel[c])) + 1e-6));
+        }
+    INFO("largest relative difference between the layers' sum and the image: " << worst);
+    CHECK(worst <= 1e-5);
+}
+
+TEST_CASE("UPBP keeps the medium furnace's radiance Le / (1 - a) with every technique and with beams alone beside bpt", "[media][upbp]") {
+    // As the furnace test above (4 standard errors of the image mean + 1e-3 relative).
+    const float albedo = 0.5f, emitted = 1.f;
+    const double expected = emitted / (1.0 - albedo);
+    const Scene scene = MakeMediumFurnace(albedo, emitted, 1.f, 0.4f, 24, 24);
+    for (uint32_t techniques : {uint32_t(kUpbpAll), uint32_t(kUpbpBpt | kUpbpPb2d | kUpbpBb1d)}) {
+        RenderOptions options;
+        options.mAlgorithm = Algorithm::kUpbp;
+        options.mUpbpTechniques = techniques;
+        options.mIterations = 16;
+        options.mSeed = 19;
+        options.mMaxPathLength = 64;
+        options.mProgress = false;
+        const MeanAndError stats = PixelStatistics(Render(scene, options).mImage);
+        std::printf("[media] upbp furnace, techniques %u: mean %.5f +- %.5f, expected %.5f\n", techniques, stats.mean, stats.standardError, expected);
+        INFO("techniques " << techniques << ": mean " << stats.mean << " +- " << stats.standardError << ", expected " << expected);
+        CHECK(std::abs(stats.mean - expected) <= 4.0 * stats.standardError + 1e-3 * expected);
+    }
+}
