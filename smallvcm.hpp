@@ -4643,7 +4643,9 @@ inline float BeamMerges(const VcmMisConstants& c, float aRatioLight, float aRati
 // medium; no d^2 for a segment that left the scene), so the beam merges' term is the same
 // product; dVM = dVC / eta_surface as in (36).
 inline void AfterBeamMergesBehind(const VcmMisConstants& c, SubpathMis& m, float aReverseGeometry, float aBeamMerges) {
-    if (!(aReverseGeometry > 0.f)) return;  // a segment that nothing could sample back
+    // A segment that nothing could sample back, or of length 0 (a free flight of exactly 0,
+    // a set of measure zero): no finite term.
+    if (!(aReverseGeometry > 0.f) || !std::isfinite(aReverseGeometry)) return;
     const float merges = m.dVCM * c.Mis(aReverseGeometry) * aBeamMerges;
     m.dVC += merges;
     m.dVM += merges * c.mInvEtaWeight;
@@ -5683,9 +5685,14 @@ private:
         const float merges = MergesAt(mLightRatios[aIndex], aCamera.mRatioIn, SinBetween(aVertex.mDirFix, aCamera.mDirection));
         return VcmMis::WeightMergeAmong(c, aVertex.mMis, aCamera.mMis, aCameraSide.mDirPdfW, aCameraSide.mRevPdfW, merges, c.mVmWeightFactor);
     }
+    // A point on a beam at its segment's start vertex itself (in float) has a replayed
+    // segment of length 0, whose pdf is not finite: such meetings (a set of measure zero)
+    // are left out, by their weight 0.
+    static bool AwayFromStart(const BeamMis& aBeam, float aT) { return aBeam.mOffset + aT > 0.f; }
     // pb2d: the light sampled x_i, the camera passed it.
     float PointAlongBeamWeight(const PhotonPoint& aVertex, const BeamMis& aQuery, const Medium& aMedium, float aT, const Vec3& aDirection,
                                const BsdfEval& aCameraSide) const {
+        if (!AwayFromStart(aQuery, aT)) return 0.f;
         const VcmMisConstants& c = mMisConstantsMedium;
         float ratioCamera = 0.f;
         const SubpathMis camera = MisOnBeam(aQuery, aMedium, aT, true, ratioCamera);
@@ -5696,6 +5703,7 @@ private:
     // bb1d: both passed it.
     float BeamAlongBeamWeight(const PhotonBeam& aBeam, const BeamPair& aPair, const BeamMis& aQuery, const Medium& aMedium,
                               const BsdfEval& aCameraSide) const {
+        if (!AwayFromStart(aQuery, aPair.mT) || !AwayFromStart(aBeam.mMis, aPair.mU)) return 0.f;
         const VcmMisConstants& c = mMisConstantsMedium;
         float ratioCamera = 0.f, ratioLight = 0.f;
         const SubpathMis camera = MisOnBeam(aQuery, aMedium, aPair.mT, true, ratioCamera);
