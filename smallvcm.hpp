@@ -5095,6 +5095,7 @@ private:
             if (light.mPathLength + 2 > mOptions.mMaxPathLength) return;
             const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, segment, light);
             if (!scatter) return;
+            if (mBeamMis && segment.mInMedium) light.mSinOut = SinBetween(ray.mDirection, scatter->mDirection);
             if (mPathRecords && scatter->IsSpecular()) mLightHistories.back().back().mEvent = scatter->mEvent;
         }
     }
@@ -5217,6 +5218,7 @@ private:
 
             const std::optional<ScatterSample> scatter = SampleScattering(aSampler, bsdf, segment, cam);
             if (!scatter) return;
+            if (mBeamMis && segment.mInMedium) cam.mSinOut = SinBetween(ray.mDirection, scatter->mDirection);
             if (mPathRecords && scatter->IsSpecular()) mCameraHistory.back().mEvent = scatter->mEvent;
             // PPM's camera path ends where it merged; only a specular component (of a
             // mixed material) carries it on, to find the next non-specular vertex.
@@ -5311,7 +5313,6 @@ private:
         // The cosine converts the reverse pdf at this vertex to area: the geometric one.
         VcmMis::AfterScatter(MisAt(aBsdf), aState.mMis, aBsdf.GeometricCos(scatter->mDirection, scatter->mCosThetaOut),
                              scatter->mPdfW, scatter->mReversePdfW, specular);
-        if (mBeamMis && aVertex.mInMedium) aState.mSinOut = SinBetween(aState.mDirection, scatter->mDirection);
         aState.mOrigin = aVertex.Position();
         aState.mDirection = scatter->mDirection;
         aState.mMedium = MediumTowards(mScene, aVertex, scatter->mDirection);
