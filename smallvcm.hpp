@@ -5359,7 +5359,7 @@ private:
         // importance, f_s times the adjoint factor; Bsdf notes). Equal on flat surfaces.
         const float cameraPdfA = CameraPdfA(dirToCamera, distance, aBsdf.GeometricCos(dirToCamera, toCamera.mCosThetaGen)) *
                                  media.Pdfs(aVertex.mInMedium, false).mReverse;
-        const float beamMerges = mBeamMis && aVertex.mInMedium
+        const float beamMerges = mBeamMis && aVertex.mInMedium && !IsBlack(media.mTransmittance)
                                      ? VcmMis::BeamMerges(mMisConstants, aLight.mRatioIn, media.FirstRatio(), SinBetween(aLight.mDirection, dirToCamera))
                                      : 0.f;
         const float weight = mLightTraceOnly ? 1.f : VcmMis::WeightLightTracing(MisAt(aBsdf), aLight.mMis, cameraPdfA, toCamera.mRevPdfW, beamMerges);
@@ -5440,7 +5440,7 @@ private:
         if (media.mOccluded) return {};
         const SegmentPdfs flight = media.Pdfs(aVertex.mInMedium, false);
         const float directPdfW = sample->mDirectPdfW * pick.mProb;
-        const float beamMerges = mBeamMis && aVertex.mInMedium
+        const float beamMerges = mBeamMis && aVertex.mInMedium && !IsBlack(media.mTransmittance)
                                      ? VcmMis::BeamMerges(mMisConstants, media.FirstRatio(), aCamera.mRatioIn,
                                                           SinBetween(aCamera.mDirection, sample->mDirToLight))
                                      : 0.f;
@@ -5480,9 +5480,11 @@ private:
         // carries the adjoint factor, so f cos is f_path |cos_geometric|: Bsdf notes);
         // the pdfs change measure at the other vertex by its geometric cosine.
         const float geometryTerm = cameraSide.mCosThetaGen * lightSide.mCosThetaGen / distanceSqr;
-        // The merges each end could have made: UPBP's beam merges at ends in media too.
+        // The merges each end could have made: UPBP's beam merges at ends in media too (not
+        // where nothing gets through, e.g. to the sun through a medium filling all space:
+        // there R's P and p both underflow to 0, and the contribution is 0 whatever the weight).
         float lightMerges = MisAt(aLightBsdf).mVmWeightFactor, cameraMerges = MisAt(aBsdf).mVmWeightFactor;
-        if (mBeamMis) {
+        if (mBeamMis && !IsBlack(media.mTransmittance)) {
             if (aVertex.mInMedium)
                 lightMerges += VcmMis::BeamMerges(mMisConstants, mLightRatios[aIndex], media.LastRatio(), SinBetween(aVertex.mDirFix, direction));
             if (aCameraVertex.mInMedium)

@@ -605,3 +605,29 @@ TEST_CASE("UPBP keeps the medium furnace's radiance Le / (1 - a) with every tech
         CHECK(std::abs(stats.mean - expected) <= 4.0 * stats.standardError + 1e-3 * expected);
     }
 }
+
+TEST_CASE("UPBP renders finite images where a medium fills all space under the sun and a background", "[media][upbp]") {
+    // Cornell 0 (the sun through an open box) and 3 (a background) filled with fog: next-event
+    // estimation towards a light at infinity crosses an infinite medium, where the beam
+    // ratio's P and p both underflow to 0 (this once made upbp's weights NaN).
+    for (int cornell : {0, 3}) {
+        Scene scene = testutil::LoadCornell(cornell, 16, 16);
+        Medium fog;
+        fog.mName = "fog";
+        fog.mSigmaA = Vec3(0.02f);
+        fog.mSigmaS = Vec3(0.2f);
+        fog.mG = 0.3f;
+        scene.mSceneMedium = scene.AddMedium(fog);
+        scene.Finalize();
+        RenderOptions options;
+        options.mAlgorithm = Algorithm::kUpbp;
+        options.mIterations = 2;
+        options.mThreads = 1;
+        options.mProgress = false;
+        const Image image = Render(scene, options).mImage;
+        int bad = 0;
+        for (const Vec3& p : image.mPixels) bad += !(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && p.x >= 0.f);
+        INFO("Cornell " << cornell << " in fog: " << bad << " pixels not finite or negative");
+        CHECK(bad == 0);
+    }
+}
