@@ -4807,13 +4807,16 @@ public:
     // and u = (q - b p) / (1 - b^2), and sin theta = sqrt(1 - b^2). The pair counts if the
     // lines pass within aRadius of each other there, with 0 <= t <= aLength and 0 <= u <=
     // the beam's length. Nearly parallel lines (sin theta < 1e-4) are left out: the
-    // estimate divides by sin theta, and their share of the directions is ~1e-8.
+    // estimate divides by sin theta, and their share of the directions is ~1e-8. Most
+    // beams a search tries pass far off; the lines' distance, |d . n| / |n| with
+    // n = w x w_b and |n| = sin theta, turns those away before t and u are found.
     static std::optional<BeamPair> Closest(const Vec3& aOrigin, const Vec3& aDirection, float aLength, const Beam& aBeam,
                                            float aRadius) {
         const Vec3 d = aOrigin - aBeam.mStart;
         const float b = glm::dot(aDirection, aBeam.mDirection);
         const float sinSqr = 1.f - b * b;
         if (!(sinSqr >= 1e-8f)) return std::nullopt;
+        if (!(Sqr(glm::dot(d, glm::cross(aDirection, aBeam.mDirection))) <= Sqr(aRadius) * sinSqr)) return std::nullopt;
         const float p = glm::dot(aDirection, d), q = glm::dot(aBeam.mDirection, d);
         const float t = (b * q - p) / sinSqr, u = (q - b * p) / sinSqr;
         if (!(t >= 0.f && t <= aLength && u >= 0.f && u <= aBeam.mLength)) return std::nullopt;
