@@ -1055,7 +1055,7 @@ def closed_sphere_mesh(subdivisions, centre, radius):
 FOG = {"sigmaA": [0.01, 0.01, 0.01], "sigmaS": [0.1, 0.1, 0.1], "g": 0.3}
 
 
-def build_fog_caustic_box():
+def build_fog_caustic_box(with_block=False):
     """F20, the volumetric twin of F08/F13: a closed room filled with fog (the scene
     medium), a spot light under the ceiling whose beam falls wholly on a floating glass
     sphere (r 0.25, ior 1.5, 0.85 below the spot: the sphere spans 17.1 degrees, the beam
@@ -1064,9 +1064,20 @@ def build_fog_caustic_box():
     standing by the left wall, turned towards the camera, shows the cone from its side.
     The spot is a delta light: no camera path can hit it, so the cone seen in the mirror
     (light -> S -> S -> fog -> mirror -> eye) is out of reach of every technique but
-    merging in the medium."""
-    scene = MediaScene("fog caustic box: a glass sphere focuses a lamp into a cone of light in fog",
-                       "F20: fog (scene-wide SMALLVCM_medium), a glass sphere under a small lamp, a mirror.")
+    merging in the medium.
+
+    with_block: F22's scene, the same with a dense block (F21's dense medium, mean free
+    path 0.1, behind an index-matched boundary) on the floor where the cone lands. Three
+    kinds of transport side by side: the cone in the thin fog (photon beams' case), the
+    block (photon points' and paths' case), and both seen in the mirror, where no
+    connection reaches them: only merging in a medium renders them there."""
+    if with_block:
+        scene = MediaScene("glass fog block: a glass sphere focuses a lamp into a cone of light in fog, onto a dense block",
+                           "F22: fog (scene-wide SMALLVCM_medium), a glass sphere under a small lamp, a mirror, "
+                           "a dense block (SMALLVCM_medium on a closed box) on the floor.")
+    else:
+        scene = MediaScene("fog caustic box: a glass sphere focuses a lamp into a cone of light in fog",
+                           "F20: fog (scene-wide SMALLVCM_medium), a glass sphere under a small lamp, a mirror.")
     walls = room_materials(scene)
     scene.material("glass", {"name": "glass", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
                                                                        "metallicFactor": 0.0, "roughnessFactor": 0.0},
@@ -1087,8 +1098,15 @@ def build_fog_caustic_box():
     half_w, half_h = 0.35, 0.65
     corner = tuple(centre[i] - half_w * u[i] - half_h * (0.0, 0.0, 1.0)[i] for i in range(3))
     scene.quad("mirror panel (facing the room)", corner, (0.0, 0.0, 2 * half_h), tuple(2 * half_w * c for c in u), "mirror")
-    doc = scene.finish(look_at_camera(eye, (0.0, 0.0, 0.75), 45.0), ["F20"], {"SMALLVCM_medium": FOG})
-    return doc
+    if with_block:
+        scene.material("block", {"name": "dense medium (index-matched boundary)",
+                                 "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0],
+                                                          "metallicFactor": 0.0, "roughnessFactor": 0.6},
+                                 "extensions": {"SMALLVCM_medium": DENSE_BLOCK}})
+        positions, faces = closed_box_mesh((-0.3, -0.3, 0.001), (0.3, 0.3, 0.25))
+        scene.mesh("dense block (closed box)", positions, faces, "block")
+    return scene.finish(look_at_camera(eye, (0.0, 0.0, 0.75), 45.0), ["F22" if with_block else "F20"],
+                        {"SMALLVCM_medium": FOG})
 
 
 def build_dense_scattering_sphere():
@@ -1191,6 +1209,7 @@ def build_spot_in_medium(dense):
 # (file name, builder) of the media scenes: builders return the glTF document.
 MEDIA_SCENES = [
     ("fog_caustic_box.gltf", build_fog_caustic_box),
+    ("glass_fog_block.gltf", lambda: build_fog_caustic_box(with_block=True)),
     ("dense_scattering_sphere.gltf", build_dense_scattering_sphere),
     ("absorbing_glass.gltf", build_absorbing_glass),
     ("spot_in_thin_fog.gltf", lambda: build_spot_in_medium(False)),
