@@ -269,6 +269,11 @@ struct ReferenceSpec {
     int mIterations = 0;         // in total, half per seed
     std::string mWhy;            // why this estimator is trustworthy on this scene
     int mMaxPathLength = 10;
+    // Options that differ from the defaults only for some references (recorded then):
+    float mMediumRadiusFactor = RenderOptions().mMediumRadiusFactor;  // photon points in media
+    uint32_t mUpbpTechniques = RenderOptions().mUpbpTechniques;       // upbp's techniques
+    int mBeamPaths = RenderOptions().mBeamPaths;                       // light sub-paths storing beams
+    std::string mTag;            // a second reference of the same scene and size: its file's suffix
 };
 
 struct Reference {
@@ -300,12 +305,19 @@ inline Json ReferenceSettings(const Kit& aKit, const ReferenceSpec& aSpec) {
     settings["iterations"] = aSpec.mIterations;
     settings["max_path_length"] = aSpec.mMaxPathLength;
     settings["seeds"] = {kReferenceSeedA, kReferenceSeedB};
+    // Recorded only where it differs from the default, so the other references' records
+    // still match.
+    const RenderOptions defaults;
+    if (aSpec.mMediumRadiusFactor != defaults.mMediumRadiusFactor) settings["medium_radius_factor"] = aSpec.mMediumRadiusFactor;
+    if (aSpec.mUpbpTechniques != defaults.mUpbpTechniques) settings["upbp_techniques"] = aSpec.mUpbpTechniques;
+    if (aSpec.mBeamPaths != defaults.mBeamPaths) settings["beam_paths"] = aSpec.mBeamPaths;
     return settings;
 }
 
 inline Reference GetReference(const Kit& aKit, const ReferenceSpec& aSpec) {
     const std::string stem = aKit.ReferenceFolder() + "/" + fs::path(aSpec.mScene).stem().string() + "_" +
-                             std::to_string(aSpec.mWidth) + "x" + std::to_string(aSpec.mHeight);
+                             std::to_string(aSpec.mWidth) + "x" + std::to_string(aSpec.mHeight) +
+                             (aSpec.mTag.empty() ? "" : "_" + aSpec.mTag);
     const Json settings = ReferenceSettings(aKit, aSpec);
     Reference reference;
     std::ifstream recordFile(stem + ".json");
@@ -328,6 +340,9 @@ inline Reference GetReference(const Kit& aKit, const ReferenceSpec& aSpec) {
     const Scene scene = LoadScene(aKit, aSpec.mScene, aSpec.mWidth, aSpec.mHeight);
     RenderOptions options = BaseOptions(aKit, aSpec.mAlgorithm);
     options.mMaxPathLength = aSpec.mMaxPathLength;
+    options.mMediumRadiusFactor = aSpec.mMediumRadiusFactor;
+    options.mUpbpTechniques = aSpec.mUpbpTechniques;
+    options.mBeamPaths = aSpec.mBeamPaths;
     options.mSeed = kReferenceSeedA;
     const RenderResult a = RenderIterations(scene, options, std::max(1, aSpec.mIterations / 2));
     options.mSeed = kReferenceSeedB;

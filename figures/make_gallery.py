@@ -21,7 +21,7 @@ import json
 import os
 import sys
 
-EXPECTED = ["F%02d" % i for i in range(1, 22)]
+EXPECTED = ["F%02d" % i for i in range(1, 23)]
 
 
 def number(value):
