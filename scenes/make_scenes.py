@@ -1055,6 +1055,16 @@ def closed_sphere_mesh(subdivisions, centre, radius):
 FOG = {"sigmaA": [0.01, 0.01, 0.01], "sigmaS": [0.1, 0.1, 0.1], "g": 0.3}
 
 
+def add_dense_block(scene, lo, hi):
+    """A closed box from lo to hi of DENSE_BLOCK behind an index-matched boundary."""
+    scene.material("block", {"name": "dense medium (index-matched boundary)",
+                             "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0],
+                                                      "metallicFactor": 0.0, "roughnessFactor": 0.6},
+                             "extensions": {"SMALLVCM_medium": DENSE_BLOCK}})
+    positions, faces = closed_box_mesh(lo, hi)
+    scene.mesh("dense block (closed box)", positions, faces, "block")
+
+
 def build_fog_caustic_box(with_block=False):
     """F20, the volumetric twin of F08/F13: a closed room filled with fog (the scene
     medium), a spot light under the ceiling whose beam falls wholly on a floating glass
@@ -1099,12 +1109,7 @@ def build_fog_caustic_box(with_block=False):
     corner = tuple(centre[i] - half_w * u[i] - half_h * (0.0, 0.0, 1.0)[i] for i in range(3))
     scene.quad("mirror panel (facing the room)", corner, (0.0, 0.0, 2 * half_h), tuple(2 * half_w * c for c in u), "mirror")
     if with_block:
-        scene.material("block", {"name": "dense medium (index-matched boundary)",
-                                 "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0],
-                                                          "metallicFactor": 0.0, "roughnessFactor": 0.6},
-                                 "extensions": {"SMALLVCM_medium": DENSE_BLOCK}})
-        positions, faces = closed_box_mesh((-0.3, -0.3, 0.001), (0.3, 0.3, 0.25))
-        scene.mesh("dense block (closed box)", positions, faces, "block")
+        add_dense_block(scene, (-0.3, -0.3, 0.001), (0.3, 0.3, 0.25))
     return scene.finish(look_at_camera(eye, (0.0, 0.0, 0.75), 45.0), ["F22" if with_block else "F20"],
                         {"SMALLVCM_medium": FOG})
 
@@ -1197,12 +1202,7 @@ def build_spot_in_medium(dense):
     camera = look_at_camera((0.0, -2.3, 1.0), (0.0, 0.2, 0.9), 50.0)
     if not dense:
         return scene.finish(camera, ["F21"], {"SMALLVCM_medium": THIN_FOG})
-    scene.material("block", {"name": "dense medium (index-matched boundary)",
-                             "pbrMetallicRoughness": {"baseColorFactor": [0.95, 0.95, 0.95, 1.0],
-                                                      "metallicFactor": 0.0, "roughnessFactor": 0.6},
-                             "extensions": {"SMALLVCM_medium": DENSE_BLOCK}})
-    positions, faces = closed_box_mesh((-0.4, -0.4, 0.001), (0.4, 0.4, 0.8))
-    scene.mesh("dense block (closed box)", positions, faces, "block")
+    add_dense_block(scene, (-0.4, -0.4, 0.001), (0.4, 0.4, 0.8))
     return scene.finish(camera, ["F21"])
 
 
