@@ -513,9 +513,8 @@ TEST_CASE("Photon points, the beam radiance estimate and photon beams alone lose
     // their spread. Checks, with tolerances from those SEs: the largest radius's bias is
     // resolved (beyond 6 SE of estimator and reference: the sweep can see it), and each
     // smaller radius has a smaller bias, by more than 3 SE of the two estimates'
-    // difference. Measured when written: pp3d -38, -28, -20 %; pb2d -40, -20, -6 %;
-    // bb1d -35, -16, -3.5 % (SEs 0.3-2 %). Shown able to fail: bb1d's kernel 1 / (2 r N_B)
-    // made 10 % too bright gives -27, -7, +7 %, and the last step fails. (The per-length
+    // difference. Shown able to fail: bb1d's kernel 1 / (2 r N_B) made 10 % too bright
+    // fails the last step (docs/testing.md has the measured biases). (The per-length
     // agreement at the default radii is the medium room's test in test_transport.cpp.)
     Scene scene = LoadGltfScene("../scenes/spot_in_dense_block.gltf");
     scene.mCamera.SetResolution(16, 16);
